@@ -1,0 +1,2 @@
+"""Experiment management for pEDAS driving-simulator studies: the DuckDB store, participants, protocol,
+exclusions, drive logs, the survey instrument and its web form, import/export and the `pedas-study` CLI."""

@@ -1,0 +1,56 @@
+"""Shared fixtures: a temporary store and a CLI runner (in-process and as a subprocess)."""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+OUTPUT = REPO / "tests" / "output"  # screenshots and other artefacts a person may want to look at
+
+
+@dataclass
+class CliResult:
+    code: int
+    out: str
+    err: str
+
+
+@pytest.fixture
+def tmp_db(tmp_path) -> Path:
+    """Path of a fresh (not yet initialised) store."""
+    return tmp_path / "study.duckdb"
+
+
+@pytest.fixture
+def cli(tmp_db, capsys):
+    """Run `pedas-study --db tmp_db ARGS...` in-process; returns CliResult(code, out, err)."""
+    from study.cli import main
+
+    def run(*args: str, db: Path | None = tmp_db) -> CliResult:
+        argv = ([f"--db={db}"] if db is not None else []) + [str(a) for a in args]
+        capsys.readouterr()
+        try:
+            code = main(argv)
+        except SystemExit as exc:  # argparse usage errors
+            code = exc.code if isinstance(exc.code, int) else 2
+        cap = capsys.readouterr()
+        return CliResult(code, cap.out, cap.err)
+
+    return run
+
+
+@pytest.fixture
+def cli_proc(tmp_db):
+    """Run `pedas-study --db tmp_db ARGS...` as a separate process (for kill/concurrency tests)."""
+    def run(*args: str, db: Path | None = tmp_db, timeout: float = 600, **kw) -> CliResult:
+        argv = [sys.executable, "-m", "study.cli"] + ([f"--db={db}"] if db is not None else []) + [str(a) for a in args]
+        env = {**os.environ, **kw.pop("env", {})}
+        p = subprocess.run(argv, capture_output=True, text=True, timeout=timeout, env=env, cwd=REPO, **kw)
+        return CliResult(p.returncode, p.stdout, p.stderr)
+
+    return run
