@@ -1,9 +1,14 @@
 """The survey instrument as data: a versioned codebook (one row per item, in the spirit of a REDCap data
 dictionary) shipped in `study/instruments/<name>_v<N>.csv`.
 
-Columns: item_id, construct, section, text, response_type (likert5 | semantic5 | text), scale_min, scale_max,
-anchor_low, anchor_high, reverse_scored (0/1), required (0/1), reconstructed (0/1: wording not printed in the
+Columns: item_id, construct, section, text, response_type (likert5 | semantic5 | text | number | choice),
+scale_min, scale_max (inclusive range of a scaled, number or choice item), anchor_low, anchor_high (labels of the
+two scale ends), choices (``code=label|code=label`` for choice items), reverse_scored (0/1), required (0/1: the web
+form refuses to submit without it; an import needs the column), reconstructed (0/1: wording not printed in the
 paper), source (where the wording comes from).
+
+The socio-demographic block (construct ``DEMO``: AGE, GENDER, LICENSE_YEARS, STYLE, ECO_FAM) is answered with
+integers like every other non-text item: numbers as given, choices as their codes.
 """
 from __future__ import annotations
 
@@ -16,6 +21,20 @@ import pandas as pd
 INSTRUMENT_DIR = Path(__file__).with_name("instruments")
 DEFAULT_INSTRUMENT = "pedas_acceptance_v1"
 SCALED_TYPES = ("likert5", "semantic5")
+DEMOGRAPHIC_TYPES = ("number", "choice")
+MAX_TEXT = 5000  # characters kept for one free-text answer
+
+
+@dataclass(frozen=True)
+class Answer:
+    """One parsed answer: `value` for integer items, `text` for free text; both None = missing."""
+
+    value: int | None = None
+    text: str | None = None
+
+    @property
+    def missing(self) -> bool:
+        return self.value is None and self.text is None
 
 
 @dataclass(frozen=True)
@@ -48,6 +67,76 @@ class Instrument:
         scaled = self.items.loc[self.scaled_items]
         return {c: g.index.tolist() for c, g in scaled.groupby("construct", sort=False)}
 
+    @property
+    def demographic_items(self) -> list[str]:
+        """The socio-demographic / eco-familiarity block (number and choice items), in order."""
+        return self.items.index[self.items["response_type"].isin(DEMOGRAPHIC_TYPES)].tolist()
+
+    @property
+    def integer_items(self) -> list[str]:
+        """Every item whose answer is an integer (scaled, number and choice items)."""
+        return self.items.index[self.items["response_type"] != "text"].tolist()
+
+    @property
+    def required_items(self) -> list[str]:
+        return self.items.index[self.items["required"] == 1].tolist()
+
+    @property
+    def sections(self) -> list[tuple[str, list[str]]]:
+        """(section title, item ids) in questionnaire order."""
+        out: list[tuple[str, list[str]]] = []
+        for item, section in self.items["section"].items():
+            if not out or out[-1][0] != section:
+                out.append((section, []))
+            out[-1][1].append(item)
+        return out
+
+    def choices(self, item_id: str) -> dict[int, str]:
+        """Code -> label of a choice item (empty for other items)."""
+        raw = str(self.items.loc[item_id, "choices"] or "")
+        out: dict[int, str] = {}
+        for part in filter(None, raw.split("|")):
+            code, _, label = part.partition("=")
+            out[int(code)] = label.strip()
+        return out
+
+    def parse(self, item_id: str, raw) -> Answer:
+        """Validate one raw answer (str, int or None) for `item_id`; '' / None = missing.
+
+        Integer items take an integer within [scale_min, scale_max] (a choice item also takes its label,
+        case-insensitive); anything else raises ValueError with a one-line reason.
+        """
+        if item_id not in self.items.index:
+            raise ValueError(f"unknown item {item_id!r} (not in instrument {self.name})")
+        kind = self.items.loc[item_id, "response_type"]
+        if raw is None or (isinstance(raw, float) and raw != raw):
+            return Answer()
+        if kind == "text":
+            text = str(raw).strip()
+            if len(text) > MAX_TEXT:
+                raise ValueError(f"{item_id}: answer longer than {MAX_TEXT} characters")
+            return Answer(text=text or None)
+        if isinstance(raw, bool):
+            raise ValueError(f"{item_id}: {raw!r} is not an integer")
+        if isinstance(raw, int):
+            value = raw
+        else:
+            s = str(raw).strip()
+            if not s:
+                return Answer()
+            labels = {label.casefold(): code for code, label in self.choices(item_id).items()}
+            if s.casefold() in labels:
+                value = labels[s.casefold()]
+            else:
+                try:
+                    value = int(s, 10)
+                except ValueError:
+                    raise ValueError(f"{item_id}: {s!r} is not an integer") from None
+        lo, hi = self.scale(item_id)
+        if not lo <= value <= hi:
+            raise ValueError(f"{item_id}: value {value} outside {lo}-{hi}")
+        return Answer(value=value)
+
     def scale(self, item_id: str) -> tuple[int, int]:
         row = self.items.loc[item_id]
         return int(row["scale_min"]), int(row["scale_max"])
@@ -69,7 +158,9 @@ def load_instrument(name: str = DEFAULT_INSTRUMENT) -> Instrument:
     if not path.exists():
         known = ", ".join(sorted(p.stem for p in INSTRUMENT_DIR.glob("*.csv")))
         raise ValueError(f"unknown instrument {name!r} (known: {known})")
-    items = pd.read_csv(path, dtype={"item_id": str}, keep_default_na=False).set_index("item_id")
+    items = pd.read_csv(path, dtype=str, keep_default_na=False).set_index("item_id")
+    for col in ("scale_min", "scale_max"):
+        items[col] = pd.to_numeric(items[col].replace("", None)).astype("Int64")
     for col in ("reverse_scored", "required", "reconstructed"):
         items[col] = items[col].astype(int)
     return Instrument(name=name, items=items)

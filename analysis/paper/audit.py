@@ -1,0 +1,621 @@
+"""Consistency audit of the paper's published statistics (Tables 3-5, Section 4.2 cohort counts).
+
+Every check is one row: ``check``, ``where`` (table/row and LaTeX line), ``reported``, ``recomputed``, ``status``
+(``ok`` | ``inconsistent`` | ``note``), ``explanation``, ``group`` (a stable key of the finding the row belongs to)
+and ``finding`` (1, 2, ... numbered in order of first appearance for groups with at least one inconsistent row).
+Findings are reported, never corrected here; :mod:`analysis.paper.reconstruct` documents which targets it uses.
+
+Conventions the checks rely on (stated in docs/paper_reproduction.md):
+- Table 3 means and SDs are printed with trailing zeros dropped: "4.35" is 4.350 (3 decimals), unless fewer than
+  3 digits survive where SD values show 2 decimals ("1.21") - we take the printed digit count for SDs.
+- Standardized loadings imply inter-item correlations r_ij = λ_i λ_j (one-factor congeneric model).
+- Composite = mean of a construct's retained items (DESIGN.md).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+from scipy import stats
+
+from analysis.paper import grim
+from analysis.paper import published as P
+
+N_TEXT = 41          # Section 4.2 / 5.2.1 text: "N=41" surveys
+N_CANDIDATES = (40, 41)
+MEAN_DECIMALS = 3    # Table 3 means: 3 decimals, trailing zeros dropped
+
+FINDING_TITLES = {
+    "n_implied": "The tables imply N = 40 survey respondents, the text says N = 41",
+    "grim_pbc2": "PBC2 mean 4.208 is impossible for N = 40 (GRIM)",
+    "sd_truncated": "Table 3 SDs are truncated, not rounded",
+    "peou_diagonal": "Table 4 PEoU diagonal (0.641) is not √AVE of Table 3 (√0.537 = 0.733)",
+    "t4_t5": "Table 4 PEoU correlations disagree with Table 5",
+    "bi_alpha": "2-item BI: Cα 0.792 is impossible with λ = 0.911, 0.911",
+    "loadings_vs_alpha": "Printed λ are too high for the printed Cα and for Table 5's B/β ratios",
+    "ci_not_t": "Two Table 5 CIs (PEoU-only steps) are not B ± t·SE; they fit the Table 4 PEoU composite",
+    "style_shares": "Driving-style shares 20.54% do not equal 7/34",
+}
+
+
+@dataclass(frozen=True)
+class Check:
+    """One audit row before numbering."""
+
+    check: str
+    where: str
+    reported: str
+    recomputed: str
+    status: str
+    explanation: str
+    group: str = ""
+
+
+def _f(x: float, d: int = 3) -> str:
+    return f"{x:.{d}f}"
+
+
+def _line(pub: pd.DataFrame, table: str, quantity: str, row: str, column: str = "") -> int:
+    m = (pub["table"] == table) & (pub["quantity"] == quantity) & (pub["row"] == row)
+    if column:
+        m &= pub["column"] == column
+    return int(pub.loc[m, "line"].iloc[0])
+
+
+def _decimals(pub: pd.DataFrame, table: str, quantity: str, row: str, column: str = "") -> int:
+    m = (pub["table"] == table) & (pub["quantity"] == quantity) & (pub["row"] == row)
+    if column:
+        m &= pub["column"] == column
+    return int(pub.loc[m, "decimals"].iloc[0])
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# Shared derived quantities
+# ----------------------------------------------------------------------------------------------------------------
+
+def cr_ave(loadings: np.ndarray) -> tuple[float, float]:
+    """Hair et al. composite reliability and AVE from standardized loadings.
+
+    CR = (Σλ)² / ((Σλ)² + Σ(1 - λ²)),  AVE = mean(λ²)."""
+    lam = np.asarray(loadings, float)
+    s = lam.sum() ** 2
+    return float(s / (s + (1 - lam ** 2).sum())), float((lam ** 2).mean())
+
+
+def alpha_from_cov(cov: np.ndarray) -> float:
+    """Cronbach's α from an item covariance (or correlation) matrix: k/(k-1) (1 - tr Σ / 1'Σ1)."""
+    cov = np.asarray(cov, float)
+    k = cov.shape[0]
+    return float(k / (k - 1) * (1 - np.trace(cov) / cov.sum()))
+
+
+def implied_item_cov(sd: np.ndarray, loadings: np.ndarray, scale: float = 1.0) -> np.ndarray:
+    """Item covariance with r_ij = scale·λ_i λ_j off the diagonal and the item SDs on it."""
+    lam = np.asarray(loadings, float)
+    r = scale * np.outer(lam, lam)
+    np.fill_diagonal(r, 1.0)
+    return np.outer(sd, sd) * r
+
+
+def composite_sd_from_alpha(sd: np.ndarray, alpha: float) -> float:
+    """SD of the mean of k items implied by Cα and the item SDs: Var(sum) = Σs² / (1 - α(k-1)/k)."""
+    sd = np.asarray(sd, float)
+    k = len(sd)
+    var_sum = (sd ** 2).sum() / (1 - alpha * (k - 1) / k)
+    return float(np.sqrt(var_sum) / k)
+
+
+def composite_sd_from_loadings(sd: np.ndarray, loadings: np.ndarray) -> float:
+    """SD of the mean of k items when r_ij = λ_i λ_j."""
+    cov = implied_item_cov(sd, loadings)
+    return float(np.sqrt(cov.sum()) / len(sd))
+
+
+def retained(t3: pd.DataFrame) -> dict[str, pd.DataFrame]:
+    """Table 3 items kept in the final model, per construct (Table 4 order)."""
+    keep = t3[~t3["omitted"]]
+    return {c: keep[keep["construct"] == c] for c in P.TABLE4_ORDER}
+
+
+def composite_sds(published: pd.DataFrame | None = None, source: str = "alpha") -> dict[str, float]:
+    """Composite SDs implied by Table 3: ``source='alpha'`` (Cα + item SDs) or ``'loadings'`` (λ + item SDs)."""
+    t3, tc = P.table3(published), P.table3_constructs(published).set_index("construct")
+    out = {}
+    for c, g in retained(t3).items():
+        if source == "alpha":
+            out[c] = composite_sd_from_alpha(g["sd"].values, tc.loc[c, "alpha"])
+        elif source == "loadings":
+            out[c] = composite_sd_from_loadings(g["sd"].values, g["loading"].values)
+        else:
+            raise ValueError(f"unknown source {source!r} (alpha | loadings)")
+    return out
+
+
+def table5_consistent_correlations(published: pd.DataFrame | None = None) -> pd.DataFrame:
+    """Table 4's correlation matrix with the correlations that Table 5's one-predictor steps fix (r = β)
+    put in their place. This is the target the reconstruction uses; the audit shows every other Table 5
+    number agrees with it."""
+    m = P.table4_matrix(published)
+    co = P.table5_coefficients(published)
+    for r in co.itertuples():
+        if len(P.TABLE5_MODELS[r.model][1][0]) == 1 and r.step == 1:
+            m.loc[r.dv, r.predictor] = m.loc[r.predictor, r.dv] = r.beta
+    return m
+
+
+def _step_predictors(model: int, step: int) -> list[str]:
+    dv, steps = P.TABLE5_MODELS[model]
+    return [p for s in steps[:step] for p in s]
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# The checks
+# ----------------------------------------------------------------------------------------------------------------
+
+def check_sample_size(pub: pd.DataFrame) -> list[Check]:
+    """Which N do the item means and the eco-familiarity shares imply?"""
+    t3 = P.table3(pub)
+    scan = {n: int(sum(grim.grim_consistent(m, n, MEAN_DECIMALS) for m in t3["mean"])) for n in range(20, 61)}
+    best = sorted(scan, key=lambda n: (-scan[n], n))
+    k = len(t3)
+    out = [Check(
+        "N implied by item means (GRIM scan N = 20..60)",
+        f"Table 3 means (lines {_line(pub, 'table3', 'mean', t3['item'].iloc[0])}-"
+        f"{_line(pub, 'table3', 'mean', t3['item'].iloc[-1])}), text line 575",
+        f"N = {N_TEXT} (text)",
+        f"N = {best[0]}: {scan[best[0]]}/{k} means possible; N = {best[1]}: {scan[best[1]]}/{k}; "
+        f"N = {N_TEXT}: {scan[N_TEXT]}/{k}",
+        "inconsistent" if best[0] != N_TEXT else "ok",
+        f"All means but one are multiples of 1/{best[0]}; with N = {N_TEXT} only {scan[N_TEXT]} of {k} printed means "
+        f"can occur. The tables were computed on {best[0]} respondents.", "n_implied")]
+    eco = pub[(pub["table"] == "cohort") & (pub["quantity"] == "eco_familiarity_share")]
+    shares = eco["value"].values
+    ok_n = [n for n in range(20, 61)
+            if all(abs(s / 100 * n - round(s / 100 * n)) <= n * grim.half_unit(d) / 100
+                   for s, d in zip(shares, eco["decimals"].values)) and sum(round(s / 100 * n) for s in shares) == n]
+    out.append(Check(
+        "N implied by eco-familiarity shares", f"Section 4.2, line {int(eco['line'].iloc[0])}",
+        " / ".join(eco["printed"]) + " %", "N with integer counts summing to N: " + ", ".join(map(str, ok_n)) +
+        (f" (counts at N = {ok_n[0]}: " + ", ".join(str(round(s / 100 * ok_n[0])) for s in shares) + ")" if ok_n else ""),
+        "inconsistent" if N_TEXT not in ok_n else "ok",
+        f"The shares are multiples of 2.5 % = 1/40; {N_TEXT} surveys cannot give them.", "n_implied"))
+    return out
+
+
+def check_grim(pub: pd.DataFrame) -> list[Check]:
+    """GRIM for every item mean at each candidate N."""
+    t3 = P.table3(pub)
+    out = []
+    for n in N_CANDIDATES:
+        for r in t3.itertuples():
+            sums = grim.grim_sums(r.mean, n, MEAN_DECIMALS)
+            line = _line(pub, "table3", "mean", r.item)
+            if sums:
+                rec, status, expl = f"{sums[0]}/{n} = {sums[0] / n:.4f}", "ok", "possible"
+            else:
+                below = int(np.floor(r.mean * n))
+                rec = f"{below}/{n} = {below / n:.4f}, {below + 1}/{n} = {(below + 1) / n:.4f}"
+                status = "inconsistent"
+                fits = [m for m in range(2, 61) if grim.grim_consistent(r.mean, m, MEAN_DECIMALS)]
+                expl = (f"no sum of {n} integers gives this mean; N that fit: {', '.join(map(str, fits[:6]))}"
+                        + (" (probably a typo or a different n for this item)" if n == 40 else ""))
+            group = "" if status == "ok" else ("grim_pbc2" if n == 40 else "n_implied")
+            out.append(Check(f"GRIM mean, N = {n}", f"Table 3 {r.item} (line {line})", f"{r.mean:g}", rec,
+                             status, expl, group))
+    return out
+
+
+def check_grimmer(pub: pd.DataFrame) -> list[Check]:
+    """GRIMMER for every item SD (sample SD, n - 1) under rounding and under truncation, at each candidate N."""
+    t3 = P.table3(pub)
+    out = []
+    for n in N_CANDIDATES:
+        counts, s, q = grim.count_vectors(n)
+        for r in t3.itertuples():
+            line = _line(pub, "table3", "sd", r.item)
+            d = _decimals(pub, "table3", "sd", r.item)
+            d_round = max(d, MEAN_DECIMALS) if d >= 2 else d
+            sums = grim.grim_sums(r.mean, n, MEAN_DECIMALS)
+            if not sums:
+                if n == 40:
+                    # the nearest possible means, to say whether the SD could fit either
+                    below = int(np.floor(r.mean * n))
+                    parts = []
+                    for S in (below, below + 1):
+                        k_t = len(grim.grimmer_candidates(S / n, r.sd, n, 6, d, sd_mode="truncate"))
+                        parts.append(f"mean {S / n:.3f}: {k_t} distributions (truncated SD)")
+                    out.append(Check(f"GRIMMER SD, N = {n}", f"Table 3 {r.item} (line {line})",
+                                     f"M = {r.mean:g}, SD = {r.sd:g}", "; ".join(parts), "note",
+                                     "mean fails GRIM; SD checked against the two nearest possible means", "grim_pbc2"))
+                continue
+            n_round = len(grim.grimmer_candidates(r.mean, r.sd, n, MEAN_DECIMALS, d_round, sd_mode="round"))
+            n_trunc = len(grim.grimmer_candidates(r.mean, r.sd, n, MEAN_DECIMALS, d, sd_mode="truncate"))
+            near = grim.nearest_sd(sums[0], r.sd, n)
+            rec = f"nearest SD {near:.4f}; rounded: {n_round} distributions, truncated: {n_trunc}"
+            if n_round:
+                status, expl, group = "ok", "possible when rounded", ""
+            elif n_trunc:
+                status, group = "inconsistent", "sd_truncated"
+                expl = (f"no 1-5 distribution with this mean has an SD that rounds to {r.sd:g} "
+                        f"({d_round} decimals); {near:.4f} truncated to {d} decimals prints as {r.sd:g}")
+            else:
+                status, group = "inconsistent", "n_implied" if n != 40 else "sd_truncated"
+                expl = "no distribution fits, rounded or truncated"
+            out.append(Check(f"GRIMMER SD, N = {n}", f"Table 3 {r.item} (line {line})",
+                             f"M = {r.mean:g}, SD = {r.sd:g}", rec, status, expl, group))
+    return out
+
+
+def check_cr_ave(pub: pd.DataFrame) -> list[Check]:
+    """CR and AVE recomputed from the retained items' printed λ (Hair formulas)."""
+    t3, tc = P.table3(pub), P.table3_constructs(pub).set_index("construct")
+    out = []
+    for c, g in retained(t3).items():
+        cr, ave = cr_ave(g["loading"].values)
+        for name, rec in (("cr", cr), ("ave", ave)):
+            rep = tc.loc[c, name]
+            ok = bool(grim.prints_as(rec, rep, 3, "round") or abs(rec - rep) <= 0.0015)
+            out.append(Check(f"{name.upper()} from λ (Hair)", f"Table 3 {c} (line {_line(pub, 'table3', name, c)})",
+                             _f(rep), _f(rec, 4), "ok" if ok else "inconsistent",
+                             f"retained items {', '.join(g['item'])}" + ("" if ok else " - differs"),
+                             "" if ok else "loadings_vs_alpha"))
+    return out
+
+
+def check_sqrt_ave(pub: pd.DataFrame) -> list[Check]:
+    """√AVE from Table 3 vs Table 4's diagonal."""
+    t3, tc = P.table3(pub), P.table3_constructs(pub).set_index("construct")
+    t4 = P.table4(pub)
+    out = []
+    for r in t4[t4["diagonal"]].itertuples():
+        rec = float(np.sqrt(tc.loc[r.a, "ave"]))
+        ok = abs(rec - r.r) <= grim.half_unit(_decimals(pub, "table4", "sqrt_ave", r.a)) + 0.0006
+        expl = "agrees" if ok else ""
+        if not ok:
+            all_items = t3[t3["construct"] == r.a]
+            _, ave_all = cr_ave(all_items["loading"].values)
+            expl = (f"√{tc.loc[r.a, 'ave']:.3f} = {rec:.4f}. The printed diagonal equals √AVE of all "
+                    f"{len(all_items)} items including the deleted ones: √{ave_all:.4f} = {np.sqrt(ave_all):.4f}; "
+                    "the Fornell-Larcker check in Table 4 used the initial model for this construct")
+        out.append(Check("√AVE vs Table 4 diagonal", f"Table 4 {r.a} (line {_line(pub, 'table4', 'sqrt_ave', r.a)})",
+                         f"{r.r:g}", _f(rec, 4), "ok" if ok else "inconsistent", expl,
+                         "" if ok else "peou_diagonal"))
+    return out
+
+
+def check_alpha_vs_loadings(pub: pd.DataFrame) -> list[Check]:
+    """Cα implied by the printed λ (r_ij = λ_i λ_j, item SDs from Table 3) vs the printed Cα."""
+    t3, tc = P.table3(pub), P.table3_constructs(pub).set_index("construct")
+    out = []
+    for c, g in retained(t3).items():
+        lam, sd = g["loading"].values, g["sd"].values
+        a_raw = alpha_from_cov(implied_item_cov(sd, lam))
+        a_std = alpha_from_cov(implied_item_cov(np.ones_like(sd), lam))
+        rep = tc.loc[c, "alpha"]
+        k = len(g)
+        # the mean inter-item correlation the printed α implies (standardized α formula)
+        rbar = rep / (k - rep * (k - 1))
+        bad = abs(a_raw - rep) > 0.03
+        if k == 2:
+            expl = (f"two items: r(BI1,BI2) = λ1·λ2 = {lam[0] * lam[1]:.3f} gives α = {a_raw:.3f} "
+                    f"(standardized {a_std:.3f}); α = {rep:g} needs r = {rbar:.3f}, i.e. λ = √r = {np.sqrt(rbar):.3f}")
+            group = "bi_alpha"
+        else:
+            expl = (f"mean r_ij = λ_iλ_j is {np.mean([lam[i] * lam[j] for i in range(k) for j in range(i + 1, k)]):.3f}; "
+                    f"α = {rep:g} needs mean r ≈ {rbar:.3f}")
+            group = "loadings_vs_alpha"
+        out.append(Check("Cα implied by λ", f"Table 3 {c} (line {_line(pub, 'table3', 'alpha', c)})", f"{rep:g}",
+                         f"{a_raw:.3f} (standardized {a_std:.3f})", "inconsistent" if bad else "ok",
+                         expl if bad else "agrees within 0.03", group if bad else ""))
+    return out
+
+
+def check_table4_vs_table5(pub: pd.DataFrame) -> list[Check]:
+    """Table 4 correlations vs Table 5: r = β for one predictor; β = R_xx⁻¹ r_xy and R² = β'r_xy otherwise."""
+    t4 = P.table4_matrix(pub)
+    tgt = table5_consistent_correlations(pub)
+    co, st = P.table5_coefficients(pub), P.table5_steps(pub)
+    out = []
+    tol = 0.006  # rounding of three-decimal inputs propagated through (1 - r12²)
+    for (model, step), g in co.groupby(["model", "step"], sort=True):
+        dv = g["dv"].iloc[0]
+        preds = _step_predictors(model, step)
+        beta = g.set_index("predictor").loc[preds, "beta"].values
+        line = int(pub[(pub["table"] == "table5") & (pub["row"] == f"model {model} step {step}")]["line"].min())
+        where = f"Table 5 model {model} step {step} (line {line}) vs Table 4"
+        r2_rep = float(st[(st["model"] == model) & (st["step"] == step)]["r2"].iloc[0])
+        if len(preds) == 1:
+            p = preds[0]
+            ok = abs(beta[0] - t4.loc[dv, p]) <= tol
+            out.append(Check("r(x,y) = β (one predictor)", where, f"Table 4 r({p},{dv}) = {t4.loc[dv, p]:.3f}",
+                             f"Table 5 β = {beta[0]:.3f} (R² = β² = {beta[0] ** 2:.3f}, printed {r2_rep:.3f})",
+                             "ok" if ok else "inconsistent",
+                             "agrees" if ok else f"differs by {t4.loc[dv, p] - beta[0]:+.3f}; Table 5's R² = β² "
+                             f"agrees with β, so Table 4 is the odd one out (r² = {t4.loc[dv, p] ** 2:.3f})",
+                             "" if ok else "t4_t5"))
+            continue
+        rxx = t4.loc[preds, preds].values
+        rxy = t4.loc[preds, dv].values
+        b_t4 = np.linalg.solve(rxx, rxy)
+        ok = bool(np.all(np.abs(b_t4 - beta) <= tol))
+        r2_t4 = float(b_t4 @ rxy)
+        # the criterion correlations Table 5's β imply when the one-predictor steps' r replace Table 4's
+        rxy_t5 = tgt.loc[preds, preds].values @ beta
+        agree_t5 = bool(np.all(np.abs(rxy_t5 - tgt.loc[preds, dv].values) <= tol))
+        out.append(Check(
+            "β from Table 4 correlations", where, "β = " + ", ".join(f"{p} {b:.3f}" for p, b in zip(preds, beta))
+            + f"; R² = {r2_rep:.3f}",
+            "β = " + ", ".join(f"{p} {b:.3f}" for p, b in zip(preds, b_t4)) + f"; R² = {r2_t4:.3f}",
+            "ok" if ok else "inconsistent",
+            ("agrees (two/three-predictor identities β = R_xx⁻¹ r_xy)" if ok else
+             "Table 4's correlations do not give Table 5's β") +
+            f"; with r = β from Table 5's one-predictor steps, β imply r_xy = "
+            + ", ".join(f"{p} {v:.3f}" for p, v in zip(preds, rxy_t5))
+            + (" - consistent" if agree_t5 else " - still inconsistent"),
+            "" if ok else "t4_t5"))
+    return out
+
+
+def adj_r2(r2: float, n: int, k: int) -> float:
+    """Adjusted R² = 1 - (1 - R²)(n - 1)/(n - k - 1)."""
+    return 1 - (1 - r2) * (n - 1) / (n - k - 1)
+
+
+def check_adj_r2(pub: pd.DataFrame) -> list[Check]:
+    """Adjusted R² and ΔR² vs R² for each candidate N (interval arithmetic on the printed digits)."""
+    st = P.table5_steps(pub)
+    out = []
+    for r in st.itertuples():
+        k = len(_step_predictors(r.model, r.step))
+        line = _line(pub, "table5", "adj_r2", f"model {r.model} step {r.step}")
+        lo, hi = grim.interval(r.r2, 3)
+        alo, ahi = grim.interval(r.adj_r2, 3)
+        recs, fits = [], []
+        for n in N_CANDIDATES:
+            a_lo, a_hi = adj_r2(lo, n, k), adj_r2(hi, n, k)
+            fits.append(a_hi >= alo and a_lo <= ahi)
+            recs.append(f"N = {n}: [{a_lo:.4f}, {a_hi:.4f}]")
+        fit_n = [n for n, f in zip(N_CANDIDATES, fits) if f]
+        out.append(Check("adj R² vs R²", f"Table 5 model {r.model} step {r.step} (line {line})",
+                         f"R² = {r.r2:.3f}, adj = {r.adj_r2:.3f}", "; ".join(recs),
+                         "ok" if 40 in fit_n else "inconsistent",
+                         "fits N = " + (", ".join(map(str, fit_n)) if fit_n else "none"),
+                         "" if 40 in fit_n else "n_implied"))
+        prev = st[(st["model"] == r.model) & (st["step"] == r.step - 1)]
+        if r.model == 4 and r.step == 2:
+            prev = st[(st["model"] == 3) & (st["step"] == 1)]  # "same as model 3 step 1"
+        base = float(prev["r2"].iloc[0]) if len(prev) else 0.0
+        d = r.r2 - base
+        ok = abs(d - r.delta_r2) <= 0.0015
+        out.append(Check("ΔR² = R² - R²(previous step)", f"Table 5 model {r.model} step {r.step} (line {line})",
+                         f"{r.delta_r2:.3f}", f"{r.r2:.3f} - {base:.3f} = {d:.3f}", "ok" if ok else "inconsistent",
+                         "agrees within rounding" if ok else "differs", "" if ok else "t4_t5"))
+    return out
+
+
+def check_b_beta(pub: pd.DataFrame) -> list[Check]:
+    """B/β = SD_y/SD_x vs composite SDs from Table 3 (via Cα, and via λ)."""
+    co = P.table5_coefficients(pub)
+    sd_a, sd_l = composite_sds(pub, "alpha"), composite_sds(pub, "loadings")
+    out = []
+    for r in co.itertuples():
+        ratio = r.b / r.beta
+        # interval of B/β from the printed digits
+        b_lo, b_hi = grim.interval(r.b, 3)
+        be_lo, be_hi = grim.interval(r.beta, 3)
+        cands = [b_lo / be_lo, b_lo / be_hi, b_hi / be_lo, b_hi / be_hi]
+        r_lo, r_hi = min(cands), max(cands)
+        ra, rl = sd_a[r.dv] / sd_a[r.predictor], sd_l[r.dv] / sd_l[r.predictor]
+        rel_a, rel_l = ra / ratio - 1, rl / ratio - 1
+        ok_a, ok_l = abs(rel_a) <= 0.015, abs(rel_l) <= 0.015
+        line = _line(pub, "table5", "b", f"model {r.model} step {r.step}", r.predictor)
+        status = "ok" if ok_a and ok_l else "inconsistent"
+        expl = (f"SD_{r.dv}/SD_{r.predictor} from Cα and item SDs: {ra:.3f} ({rel_a:+.1%}); from λ (r_ij = λ_iλ_j): "
+                f"{rl:.3f} ({rel_l:+.1%}). Assumes composite = mean of retained items; item SDs from Table 3")
+        out.append(Check("B/β vs composite SD ratio", f"Table 5 model {r.model} step {r.step} {r.predictor} (line {line})",
+                         f"B/β = {r.b:.3f}/{r.beta:.3f} = {ratio:.3f} [{r_lo:.3f}, {r_hi:.3f}]",
+                         f"α: {ra:.3f}; λ: {rl:.3f}", status, expl, "" if status == "ok" else "loadings_vs_alpha"))
+    return out
+
+
+def check_se_b(pub: pd.DataFrame, n: int = 40) -> list[Check]:
+    """SE B implied by R², the predictors' intercorrelations and B/β: SE_B = (B/β)·√((1-R²)/((n-k-1)(1-R_j²)))."""
+    co, st = P.table5_coefficients(pub), P.table5_steps(pub)
+    tgt = table5_consistent_correlations(pub)
+    out = []
+    for r in co.itertuples():
+        preds = _step_predictors(r.model, r.step)
+        k = len(preds)
+        r2 = float(st[(st["model"] == r.model) & (st["step"] == r.step)]["r2"].iloc[0])
+        rxx = tgt.loc[preds, preds].values
+        vif = float(np.linalg.inv(rxx)[preds.index(r.predictor), preds.index(r.predictor)])
+        se_beta = np.sqrt((1 - r2) / (n - k - 1) * vif)
+        se_b = se_beta * r.b / r.beta
+        ok = abs(se_b - r.se_b) <= 0.004
+        line = _line(pub, "table5", "se_b", f"model {r.model} step {r.step}", r.predictor)
+        out.append(Check(f"SE B from R², VIF and B/β (N = {n})",
+                         f"Table 5 model {r.model} step {r.step} {r.predictor} (line {line})", f"{r.se_b:.3f}",
+                         f"{se_b:.4f} (SE β = {se_beta:.4f}, VIF = {vif:.3f})", "ok" if ok else "inconsistent",
+                         "agrees" if ok else "differs by more than rounding", "" if ok else "n_implied"))
+    return out
+
+
+def check_ci(pub: pd.DataFrame, n: int = 40) -> list[Check]:
+    """Are the printed 95 % CIs B ± t(.975, n-k-1)·SE?"""
+    co = P.table5_coefficients(pub)
+    out = []
+    for r in co.itertuples():
+        k = len(_step_predictors(r.model, r.step))
+        t = stats.t.ppf(0.975, n - k - 1)
+        lo, hi = r.b - t * r.se_b, r.b + t * r.se_b
+        ok = abs(lo - r.ci_low) <= 0.003 and abs(hi - r.ci_high) <= 0.003
+        mid = (r.ci_low + r.ci_high) / 2
+        half = (r.ci_high - r.ci_low) / 2
+        line = _line(pub, "table5", "ci_low", f"model {r.model} step {r.step}", r.predictor)
+        if ok:
+            expl = "t-based"
+        else:
+            # read the printed interval as a t-interval of some other fit: B' = midpoint, SE' = half-width / t
+            se2 = half / t
+            t2 = mid / se2
+            expl = (f"not t-based around B = {r.b:.3f}: midpoint {mid:.3f} (offset {mid - r.b:+.3f}), width "
+                    f"{2 * half:.3f} vs {hi - lo:.3f}. Read as a t-interval it belongs to B' = {mid:.3f}, "
+                    f"SE' = {se2:.3f}, t' = {t2:.2f}")
+            if k == 1:
+                r_implied = t2 / np.sqrt(t2 ** 2 + n - 2)
+                expl += (f", i.e. r = t'/√(t'² + {n - 2}) = {r_implied:.3f} - the Table 4 correlation "
+                         f"r({r.predictor},{r.dv}), not Table 5's β = {r.beta:.3f}: the CI comes from the "
+                         "Table 4 composite")
+        out.append(Check(f"CI = B ± t·SE (df = {n - k - 1})",
+                         f"Table 5 model {r.model} step {r.step} {r.predictor} (line {line})",
+                         f"{r.ci_low:.3f} to {r.ci_high:.3f}", f"{lo:.3f} to {hi:.3f}",
+                         "ok" if ok else "inconsistent", expl,
+                         "" if ok else "ci_not_t"))
+    return out
+
+
+def _p_stars(p: float, levels: tuple[float, float]) -> int:
+    return 2 if p < levels[1] else 1 if p < levels[0] else 0
+
+
+def check_stars(pub: pd.DataFrame, n: int = 40) -> list[Check]:
+    """Significance stars: Table 4 (r, two-tailed, * .05 ** .01) and Table 5 (t = B/SE, * .05 ** .001)."""
+    out = []
+    t4 = P.table4(pub)
+    for r in t4[~t4["diagonal"]].itertuples():
+        lo, hi = grim.interval(r.r, 3)
+        ps = []
+        for x in (lo, hi):
+            t = abs(x) * np.sqrt((n - 2) / (1 - x * x))
+            ps.append(2 * stats.t.sf(t, n - 2))
+        expected = {_p_stars(p, (0.05, 0.01)) for p in ps}
+        ok = r.stars in expected
+        line = _line(pub, "table4", "r", r.a, r.b)
+        out.append(Check(f"stars of r (N = {n})", f"Table 4 {r.a}-{r.b} (line {line})", f"{r.r:.3f}{'*' * r.stars}",
+                         f"p = {max(ps):.4f}" + ("" if len(expected) == 1 else f"..{min(ps):.4f} (on the boundary)"),
+                         "ok" if ok else "inconsistent", "agrees" if ok else "stars do not match p", ""))
+    co = P.table5_coefficients(pub)
+    for r in co.itertuples():
+        k = len(_step_predictors(r.model, r.step))
+        p = 2 * stats.t.sf(abs(r.b / r.se_b), n - k - 1)
+        ok = r.stars == _p_stars(p, (0.05, 0.001))
+        line = _line(pub, "table5", "beta", f"model {r.model} step {r.step}", r.predictor)
+        out.append(Check(f"stars of β (N = {n})", f"Table 5 model {r.model} step {r.step} {r.predictor} (line {line})",
+                         f"{r.beta:.3f}{'*' * r.stars}", f"t = {r.b / r.se_b:.2f}, p = {p:.4f}",
+                         "ok" if ok else "inconsistent", "agrees (* .05, ** .001 per the table note)" if ok else
+                         "stars do not match p", ""))
+    return out
+
+
+def check_cohort(pub: pd.DataFrame) -> list[Check]:
+    """Cohort arithmetic of Section 4.2."""
+    v = lambda q, row="all", col="count": P.value(q, row, col, "cohort", pub)  # noqa: E731
+    line = int(pub[(pub["table"] == "cohort") & (pub["quantity"] == "enrolled")]["line"].iloc[0])
+    out = []
+    for name, lhs, rhs, txt in (
+            ("male + female = enrolled", v("male") + v("female"), v("enrolled"), "37 + 7"),
+            ("enrolled - motion sickness = survey N", v("enrolled") - v("motion_sickness"), v("survey_n"), "44 - 3"),
+            ("survey N - technical issues = objective N", v("survey_n") - v("technical_issues"), v("objective_n"),
+             "41 - 7")):
+        out.append(Check(name, f"Section 4.2 (line {line})", f"{rhs:g}", f"{txt} = {lhs:g}",
+                         "ok" if lhs == rhs else "inconsistent", "agrees" if lhs == rhs else "differs", ""))
+    n_obj = v("objective_n")
+    counts = {"cautious": 7, "normal": 20, "sporty": 7}  # the issue's split; shares checked against it
+    for style, c in counts.items():
+        rep = v("style_share", style, "percent")
+        rec = 100 * c / n_obj
+        ok = abs(rec - rep) <= grim.half_unit(2)
+        out.append(Check(f"style share {style} = count/{n_obj:g}", f"Section 4.2 (line {line})", f"{rep:g} %",
+                         f"{c}/{n_obj:g} = {rec:.2f} %", "ok" if ok else "inconsistent",
+                         "agrees" if ok else (f"no integer count of {n_obj:g} gives {rep:g} % "
+                                              f"(7/34 = 20.59 %); the three shares sum to "
+                                              f"{sum(v('style_share', s, 'percent') for s in counts):.2f} %"),
+                         "" if ok else "style_shares"))
+    return out
+
+
+CHECKS = (check_sample_size, check_grim, check_grimmer, check_cr_ave, check_sqrt_ave, check_alpha_vs_loadings,
+          check_table4_vs_table5, check_adj_r2, check_b_beta, check_se_b, check_ci, check_stars, check_cohort)
+
+
+def run_audit(published: pd.DataFrame | None = None) -> pd.DataFrame:
+    """All checks as one tidy frame: id, check, where, reported, recomputed, status, explanation, group, finding."""
+    pub = published if published is not None else P.load_published()
+    rows = [c for fn in CHECKS for c in fn(pub)]
+    df = pd.DataFrame([c.__dict__ for c in rows])
+    order: list[str] = []
+    for g, s in zip(df["group"], df["status"]):
+        if g and s == "inconsistent" and g not in order:
+            order.append(g)
+    df["finding"] = df["group"].map(lambda g: order.index(g) + 1 if g in order else pd.NA).astype("Int64")
+    df.insert(0, "id", [f"A{i + 1:03d}" for i in range(len(df))])
+    return df
+
+
+def findings(audit: pd.DataFrame) -> pd.DataFrame:
+    """One row per finding: finding, group, title, n_rows (inconsistent rows), first_row (audit id)."""
+    bad = audit[audit["finding"].notna() & (audit["status"] == "inconsistent")]
+    out = []
+    for k, g in bad.groupby("finding", sort=True):
+        grp = g["group"].iloc[0]
+        out.append({"finding": int(k), "group": grp, "title": FINDING_TITLES.get(grp, grp),
+                    "n_rows": len(g), "first_row": g["id"].iloc[0]})
+    return pd.DataFrame(out, columns=["finding", "group", "title", "n_rows", "first_row"])
+
+
+def finding_for(audit: pd.DataFrame, group: str) -> int | None:
+    """The finding number of a group (None when the group has no inconsistent row)."""
+    f = audit.loc[(audit["group"] == group) & audit["finding"].notna(), "finding"]
+    return int(f.iloc[0]) if len(f) else None
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# Rendering
+# ----------------------------------------------------------------------------------------------------------------
+
+def _md_escape(x) -> str:
+    return str(x).replace("|", "\\|").replace("\n", " ")
+
+
+def _md_table(df: pd.DataFrame, cols: list[str]) -> list[str]:
+    lines = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+    for row in df[cols].itertuples(index=False):
+        lines.append("| " + " | ".join("" if pd.isna(v) else _md_escape(v) for v in row) + " |")
+    return lines
+
+
+def render_markdown(audit: pd.DataFrame) -> str:
+    """A readable report: summary, one section per finding with its rows, then every check in a table."""
+    f = findings(audit)
+    counts = audit["status"].value_counts()
+    out = ["# Consistency audit of the published statistics", "",
+           "Generated by `pedas-study paper audit` from `data/paper/published.csv`. Each check recomputes a printed "
+           "number from other printed numbers; findings are reported here and never corrected in the data.", "",
+           f"Checks: {len(audit)} - " + ", ".join(f"{k}: {v}" for k, v in counts.items()) +
+           f". Findings: {len(f)}.", "", "## Findings", ""]
+    for r in f.itertuples():
+        rows = audit[(audit["finding"] == r.finding) & (audit["status"] == "inconsistent")]
+        out += [f"### Finding #{r.finding}: {r.title}", ""]
+        first = rows.iloc[0]
+        out += [f"{_md_escape(first['explanation'])}", "",
+                f"{len(rows)} inconsistent check(s):", ""]
+        out += _md_table(rows.head(15), ["id", "check", "where", "reported", "recomputed"])
+        if len(rows) > 15:
+            out.append(f"| ... | {len(rows) - 15} more rows in audit.csv | | | |")
+        out.append("")
+    out += ["## All checks", ""]
+    out += _md_table(audit, ["id", "check", "where", "reported", "recomputed", "status", "finding", "explanation"])
+    return "\n".join(out) + "\n"
+
+
+def write_audit(out_dir, published: pd.DataFrame | None = None) -> pd.DataFrame:
+    """Run the audit and write ``audit.csv`` and ``audit.md`` into ``out_dir`` (created); returns the frame."""
+    from pathlib import Path
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    audit = run_audit(published)
+    audit.to_csv(out / "audit.csv", index=False, lineterminator="\n")
+    (out / "audit.md").write_text(render_markdown(audit), encoding="utf-8")
+    return audit

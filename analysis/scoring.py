@@ -1,0 +1,110 @@
+"""Scoring of the acceptance survey: validation of the wide answer frame, reverse scoring from the instrument,
+the listwise analysis sample and construct composites.
+
+Conventions (DESIGN.md "Machine-readable analysis outputs"): answers are raw 1-5 as ticked; reverse-scored items
+(PEoU3) are mapped x -> min + max - x using the instrument's scale; a composite is the mean of a construct's
+*retained* items after reverse scoring. Missing data: listwise deletion over all scaled items by default, so
+every table is computed on the same participants and reports that n.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from study.instrument import Instrument, load_instrument
+
+ID_COL = "participant_id"
+
+
+def resolve_instrument(instrument=None) -> Instrument:
+    """An :class:`Instrument`, from an instance, a codebook name, or the default codebook when None."""
+    if instrument is None:
+        return load_instrument()
+    if isinstance(instrument, str):
+        return load_instrument(instrument)
+    return instrument
+
+
+@dataclass(frozen=True)
+class ScoredSurvey:
+    """The analysis sample. `scored` = participant x scaled item after reverse scoring (index participant_id);
+    `raw` = the same rows unreversed; `n_input` rows came in, `dropped` participant ids left out (listwise)."""
+
+    scored: pd.DataFrame
+    raw: pd.DataFrame
+    constructs: dict[str, list[str]]
+    reverse_items: list[str]
+    n_input: int
+    dropped: list[str]
+
+    @property
+    def n(self) -> int:
+        return len(self.scored)
+
+
+def score_responses(responses: pd.DataFrame, instrument=None, *, listwise: bool = True) -> ScoredSurvey:
+    """Validate the wide survey frame and return the reverse-scored analysis sample.
+
+    Raises ValueError (one line) for a missing item column, answers outside the item's scale, duplicate
+    participants, or an empty sample.
+    """
+    inst = resolve_instrument(instrument)
+    items = inst.scaled_items
+    if not isinstance(responses, pd.DataFrame):
+        raise ValueError("responses must be a pandas DataFrame (participant_id + one column per item)")
+    missing = [c for c in items if c not in responses.columns]
+    if missing:
+        raise ValueError(f"survey responses lack item column(s): {', '.join(missing)}")
+    df = responses.copy()
+    if ID_COL not in df.columns:
+        df[ID_COL] = [f"row{i + 1}" for i in range(len(df))]
+    df[ID_COL] = df[ID_COL].astype(str)
+    dup = df[ID_COL][df[ID_COL].duplicated()].unique().tolist()
+    if dup:
+        raise ValueError(f"duplicate participant_id in survey responses: {', '.join(dup[:5])}")
+    raw = df.set_index(ID_COL)[items]
+    try:
+        raw = raw.apply(pd.to_numeric, errors="raise").astype(float)
+    except (ValueError, TypeError) as exc:
+        raise ValueError(f"survey answers must be numbers 1-5 or empty: {exc}") from None
+    for item in items:
+        lo, hi = inst.scale(item)
+        col = raw[item].dropna()
+        bad = col[(col < lo) | (col > hi) | (col != np.round(col))]
+        if len(bad):
+            raise ValueError(f"item {item}: answer {bad.iloc[0]:g} of {bad.index[0]} is outside {lo}..{hi}")
+    n_input = len(raw)
+    if listwise:
+        keep = raw.notna().all(axis=1)
+        dropped = raw.index[~keep].tolist()
+        raw = raw[keep]
+    else:
+        dropped = []
+    if len(raw) == 0:
+        raise ValueError("no complete survey responses to analyse")
+    scored = inst.reverse(raw)
+    return ScoredSurvey(scored=scored, raw=raw, constructs=inst.constructs, reverse_items=inst.reverse_items,
+                        n_input=n_input, dropped=dropped)
+
+
+def check_not_constant(frame: pd.DataFrame, what: str = "item") -> None:
+    """ValueError naming the first column of `frame` without variance (correlations, CFA and alpha need it)."""
+    for col in frame.columns:
+        vals = frame[col].dropna()
+        if len(vals) and vals.nunique() < 2:
+            raise ValueError(f"{what} {col} is constant (every answer = {vals.iloc[0]:g}); it has no variance to analyse")
+
+
+def composites(scored: pd.DataFrame, retained: dict[str, list[str]]) -> pd.DataFrame:
+    """Participant x construct: mean of each construct's retained (already reverse-scored) items.
+
+    With missing answers (``listwise=False``) the mean is over the items a participant answered.
+    """
+    out = {}
+    for construct, items in retained.items():
+        if not items:
+            raise ValueError(f"construct {construct} has no retained items")
+        out[construct] = scored[items].mean(axis=1, skipna=True)
+    return pd.DataFrame(out, index=scored.index)

@@ -1,0 +1,241 @@
+"""Acceptance statistics of a pEDAS survey in one call (paper Section 5.2, Tables 3-5).
+
+    >>> from analysis.survey import analyze_survey
+    >>> res = analyze_survey(responses)          # wide frame: participant_id + PU1..BI2, raw 1-5
+    >>> res.reliability, res.regressions, res.hypotheses
+    >>> res.write("out/")                        # the DESIGN.md CSVs + table3/4/5 .md and .tex
+
+Pipeline: scoring (reverse PEoU3, listwise) -> item descriptives -> CFA stage ``initial`` (all items) with the
+item flags -> CFA stage ``final`` (declared deletions, ``analysis/specs/cfa.json``) -> reliability/validity on the
+final items -> composites (mean of retained items) -> composite correlations, Fornell-Larcker, HTMT ->
+hierarchical regressions (``specs/models.json``) -> H1-H7 (``specs/hypotheses.json``).
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from analysis import cfa as _cfa
+from analysis.descriptives import item_descriptives
+from analysis.hypotheses import judge_hypotheses, load_hypotheses
+from analysis.regression import ModelSpec, run_models, validate_models
+from analysis.reliability import reliability_table
+from analysis.scoring import check_not_constant, composites, resolve_instrument, score_responses
+from analysis.validity import composite_correlations, fornell_larcker, htmt
+
+SPEC_DIR = Path(__file__).with_name("specs")
+
+# Column contracts of DESIGN.md "Machine-readable analysis outputs" (extra columns follow these).
+COLUMNS = {
+    "descriptives": ["item", "n", "mean", "sd"],
+    "loadings": ["stage", "construct", "item", "loading", "retained"],
+    "fit": ["stage", "chi2", "df", "p", "cfi", "tli", "rmsea", "srmr"],
+    "reliability": ["construct", "alpha", "alpha_ci_low", "alpha_ci_high", "cr", "ave", "sqrt_ave", "omega"],
+    "correlations": ["a", "b", "r", "p"],
+    "htmt": ["a", "b", "htmt"],
+    "regressions": ["model", "step", "dv", "predictor", "r2", "adj_r2", "delta_r2", "f_change", "p_change", "b",
+                    "se_b", "beta", "ci_low", "ci_high", "p", "boot_ci_low", "boot_ci_high"],
+    "hypotheses": ["hypothesis", "path", "beta", "p", "supported"],
+}
+
+
+def _ordered(df: pd.DataFrame, name: str) -> pd.DataFrame:
+    head = COLUMNS[name]
+    return df[head + [c for c in df.columns if c not in head]]
+
+
+def load_cfa_config(cfa_config=None) -> dict:
+    """The item-deletion config: dict, JSON path, or the shipped default (``specs/cfa.json``) when None."""
+    if cfa_config is None:
+        cfa_config = SPEC_DIR / "cfa.json"
+    if isinstance(cfa_config, (str, Path)):
+        cfa_config = json.loads(Path(cfa_config).read_text())
+    cfg = {"constructs": None, "drop": [], "rules": {}}
+    cfg.update(cfa_config)
+    cfg["rules"] = {"min_loading": 0.7, "cross_margin": 0.0, **(cfg.get("rules") or {})}
+    return cfg
+
+
+def load_models(models=None) -> list[ModelSpec]:
+    """Regression models: list of ModelSpec/dicts, a spec dict with 'models', a JSON path, or the default."""
+    if models is None:
+        models = SPEC_DIR / "models.json"
+    if isinstance(models, (str, Path)):
+        models = json.loads(Path(models).read_text())
+    if isinstance(models, dict):
+        models = models.get("models")
+    if not isinstance(models, list) or not models:
+        raise ValueError("regression models spec needs a non-empty list of models")
+    return [m if isinstance(m, ModelSpec) else ModelSpec.from_dict(m) for m in models]
+
+
+@dataclass
+class SurveyAnalysis:
+    """All acceptance statistics of one survey; each table a tidy DataFrame in the DESIGN.md column contract."""
+
+    descriptives: pd.DataFrame
+    loadings: pd.DataFrame
+    fit: pd.DataFrame
+    reliability: pd.DataFrame
+    correlations: pd.DataFrame
+    fornell_larcker: pd.DataFrame
+    htmt: pd.DataFrame
+    regressions: pd.DataFrame
+    hypotheses: pd.DataFrame
+    composites: pd.DataFrame
+    latent_correlations: pd.DataFrame
+    n: int
+    n_input: int
+    settings: dict = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+
+    def tables(self) -> dict[str, pd.DataFrame]:
+        """name -> frame of every CSV `write` produces."""
+        return {"descriptives": self.descriptives, "loadings": self.loadings, "fit": self.fit,
+                "reliability": self.reliability, "correlations": self.correlations,
+                "fornell_larcker": self.fornell_larcker, "htmt": self.htmt, "regressions": self.regressions,
+                "hypotheses": self.hypotheses}
+
+    def write(self, out_dir) -> list[Path]:
+        """Write the DESIGN.md CSVs, composites.csv, warnings.txt, settings.json and table3/4/5 (.md, .tex)."""
+        from analysis.tables_survey import render_all
+
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        paths = []
+        for name, frame in self.tables().items():
+            p = out / f"{name}.csv"
+            frame.to_csv(p, index=False)
+            paths.append(p)
+        p = out / "composites.csv"
+        self.composites.to_csv(p, index=True, index_label="participant_id")
+        paths.append(p)
+        p = out / "warnings.txt"
+        p.write_text("".join(w + "\n" for w in self.warnings))
+        paths.append(p)
+        p = out / "settings.json"
+        p.write_text(json.dumps({**self.settings, "n": self.n, "n_input": self.n_input}, indent=2, default=str) + "\n")
+        paths.append(p)
+        for name, text in render_all(self).items():
+            p = out / name
+            p.write_text(text)
+            paths.append(p)
+        return paths
+
+
+def analyze_survey(responses: pd.DataFrame, *, instrument=None, cfa_config=None, models=None, hypotheses=None,
+                   n_boot: int = 2000, seed: int = 20240101, listwise: bool = True,
+                   boot_method: str = "percentile") -> SurveyAnalysis:
+    """Run the whole acceptance analysis on a wide survey frame (DESIGN.md "Survey CSV").
+
+    instrument: codebook name or Instrument (default ``pedas_acceptance_v1``); cfa_config / models / hypotheses:
+    dict, JSON path or None for the shipped specs; n_boot resamples (0 = none) seeded by `seed`; listwise:
+    drop participants with any missing scaled answer (the default) -- otherwise composites average the answered
+    items and CFA/alpha use complete rows. Raises ValueError (one line) on bad input.
+    """
+    inst = resolve_instrument(instrument)
+    sample = score_responses(responses, inst, listwise=listwise)
+    scored = sample.scored
+    warn: list[str] = []
+    if sample.dropped:
+        warn.append(f"listwise deletion: {len(sample.dropped)} of {sample.n_input} participants with missing answers "
+                    f"left out ({', '.join(sample.dropped[:10])}{' ...' if len(sample.dropped) > 10 else ''})")
+    if not listwise and scored.isna().any().any():
+        n_cc = int(scored.notna().all(axis=1).sum())
+        warn.append(f"available-case analysis: CFA, alpha and omega use the {n_cc} complete rows; descriptives, "
+                    f"composites, correlations and regressions use the answers given")
+    cfg = load_cfa_config(cfa_config)
+    constructs = {c: list(v) for c, v in (cfg["constructs"] or sample.constructs).items()}
+    all_items = [i for v in constructs.values() for i in v]
+    unknown = [i for i in all_items if i not in scored.columns]
+    if unknown:
+        raise ValueError(f"CFA config names item(s) not in the instrument: {', '.join(unknown)}")
+    bad_drop = [i for i in cfg["drop"] if i not in all_items]
+    if bad_drop:
+        raise ValueError(f"CFA config drops unknown item(s): {', '.join(bad_drop)}")
+    specs = load_models(models)
+    validate_models(specs, list(constructs))  # fail on a bad spec before the slow steps
+    hyps, alpha = load_hypotheses(hypotheses)
+    check_not_constant(scored[all_items])
+    retained = {c: [i for i in v if i not in set(cfg["drop"])] for c, v in constructs.items()}
+    for c, v in retained.items():
+        if len(v) < 2:
+            raise ValueError(f"CFA config leaves construct {c} with {len(v)} item(s); at least 2 are needed")
+
+    descriptives = _ordered(item_descriptives(scored, sample.raw, constructs, sample.reverse_items), "descriptives")
+
+    initial = _cfa.fit_cfa(scored, constructs, label="initial")
+    final = _cfa.fit_cfa(scored, retained, label="final")
+    warn += initial.warnings + final.warnings
+    flagged = _cfa.flag_items(initial.loadings, scored, constructs, **cfg["rules"])
+    flagged.insert(0, "stage", "initial")
+    flagged["retained"] = ~flagged["item"].isin(cfg["drop"])
+    fin = final.loadings.copy()
+    fin.insert(0, "stage", "final")
+    fin["retained"] = True
+    loadings = _ordered(pd.concat([flagged, fin], ignore_index=True), "loadings")
+    fit = _ordered(pd.DataFrame([{"stage": "initial", **initial.fit, "converged": initial.converged},
+                                 {"stage": "final", **final.fit, "converged": final.converged}]), "fit")
+
+    reliability = _ordered(reliability_table(scored, final), "reliability")
+    comp = composites(scored, retained)
+    check_not_constant(comp, "composite")
+    corr = composite_correlations(comp)
+    corr["r_latent"] = [float(final.latent_corr.loc[a, b]) for a, b in zip(corr["a"], corr["b"])]
+    correlations = _ordered(corr, "correlations")
+    fl = fornell_larcker(corr, reliability, final.latent_corr)
+    ht = _ordered(htmt(scored, retained), "htmt")
+
+    regressions = _ordered(run_models(comp, specs, n_boot=n_boot, seed=seed, boot_method=boot_method), "regressions")
+    hyp = _ordered(judge_hypotheses(regressions, hyps, alpha), "hypotheses")
+
+    for _, r in reliability.iterrows():
+        if r["ave"] < 0.5:
+            warn.append(f"{r['construct']}: AVE = {r['ave']:.3f} < 0.5 (convergent validity not met)")
+    for _, r in fl[~fl["pass"]].iterrows():
+        warn.append(f"Fornell-Larcker fails for {r['a']}-{r['b']}: |r| = {abs(r['r']):.3f} >= "
+                    f"min sqrt(AVE) = {min(r['sqrt_ave_a'], r['sqrt_ave_b']):.3f}")
+    settings = {"instrument": inst.name, "listwise": listwise, "n_boot": n_boot, "seed": seed,
+                "boot_method": boot_method, "dropped_items": list(cfg["drop"]), "rules": cfg["rules"],
+                "models": [m.__dict__ for m in specs], "hypothesis_alpha": alpha}
+    return SurveyAnalysis(descriptives=descriptives, loadings=loadings, fit=fit, reliability=reliability,
+                          correlations=correlations, fornell_larcker=fl, htmt=ht, regressions=regressions,
+                          hypotheses=hyp, composites=comp, latent_correlations=final.latent_corr, n=sample.n,
+                          n_input=sample.n_input, settings=settings, warnings=warn)
+
+
+def responses_from_store(st, *, instrument=None) -> pd.DataFrame:
+    """The wide survey frame of the included participants (exclusions scope 'subjective') from a store.
+
+    Uses ``study.survey.final_responses`` when the survey part provides it; otherwise the latest entry round of
+    each (participant, item) answer in the ``responses`` table.
+    """
+    inst = resolve_instrument(instrument)
+    try:
+        from study.survey import final_responses  # the survey part's resolution of double entry
+    except ImportError:
+        final_responses = None
+    if final_responses is not None:
+        wide = final_responses(st, inst.name)
+    else:
+        long = st.df("""
+            SELECT participant_id, item_id, value FROM (
+              SELECT participant_id, item_id, value,
+                     row_number() OVER (PARTITION BY participant_id, item_id
+                                        ORDER BY entry_round DESC, entered_at DESC) AS rk
+              FROM responses) WHERE rk = 1""")
+        wide = (long.pivot(index="participant_id", columns="item_id", values="value")
+                .reindex(columns=inst.scaled_items).reset_index())
+    try:
+        from study.exclusions import included_participants
+    except ImportError:
+        included_participants = None
+    if included_participants is not None:
+        keep = {str(p) for p in included_participants(st, "subjective")}
+        wide = wide[wide["participant_id"].astype(str).isin(keep)]
+    cols = ["participant_id"] + [c for c in inst.scaled_items if c in wide.columns]
+    return wide[cols].reset_index(drop=True)

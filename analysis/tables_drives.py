@@ -1,0 +1,170 @@
+"""Tables of the objective evaluation: per-style means and medians (as Sec. 5.1 reports them) and the
+per-participant table, each as CSV (machine-readable), Markdown and LaTeX booktabs (rendered from the same frame)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from analysis.savings import STYLES
+
+# (metric, column label) of the per-style table, in the paper's order
+STYLE_TABLE_METRICS = (
+    ("saving_overall_pct", "Overall savings"),
+    ("saving_urban_pct", "Urban savings"),
+    ("saving_highway_pct", "Highway savings"),
+    ("violation_reduction_pct", "Violation reduction"),
+    ("red_stop_reduction_pct", "Red-stop reduction"),
+)
+
+
+def style_table(summary: pd.DataFrame) -> pd.DataFrame:
+    """Wide per-style table: style, n, then ``<metric>_mean`` and ``<metric>_median`` (%) for the metrics of
+    :data:`STYLE_TABLE_METRICS`; rows cautious, normal, sporty, all."""
+    rows = []
+    for style in (*STYLES, "all"):
+        s = summary[summary["style"] == style].set_index("metric")
+        r = {"style": style,
+             "n": int(s.loc["saving_overall_pct", "n"]) if "saving_overall_pct" in s.index else 0}
+        for m, _ in STYLE_TABLE_METRICS:
+            r[f"{m}_n"] = int(s.loc[m, "n"]) if m in s.index else 0
+            r[f"{m}_mean"] = s.loc[m, "mean"] if m in s.index else np.nan
+            r[f"{m}_median"] = s.loc[m, "median"] if m in s.index else np.nan
+        rows.append(r)
+    return pd.DataFrame(rows)
+
+
+PARTICIPANT_COLUMNS = (
+    ("participant_id", "Participant"), ("style", "Style"),
+    ("saving_urban_pct", "Urban sav. %"), ("saving_highway_pct", "Highway sav. %"),
+    ("saving_overall_pct", "Overall sav. %"),
+    ("violation_share_baseline", "Viol. share w/o"), ("violation_share_pedas", "Viol. share with"),
+    ("violation_reduction_pct", "Viol. red. %"),
+    ("red_stops_baseline", "Red stops w/o"), ("red_stops_pedas", "Red stops with"),
+    ("tl_green_baseline", "TL green w/o"), ("tl_green_pedas", "TL green with"),
+    ("jerk_reduction_pct", "Jerk red. %"),
+)
+
+
+def participant_table(per_participant: pd.DataFrame) -> pd.DataFrame:
+    """The per-participant table (columns of :data:`PARTICIPANT_COLUMNS`)."""
+    cols = [c for c, _ in PARTICIPANT_COLUMNS if c in per_participant]
+    return per_participant[cols].copy()
+
+
+# ------------------------------------------------------------------------------------------ rendering
+def _fmt(x, nd=2) -> str:
+    if x is None or (isinstance(x, float) and not np.isfinite(x)) or (not isinstance(x, str) and pd.isna(x)):
+        return "–"
+    if isinstance(x, (int, np.integer)):
+        return str(int(x))
+    if isinstance(x, (float, np.floating)):
+        return f"{x:.{nd}f}"
+    return str(x)
+
+
+def _style_cells(t: pd.DataFrame) -> tuple[list[str], list[list[str]]]:
+    header = ["Style", "n"] + [label + " mean (median)" for _, label in STYLE_TABLE_METRICS]
+    rows = []
+    for _, r in t.iterrows():
+        cells = [str(r["style"]), str(int(r["n"]))]
+        for m, _ in STYLE_TABLE_METRICS:
+            cell = f"{_fmt(r[f'{m}_mean'])} ({_fmt(r[f'{m}_median'])})"
+            if int(r[f"{m}_n"]) != int(r["n"]):
+                cell += f" [n={int(r[f'{m}_n'])}]"
+            cells.append(cell)
+        rows.append(cells)
+    return header, rows
+
+
+def _participant_cells(t: pd.DataFrame) -> tuple[list[str], list[list[str]]]:
+    labels = dict(PARTICIPANT_COLUMNS)
+    header = [labels[c] for c in t.columns]
+    rows = []
+    for _, r in t.iterrows():
+        cells = []
+        for c in t.columns:
+            nd = 3 if c.startswith("violation_share") else 2
+            v = r[c]
+            if c.startswith(("red_stops", "tl_green")) and pd.notna(v):
+                v = int(v)
+            cells.append(_fmt(v, nd))
+        rows.append(cells)
+    return header, rows
+
+
+def to_markdown(header, rows, title: str, notes=()) -> str:
+    out = [f"**{title}**", "", "| " + " | ".join(header) + " |",
+           "|" + "|".join("---" if i == 0 else "---:" for i in range(len(header))) + "|"]
+    out += ["| " + " | ".join(r) + " |" for r in rows]
+    if notes:
+        out += [""] + [f"_{n}_" for n in notes]
+    return "\n".join(out) + "\n"
+
+
+def _tex(s: str) -> str:
+    for a, b in (("\\", r"\textbackslash{}"), ("%", r"\%"), ("&", r"\&"), ("_", r"\_"), ("#", r"\#"),
+                 ("–", "--")):
+        s = s.replace(a, b)
+    return s
+
+
+def to_latex(header, rows, title: str, notes=(), label: str = "") -> str:
+    align = "l" + "r" * (len(header) - 1)
+    out = [r"\begin{table}[t]", r"\centering", rf"\caption{{{_tex(title)}}}"]
+    if label:
+        out.append(rf"\label{{{label}}}")
+    out += [rf"\begin{{tabular}}{{{align}}}", r"\toprule", " & ".join(_tex(h) for h in header) + r" \\",
+            r"\midrule"]
+    out += [" & ".join(_tex(c) for c in r) + r" \\" for r in rows]
+    out += [r"\bottomrule", r"\end{tabular}"]
+    if notes:
+        out += [r"\par\smallskip", r"\footnotesize " + " ".join(_tex(n) for n in notes)]
+    out.append(r"\end{table}")
+    return "\n".join(out) + "\n"
+
+
+STYLE_NOTES = ("Savings = (baseline - pEDAS) / baseline of battery energy; reductions likewise. "
+               "Reductions against a baseline of 0 are undefined and left out ([n=...] when fewer).",)
+
+
+def write_tables(result, out_dir: str | Path) -> list[Path]:
+    """Write kpis.csv, per_participant.csv, summary.csv, style_table.{csv,md,tex},
+    participant_table.{csv,md,tex} into ``out_dir``; returns the paths."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+
+    def put(name, text):
+        p = out / name
+        p.write_text(text, encoding="utf-8")
+        written.append(p)
+
+    for name, df in (("kpis.csv", result.kpis), ("per_participant.csv", result.per_participant),
+                     ("summary.csv", result.summary)):
+        df.to_csv(out / name, index=False)
+        written.append(out / name)
+    st = style_table(result.summary)
+    st.to_csv(out / "style_table.csv", index=False)
+    written.append(out / "style_table.csv")
+    h, r = _style_cells(st)
+    title = f"Objective KPIs by driving style, mean (median) in % (N = {result.n})"
+    put("style_table.md", to_markdown(h, r, title, STYLE_NOTES))
+    put("style_table.tex", to_latex(h, r, title, STYLE_NOTES, "tab:kpi_styles"))
+    pt = participant_table(result.per_participant)
+    pt.to_csv(out / "participant_table.csv", index=False)
+    written.append(out / "participant_table.csv")
+    h, r = _participant_cells(pt)
+    title = "Objective KPIs per participant (w/o = baseline drive, with = pEDAS drive)"
+    put("participant_table.md", to_markdown(h, r, title))
+    put("participant_table.tex", to_latex(h, r, title, (), "tab:kpi_participants"))
+    return written
+
+
+def bands_markdown(bands: pd.DataFrame) -> str:
+    """The reproduction bands as a Markdown table."""
+    header = ["Band", "Paper", "Ours", "Holds", "Note"]
+    rows = [[b["band"], _fmt(b["paper_value"]), _fmt(b["our_value"]), "yes" if b["holds"] else "no", b["note"]]
+            for _, b in bands.iterrows()]
+    return to_markdown(header, rows, "Reproduction bands")

@@ -1,0 +1,145 @@
+"""Human renderings (Markdown and LaTeX booktabs) of the acceptance statistics, shaped like the paper's
+Table 3 (descriptives, loadings, alpha, CR, AVE), Table 4 (inter-construct correlations, sqrt(AVE) on the
+diagonal) and Table 5 (hierarchical regressions). Rendered from the same frames `SurveyAnalysis.write` saves.
+
+Table 3 shows, for a retained item, its loading in the final CFA and, for an omitted item, its loading in the
+initial CFA marked with * (as the paper marks items omitted from the analysis); reverse-scored items carry a
+dagger. Table 4 stars: * p < .05, ** p < .01 (two-tailed). Table 5 stars on beta: * p < .05, ** p < .001 (the
+paper's Table 5 note); the CI column is the 95 % t-interval of B, the bootstrap CI is printed beside it.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from analysis.validity import stars
+
+NAMES = {"PU": "Perceived Usefulness (PU)", "PEoU": "Perceived Ease of Use (PEoU)",
+         "ATT": "Attitude toward Behaviour (ATT)", "PBC": "Perceived Behavioural Control (PBC)",
+         "SN": "Subjective Norms (SN)", "BI": "Behavioural Intention (BI)"}
+
+
+def _f(x, nd: int = 3) -> str:
+    return "" if x is None or (isinstance(x, float) and not np.isfinite(x)) else f"{x:.{nd}f}"
+
+
+def _md(header: list[str], rows: list[list[str]], title: str, notes: list[str]) -> str:
+    out = [f"**{title}**", "", "| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
+    out += ["| " + " | ".join(r) + " |" for r in rows]
+    out += [""] + [f"{n}  " for n in notes]
+    return "\n".join(out).rstrip() + "\n"
+
+
+_TEX_SYMBOLS = {"λ": r"$\lambda$", "α": r"$\alpha$", "β": r"$\beta$", "Δ": r"$\Delta$", "²": r"$^2$",
+                "†": r"$^\dagger$", "–": "--", "->": r"$\rightarrow$"}
+
+
+def _tex_escape(s: str) -> str:
+    s = (s.replace("\\", r"\textbackslash{}").replace("&", r"\&").replace("%", r"\%").replace("_", r"\_")
+         .replace("#", r"\#"))
+    for k, v in _TEX_SYMBOLS.items():
+        s = s.replace(k, v)
+    return s
+
+
+def _tex_cell(c: str) -> str:
+    """Markdown **bold** -> \\textbf{...}; everything else escaped."""
+    if len(c) > 4 and c.startswith("**") and c.endswith("**"):
+        return rf"\textbf{{{_tex_escape(c[2:-2])}}}"
+    return _tex_escape(c)
+
+
+def _tex(header: list[str], rows: list[list[str]], title: str, notes: list[str], align: str) -> str:
+    out = [r"\begin{table}[t]", r"\centering", rf"\caption{{{_tex_escape(title)}}}", rf"\begin{{tabular}}{{{align}}}",
+           r"\toprule", " & ".join(_tex_escape(h) for h in header) + r" \\", r"\midrule"]
+    for r in rows:
+        out.append(" & ".join(_tex_cell(c) for c in r) + r" \\")
+    out += [r"\bottomrule", r"\end{tabular}"]
+    if notes:
+        out += [r"\par\smallskip\footnotesize " + r" \\ ".join(_tex_escape(n) for n in notes)]
+    out += [r"\end{table}"]
+    return "\n".join(out) + "\n"
+
+
+def table3_rows(res) -> tuple[list[str], list[list[str]], list[str]]:
+    desc = res.descriptives.set_index("item")
+    lo = res.loadings
+    ini = lo[lo["stage"] == "initial"].set_index("item")
+    fin = lo[lo["stage"] == "final"].set_index("item")
+    rel = res.reliability.set_index("construct")
+    header = ["Constructs", "Mean", "SD", "λ", "Cα", "CR", "AVE"]
+    rows = []
+    for c in ini["construct"].unique():
+        r = rel.loc[c] if c in rel.index else None
+        rows.append([f"**{NAMES.get(c, c)}**", "", "", "", _f(r["alpha"]) if r is not None else "",
+                     _f(r["cr"]) if r is not None else "", _f(r["ave"]) if r is not None else ""])
+        for item in ini.index[ini["construct"] == c]:
+            name = item + ("†" if bool(desc.loc[item, "reversed"]) else "")
+            lam = _f(fin.loc[item, "loading"]) if item in fin.index else _f(ini.loc[item, "loading"]) + "*"
+            rows.append([name, _f(desc.loc[item, "mean"]), _f(desc.loc[item, "sd"]), lam, "", "", ""])
+    notes = [f"N = {res.n}. λ = standardized factor loading (final CFA; * initial CFA, item omitted from the analysis), "
+             "Cα = Cronbach's alpha, CR = composite reliability, AVE = average variance extracted (final items).",
+             "† reverse-scored item (mean and SD after reverse scoring)."]
+    return header, rows, notes
+
+
+def table4_rows(res) -> tuple[list[str], list[list[str]], list[str]]:
+    cons = list(res.reliability["construct"])
+    sq = res.reliability.set_index("construct")["sqrt_ave"]
+    corr = {(r.a, r.b): r for r in res.correlations.itertuples()}
+    header = ["Factors"] + cons
+    rows = []
+    for i, a in enumerate(cons):
+        row = [a]
+        for j, b in enumerate(cons):
+            if j < i:
+                r = corr.get((b, a)) or corr.get((a, b))
+                row.append(f"{_f(r.r)}{stars(r.p)}" if r is not None else "")
+            elif j == i:
+                row.append(f"**{_f(sq[a])}**")
+            else:
+                row.append("")
+        rows.append(row)
+    notes = [f"N = {res.n}. Diagonal (bold): square root of AVE; below: Pearson correlations of the composites.",
+             "** significant at the 0.01 level, * at the 0.05 level (2-tailed)."]
+    return header, rows, notes
+
+
+def table5_rows(res) -> tuple[list[str], list[list[str]], list[str]]:
+    reg = res.regressions
+    header = ["Models", "R²", "Adj. R²", "ΔR²", "B", "SE B", "β", "95% CI", "Bootstrap 95% CI"]
+    rows = []
+    for name, m in reg.groupby("model", sort=False):
+        label = m["label"].iloc[0] or name
+        rows.append([f"**{name}. {label}**", "", "", "", "", "", "", "", ""])
+        for step, s in m.groupby("step", sort=True):
+            top = s.iloc[0]
+            rows.append([f"Step {step}: Dependent Variable - {top['dv']}", _f(top["r2"]), _f(top["adj_r2"]),
+                         _f(top["delta_r2"]) + ("*" if top["p_change"] < 0.05 else ""), "", "", "", "", ""])
+            for _, r in s[s["predictor"] != "(Constant)"].iterrows():
+                mark = "**" if r["p"] < 0.001 else "*" if r["p"] < 0.05 else ""
+                rows.append([f"Independent Variable - {r['predictor']}", "", "", "", _f(r["b"]), _f(r["se_b"]),
+                             _f(r["beta"]) + mark, f"{_f(r['ci_low'])} – {_f(r['ci_high'])}",
+                             f"{_f(r['boot_ci_low'])} – {_f(r['boot_ci_high'])}"])
+    boot = res.settings.get("n_boot", 0)
+    notes = [f"N = {res.n}. β: ** p < 0.001, * p < 0.05 (2-tailed); ΔR²* : F change significant at 0.05.",
+             f"95% CI: t-interval of B; bootstrap: {res.settings.get('boot_method', 'percentile')} CI of B, "
+             f"{boot} case resamples, seed {res.settings.get('seed')}."]
+    return header, rows, notes
+
+
+TITLES = {"table3": "Descriptive statistics, standardized factor loadings, Cronbach's alpha, composite reliability "
+                    "and average variance extracted",
+          "table4": "Inter-construct correlation matrix of the TAM and TPB constructs",
+          "table5": "Hierarchical regression analysis on TAM and TPB models"}
+
+
+def render_all(res) -> dict[str, str]:
+    """file name -> text for table3/4/5 in Markdown (.md) and LaTeX booktabs (.tex)."""
+    out = {}
+    for name, fn in (("table3", table3_rows), ("table4", table4_rows), ("table5", table5_rows)):
+        header, rows, notes = fn(res)
+        out[f"{name}.md"] = _md(header, rows, TITLES[name], notes)
+        align = "l" + "c" * (len(header) - 1)
+        out[f"{name}.tex"] = _tex(header, rows, TITLES[name], notes, align)
+    return out

@@ -1,0 +1,426 @@
+"""Shared building blocks of the two pEDAS MPCs (Sec. 3.5): one sparse QP, built once and solved with OSQP.
+
+The QP keeps the speed ``v_k``, the distance to the next stop sign / traffic light ``d_ITS,k`` and (car following)
+the gap ``d_rel,k`` as explicit states tied together by equality rows (eq. 3a-3c), so that the sparsity pattern
+*and* the values of ``P`` and ``A`` never change. Each control step only rewrites the vectors ``q``, ``l`` and
+``u`` in place and calls ``OSQP.update(q=, l=, u=)`` — no re-setup.
+
+Decision vector (forces in kN and power in kW inside the QP so that all entries are O(1..100), which keeps
+ADMM well conditioned; the public plan is returned in SI units)::
+
+    x = [ v_0..v_N | d_0..d_N | (r_0..r_N) | Ft_0..Ft_{N-1} | Fb_0.. | e1_0.. | e2_0.. | (e3_0..) ]
+
+Cost (eq. 9a / 10a), ``k = 0..N-1``::
+
+    P(v_k, Ft_k) + zeta1 (v_{k+1} - v_ref,k)^2      [rt]   or   zeta1 e3_k^2   [cf]
+                 + zeta2 Fb_k^2 + zeta3 e1_k^2 + zeta4 e2_k^2
+
+The tracking term uses ``v_{k+1}`` (``v_0`` is measured, so penalising it would only add a constant).
+
+Convexity of the power term eq. (5): its Hessian in (v, Ft) is ``[[2 a20, a11], [a11, 2 a02]]``. When that block is
+indefinite (the fitted BEV map always has a dominant ``a11 v Ft`` term, i.e. mechanical power ``v F``), the
+bilinear term is replaced by its first-order Taylor expansion around the previous predicted trajectory (shifted by
+one step): ``a11 v Ft ~ a11 (vbar Ft + Fbar v - vbar Fbar)``. This is a sequential (one-iteration-per-sample)
+convexification; it is exact on the nominal trajectory and keeps ``P`` constant. Convex parts (``a20 v^2``,
+``a02 Ft^2`` when non-negative) stay quadratic. :func:`power_hessian_eigs` reports the numbers.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import osqp
+import scipy.sparse as sp
+
+from pedas.constants import DT, N_HORIZON
+
+KN = 1000.0  # N per kN: forces inside the QP are in kN
+KW = 1000.0  # W per kW: the power cost inside the QP is in kW
+INF = np.inf
+
+# OSQP settings used by both MPCs (tuned with `pedas-study bench mpc`; see docs/controller.md)
+OSQP_SETTINGS = dict(
+    verbose=False,
+    warm_starting=True,
+    polishing=False,
+    eps_abs=1e-4,
+    eps_rel=1e-4,
+    eps_prim_inf=1e-5,
+    eps_dual_inf=1e-5,
+    max_iter=4000,
+    check_termination=10,
+    adaptive_rho=True,
+    scaling=10,
+)
+
+
+@dataclass(frozen=True)
+class MpcModel:
+    """The numbers of the vehicle/power model the QP needs (SI units).
+
+    ``c_aero`` = 0.5 rho A_f c_w (N s^2/m^2); the linearised drag is ``c_aero (p1 v + p2)`` (Sec. 3.3, Fig. 5a).
+    ``F_t,max ~ p3 v + p4`` (eq. 6a, N). ``a00..a02``: power map eq. (5), W with v in m/s and F in N.
+    """
+
+    m_eq: float
+    m_v: float
+    c_r: float
+    c_aero: float
+    p1: float
+    p2: float
+    p3: float
+    p4: float
+    a00: float
+    a10: float
+    a01: float
+    a11: float
+    a20: float
+    a02: float
+    F_b_max: float
+    g: float = 9.81
+
+
+@dataclass(frozen=True)
+class MpcWeights:
+    """Weights and limits the paper leaves open (docs/controller.md gives the reasoning).
+
+    zeta1: kW/(m/s)^2 (rt: speed tracking) or kW/m^2 (cf: comfort slack e3); zeta2: kW/kN^2 (braking force);
+    zeta3: kW/m^2 (stop-line slack e1); zeta4: kW/kN^2 (jerk slack e2). h_s, h_c in s, d_min in m (eq. 7),
+    dFt_max in N per step (eq. 8 / constraints on F_t,k+1 - F_t,k).
+    """
+
+    zeta1: float
+    zeta2: float = 0.5
+    zeta3: float = 0.02
+    zeta4: float = 5.0
+    h_s: float = 1.0
+    h_c: float = 2.5
+    d_min: float = 3.0
+    dFt_max: float = 700.0
+
+
+def power_hessian_eigs(m: MpcModel) -> np.ndarray:
+    """Eigenvalues of the Hessian of eq. (5) in (v [m/s], F_t [N]); both >= 0 iff the power map is convex."""
+    H = np.array([[2.0 * m.a20, m.a11], [m.a11, 2.0 * m.a02]])
+    return np.linalg.eigvalsh(H)
+
+
+@dataclass
+class MpcPlan:
+    """A solved (or fallback) plan over the horizon, SI units. ``v`` and the distances have N+1 entries (k=0..N)."""
+
+    status: str
+    ok: bool
+    v: np.ndarray
+    ft: np.ndarray
+    fb: np.ndarray
+    d_its: np.ndarray
+    d_rel: np.ndarray | None
+    eps1: np.ndarray
+    eps2: np.ndarray
+    eps3: np.ndarray | None
+    objective: float
+    iterations: int
+    x: np.ndarray = field(repr=False, default=None)
+
+
+_STATUS_OK = {"solved"}
+_STATUS_CHECK = {"solved inaccurate", "maximum iterations reached", "solved_inaccurate", "max_iter_reached"}
+
+
+class SparseMpc:
+    """The sparse QP of eq. (9) (``follow=False``) or eq. (10) (``follow=True``), set up once in OSQP.
+
+    Per step call :meth:`solve` with the measured state and the horizon profiles; it updates q, l, u in place,
+    solves, checks the status and the constraint residual, and returns an :class:`MpcPlan`.
+    """
+
+    def __init__(self, model: MpcModel, weights: MpcWeights, follow: bool, n: int = N_HORIZON, dt: float = DT,
+                 settings: dict | None = None) -> None:
+        self.model, self.w, self.follow, self.n, self.dt = model, weights, follow, n, dt
+        N = n
+        # ---- variable layout -------------------------------------------------------------------------------
+        o = 0
+        self.iv = np.arange(o, o + N + 1); o += N + 1
+        self.id = np.arange(o, o + N + 1); o += N + 1
+        if follow:
+            self.ir = np.arange(o, o + N + 1); o += N + 1
+        self.ift = np.arange(o, o + N); o += N
+        self.ifb = np.arange(o, o + N); o += N
+        self.ie1 = np.arange(o, o + N); o += N
+        self.ie2 = np.arange(o, o + N); o += N
+        if follow:
+            self.ie3 = np.arange(o, o + N); o += N
+        self.nx = o
+
+        # ---- model coefficients in QP units (eq. 3a) ---------------------------------------------------------
+        mm = model
+        self.a_v = 1.0 - dt * mm.c_aero * mm.p1 / mm.m_eq          # v_{k+1} = a_v v_k + b (Ft - Fb) + c_k
+        self.b_f = dt * KN / mm.m_eq                                # per kN
+        self.c_const = -dt * mm.c_aero * mm.p2 / mm.m_eq            # part of c_k independent of the grade
+        eig = power_hessian_eigs(mm)
+        self.power_convex = bool(eig.min() >= -1e-12)
+        # power map in kW with F in kN: P = a00' + a10' v + a01' F + a11' v F + a20' v^2 + a02' F^2
+        self.pa00 = mm.a00 / KW
+        self.pa10 = mm.a10 / KW
+        self.pa01 = mm.a01 * KN / KW
+        self.pa11 = mm.a11 * KN / KW
+        self.pa20 = mm.a20 / KW
+        self.pa02 = mm.a02 * KN * KN / KW
+        self.lin_v2 = (not self.power_convex) and self.pa20 < 0   # linearise a negative curvature, keep a positive one
+        self.lin_f2 = (not self.power_convex) and self.pa02 < 0
+
+        # ---- constant Hessian P (upper triangle) -------------------------------------------------------------
+        rows, cols, vals = [], [], []
+
+        def add(i, j, val):
+            rows.extend(np.atleast_1d(i)); cols.extend(np.atleast_1d(j))
+            vals.extend(np.broadcast_to(val, np.atleast_1d(i).shape))
+
+        w = weights
+        if not self.lin_v2 and self.pa20 > 0:
+            add(self.iv[:N], self.iv[:N], 2.0 * self.pa20)
+        if not self.lin_f2 and self.pa02 > 0:
+            add(self.ift, self.ift, 2.0 * self.pa02)
+        if self.power_convex and self.pa11 != 0:
+            add(self.iv[:N], self.ift, self.pa11)      # cross term stays exact when the map is convex
+        if not follow:
+            add(self.iv[1:], self.iv[1:], 2.0 * w.zeta1)
+        else:
+            add(self.ie3, self.ie3, 2.0 * w.zeta1)
+        add(self.ifb, self.ifb, 2.0 * w.zeta2)
+        add(self.ie1, self.ie1, 2.0 * w.zeta3)
+        add(self.ie2, self.ie2, 2.0 * w.zeta4)
+        P = sp.coo_matrix((vals, (rows, cols)), shape=(self.nx, self.nx)).tocsc()
+        P.sum_duplicates()
+        P = sp.triu(P, format="csc")
+        self.P = P
+
+        # ---- constant constraint matrix A -------------------------------------------------------------------
+        A_rows: list[sp.spmatrix] = []
+        self.rows: dict[str, np.ndarray] = {}
+        nrow = 0
+
+        def block(name: str, mat) -> None:
+            nonlocal nrow
+            mat = sp.csr_matrix(mat)
+            A_rows.append(mat)
+            self.rows[name] = np.arange(nrow, nrow + mat.shape[0])
+            nrow += mat.shape[0]
+
+        def sel(idx, coef=1.0):
+            m = sp.lil_matrix((len(idx), self.nx))
+            m[np.arange(len(idx)), idx] = coef
+            return m
+
+        # initial states
+        block("init_v", sel([self.iv[0]]))
+        block("init_d", sel([self.id[0]]))
+        if follow:
+            block("init_r", sel([self.ir[0]]))
+        # eq. (3a): v_{k+1} - a_v v_k - b Ft_k + b Fb_k = c_k
+        block("dyn_v", sel(self.iv[1:]) + sel(self.iv[:N], -self.a_v) + sel(self.ift, -self.b_f) + sel(self.ifb, self.b_f))
+        # eq. (3b): d_{k+1} - d_k + dt/2 (v_k + v_{k+1}) = 0
+        block("dyn_d", sel(self.id[1:]) + sel(self.id[:N], -1.0) + sel(self.iv[:N], dt / 2) + sel(self.iv[1:], dt / 2))
+        if follow:
+            # eq. (3c) with a frozen-time leader: r_{k+1} - r_k + dt/2 (v_k + v_{k+1}) = dt v_p
+            block("dyn_r", sel(self.ir[1:]) + sel(self.ir[:N], -1.0) + sel(self.iv[:N], dt / 2) + sel(self.iv[1:], dt / 2))
+        # eq. (6c) speed limits on v_1..v_N
+        block("v_lim", sel(self.iv[1:]))
+        # eq. (6a) 0 <= Ft_k, Ft_k - p3 v_k <= p4 (kN)
+        block("ft", sel(self.ift))
+        block("ft_max", sel(self.ift) + sel(self.iv[:N], -mm.p3 / KN))
+        # eq. (6b) 0 <= Fb_k <= Fb_max
+        block("fb", sel(self.ifb))
+        # slacks >= 0
+        block("e1", sel(self.ie1))
+        block("e2", sel(self.ie2))
+        if follow:
+            block("e3", sel(self.ie3))
+        # eq. (8a/b) soft jerk limit: -dF <= Ft_k - Ft_{k-1} -/+ e2_k; k = 0 uses the previously applied force
+        prev = sp.lil_matrix((N, self.nx))
+        prev[np.arange(1, N), self.ift[:-1]] = -1.0
+        block("jerk_up", sel(self.ift) + prev + sel(self.ie2, -1.0))     # <= dF (+ Ft_prev at k=0)
+        block("jerk_dn", sel(self.ift) + prev + sel(self.ie2, 1.0))      # >= -dF (+ Ft_prev at k=0)
+        # eq. (8c) d_ITS,k >= 0 (hard, only at a red light / stop sign) on d_1..d_N
+        block("d_hard", sel(self.id[1:]))
+        # eq. (8d) soft stop-line approach d_{k+1} - e1_k <= d_s,ITS
+        block("d_soft", sel(self.id[1:]) + sel(self.ie1, -1.0))
+        if follow:
+            # eq. (7a) hard safe distance r_k - h_s v_k >= d_min on k=1..N
+            block("safe", sel(self.ir[1:]) + sel(self.iv[1:], -w.h_s))
+            # eq. (7b) soft comfort distance r_{k+1} - h_c v_{k+1} - e3_k <= d_min
+            block("comfort", sel(self.ir[1:]) + sel(self.iv[1:], -w.h_c) + sel(self.ie3, -1.0))
+        self.A = sp.vstack(A_rows, format="csc")
+        self.m = nrow
+
+        # ---- vectors, updated in place each step ---------------------------------------------------------
+        self.q = np.zeros(self.nx)
+        self.l = np.full(self.m, -INF)
+        self.u = np.full(self.m, INF)
+        R = self.rows
+        self.l[R["ft"]] = 0.0
+        self.l[R["fb"]] = 0.0
+        self.u[R["fb"]] = mm.F_b_max / KN
+        self.u[R["ft_max"]] = mm.p4 / KN
+        for name in ("e1", "e2") + (("e3",) if follow else ()):
+            self.l[R[name]] = 0.0
+        self.l[R["dyn_d"]] = 0.0
+        self.u[R["dyn_d"]] = 0.0
+        self.u[R["jerk_up"]] = w.dFt_max / KN
+        self.l[R["jerk_dn"]] = -w.dFt_max / KN
+        if follow:
+            self.l[R["safe"]] = w.d_min
+            self.u[R["comfort"]] = w.d_min
+        self.dFt = w.dFt_max / KN
+        self.settings = {**OSQP_SETTINGS, **(settings or {})}
+        self.solver = osqp.OSQP()
+        self.solver.setup(P=self.P, q=self.q, A=self.A, l=np.maximum(self.l, -1e30), u=np.minimum(self.u, 1e30),
+                          **self.settings)
+        self.x_prev: np.ndarray | None = None
+        self.last_solve_time = 0.0
+        self.last_iter = 0
+        self.const = 0.0  # objective constant of the current step (power offsets), for reporting the true cost
+
+    # ------------------------------------------------------------------------------------------------------
+    def set_step(self, v0: float, v_lo: np.ndarray, v_hi: np.ndarray, grade: np.ndarray,
+                 v_ref: np.ndarray | None = None, d_its0: float = 0.0, d_hard_lo: np.ndarray | None = None,
+                 d_s_its: float = INF, ft_prev: float | None = None, d_rel0: float = 0.0, v_p: float = 0.0,
+                 v_lin: np.ndarray | None = None, ft_lin: np.ndarray | None = None,
+                 safe_margin=0.0) -> None:
+        """Write this step's data into q, l, u (in place). Arrays have N entries (k=0..N-1 for inputs/grade, and
+        k=1..N for the state bounds v_lo, v_hi, d_hard_lo). ``d_hard_lo`` holds 0 where d_ITS >= 0 is enforced
+        and -inf elsewhere. ``v_lin``/``ft_lin`` (N entries, SI) is the linearisation trajectory of the power term.
+        ``safe_margin`` (m, scalar or N values for k=1..N, car following) shifts the hard safe-distance row to d_rel - h_s v >= d_min + margin:
+        a positive back-off keeps solver-tolerance violations outside d_s, a negative value (psi < 0) relaxes it
+        to "no worse than now" while the speed correction eq. (11) acts."""
+        N, mm, R = self.n, self.model, self.rows
+        l, u, q = self.l, self.u, self.q
+        l[R["init_v"]] = u[R["init_v"]] = v0
+        l[R["init_d"]] = u[R["init_d"]] = d_its0
+        # eq. (3a) right-hand side with grade theta_k (rolling + gradient resistance)
+        c = self.c_const - self.dt / mm.m_eq * mm.m_v * mm.g * (mm.c_r * np.cos(grade) + np.sin(grade))
+        l[R["dyn_v"]] = c
+        u[R["dyn_v"]] = c
+        l[R["v_lim"]] = v_lo
+        u[R["v_lim"]] = v_hi
+        if ft_prev is None:
+            u[R["jerk_up"][0]] = INF
+            l[R["jerk_dn"][0]] = -INF
+        else:
+            u[R["jerk_up"][0]] = self.dFt + ft_prev / KN
+            l[R["jerk_dn"][0]] = -self.dFt + ft_prev / KN
+        l[R["d_hard"]] = -INF if d_hard_lo is None else d_hard_lo
+        u[R["d_soft"]] = d_s_its
+        if self.follow:
+            l[R["init_r"]] = u[R["init_r"]] = d_rel0
+            l[R["dyn_r"]] = u[R["dyn_r"]] = self.dt * v_p
+            l[R["safe"]] = self.w.d_min + safe_margin
+        # linear cost: power (eq. 5) and tracking
+        q[:] = 0.0
+        const = N * self.pa00
+        q[self.iv[:N]] = self.pa10
+        q[self.ift] = self.pa01
+        if not self.power_convex:
+            vb = np.full(N, v0) if v_lin is None else v_lin
+            fb_ = np.zeros(N) if ft_lin is None else ft_lin / KN
+            q[self.iv[:N]] += self.pa11 * fb_
+            q[self.ift] += self.pa11 * vb
+            const -= self.pa11 * float(vb @ fb_)
+            if self.lin_v2:
+                q[self.iv[:N]] += 2.0 * self.pa20 * vb
+                const -= self.pa20 * float(vb @ vb)
+            if self.lin_f2:
+                q[self.ift] += 2.0 * self.pa02 * fb_
+                const -= self.pa02 * float(fb_ @ fb_)
+        if not self.follow:
+            q[self.iv[1:]] += -2.0 * self.w.zeta1 * v_ref
+            const += self.w.zeta1 * float(v_ref @ v_ref)
+        self.const = const
+
+    def solve(self) -> MpcPlan:
+        """Update OSQP's vectors, solve, check the status and the residual, and unpack the plan (SI)."""
+        lo = np.maximum(self.l, -1e30)
+        hi = np.minimum(self.u, 1e30)
+        self.solver.update(q=self.q, l=lo, u=hi)
+        res = self.solver.solve()
+        self.last_solve_time = float(res.info.run_time)   # s, OSQP's own timer (update excluded)
+        self.last_iter = int(res.info.iter)
+        status = res.info.status
+        x = res.x
+        ok = status in _STATUS_OK
+        if not ok and status in _STATUS_CHECK and x is not None and np.all(np.isfinite(x)):
+            ok = self.residual(x) <= 1e-2   # accept an inaccurate solution only if it actually satisfies Ax in [l, u]
+        if ok and (x is None or not np.all(np.isfinite(x))):
+            ok = False
+        if not ok:
+            return MpcPlan(status, False, *([None] * 8), float("nan"), int(res.info.iter), None)
+        self.x_prev = x
+        return self.unpack(x, status, float(res.info.obj_val) + self.const, int(res.info.iter))
+
+    def residual(self, x: np.ndarray) -> float:
+        """Largest violation of l <= A x <= u (QP units)."""
+        Ax = self.A @ x
+        return float(max(np.max(self.l - Ax, initial=0.0), np.max(Ax - self.u, initial=0.0)))
+
+    def unpack(self, x: np.ndarray, status: str, obj: float, iters: int) -> MpcPlan:
+        return MpcPlan(
+            status=status, ok=True, v=x[self.iv], ft=x[self.ift] * KN, fb=x[self.ifb] * KN, d_its=x[self.id],
+            d_rel=x[self.ir] if self.follow else None, eps1=x[self.ie1], eps2=x[self.ie2] * KN,
+            eps3=x[self.ie3] if self.follow else None, objective=obj, iterations=iters, x=x)
+
+    def warm_start_from(self, v: np.ndarray, ft: np.ndarray, fb: np.ndarray) -> None:
+        """Warm-start the primal variables from another controller's plan (SI), e.g. at a hand-over."""
+        x = np.zeros(self.nx) if self.x_prev is None else self.x_prev.copy()
+        x[self.iv] = v
+        x[self.ift] = ft / KN
+        x[self.ifb] = fb / KN
+        self.solver.warm_start(x=x)
+
+    def qp_data(self) -> tuple[sp.csc_matrix, np.ndarray, sp.csc_matrix, np.ndarray, np.ndarray, float]:
+        """(P upper triangle, q, A, l, u, constant) of the current step — the exact QP OSQP solves, for peers."""
+        return self.P, self.q.copy(), self.A, self.l.copy(), self.u.copy(), self.const
+
+
+def vehicle_model(params=None) -> MpcModel:
+    """The QP's numbers for a vehicle: linearised aero and traction limit (pedas.vehicle), power map eq. (5)
+    (pedas.power), mass and rolling resistance (pedas.params). Defaults to the Nissan Leaf."""
+    from pedas.params import LEAF
+    from pedas.power import power_map
+    from pedas.vehicle import linear_model
+
+    p = LEAF if params is None else params
+    lm = linear_model(p)
+    pm = power_map(p)
+    return MpcModel(m_eq=p.m_eq, m_v=p.m_v, c_r=p.c_r, c_aero=lm.c_a, p1=lm.p1, p2=lm.p2, p3=lm.p3, p4=lm.p4,
+                    a00=pm.a00, a10=pm.a10, a01=pm.a01, a11=pm.a11, a20=pm.a20, a02=pm.a02,
+                    F_b_max=p.F_b_max, g=p.g)
+
+
+def solve_qp_cvxpy(P: sp.spmatrix, q: np.ndarray, A: sp.spmatrix, l: np.ndarray, u: np.ndarray,
+                   solver: str = "CLARABEL") -> tuple[str, float, np.ndarray | None]:
+    """The same QP (min 1/2 x'Px + q'x, l <= Ax <= u; P given as its upper triangle) built from scratch in cvxpy
+    and solved by an independent interior-point solver (Clarabel). Returns (status, objective, x).
+
+    The peer of the OSQP solution in the tests and in ``pedas-study bench mpc``.
+    """
+    import cvxpy as cp
+
+    P = sp.csc_matrix(P)
+    Pfull = (P + P.T - sp.diags(P.diagonal())).tocsc()
+    A = sp.csr_matrix(A)
+    x = cp.Variable(A.shape[1])
+    eq = np.isfinite(l) & np.isfinite(u) & (np.abs(u - l) <= 1e-12)
+    lo = np.isfinite(l) & ~eq
+    hi = np.isfinite(u) & ~eq
+    cons = []
+    if eq.any():
+        cons.append(A[eq] @ x == l[eq])
+    if lo.any():
+        cons.append(A[lo] @ x >= l[lo])
+    if hi.any():
+        cons.append(A[hi] @ x <= u[hi])
+    obj = cp.Minimize(0.5 * cp.quad_form(x, cp.psd_wrap(Pfull)) + q @ x)
+    prob = cp.Problem(obj, cons)
+    prob.solve(solver=solver)
+    return str(prob.status), float(prob.value) if prob.value is not None else float("nan"), x.value

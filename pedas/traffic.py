@@ -1,0 +1,189 @@
+"""Surrounding traffic of the study route in SUMO, through libsumo; the ego vehicle is driven from Python.
+
+One :class:`Traffic` is one SUMO simulation. libsumo holds a single simulation per process, so drives run one at a
+time per process (the cohort runs them in worker processes). Traffic other than the ego vehicle uses SUMO's own
+Krauss car-following model; its demand comes from ``data/network/demand.json`` and is drawn from the seed:
+departure times of every flow (Poisson arrivals with a minimum headway) by numpy, the vehicles' speed factors and
+driver imperfection by SUMO's RNG seeded with the same seed. Same seed -> same traffic.
+
+The ego vehicle follows the speed set every step with ``vehicle.setSpeed``; speed mode 32 switches off all of
+SUMO's own checks (safe speed, acceleration bounds, right of way, red lights) so that SUMO never silently
+corrects the driver model: safety is checked by the drive loop, not hidden by the simulator.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from pedas.constants import DT
+from pedas.network import DEMAND, ROUTES, VTYPES, build_network
+from pedas.paths import NETWORK_DIR
+
+EGO_ID = "ego"
+EGO_ROUTE = "ego"
+EGO_TYPE = "ego"
+EGO_SPEED_MODE = 32  # all checks off: speed exactly as commanded (TraCI speed-mode bits 0-5)
+LEADER_LOOKAHEAD = 250.0  # m, how far getLeader searches along the ego's route
+_ACTIVE: "Traffic | None" = None  # the process's running simulation (libsumo allows one)
+
+
+def load_demand(path: Path | None = None) -> dict:
+    """The demand definition (``demand.json``): ego_depart (s), min_headway (s) and the flows."""
+    return json.loads(Path(path or NETWORK_DIR / DEMAND).read_text())
+
+
+def departures(seed: int, demand: dict | None = None) -> pd.DataFrame:
+    """Seeded departures of the surrounding traffic: tidy frame veh_id, route, depart (s), depart_speed.
+
+    Per flow, headways are min_headway + Exp(mean 3600/rate - min_headway) so that the mean rate is `rate` veh/h
+    and no two vehicles of a flow depart closer than min_headway.
+    """
+    demand = demand or load_demand()
+    rng = np.random.default_rng([int(seed), 0x7AFF1C])
+    h_min = float(demand.get("min_headway", 2.0))
+    rows = []
+    for k, f in enumerate(demand["flows"]):
+        mean = 3600.0 / float(f["rate"])
+        t = float(f["start"]) + rng.uniform(0.0, mean)
+        i = 0
+        while t <= float(f["end"]):
+            rows.append((f"f{k}.{i}", f["route"], round(t, 1), str(f.get("depart_speed", "max"))))
+            t += h_min + rng.exponential(max(mean - h_min, 0.1))
+            i += 1
+    df = pd.DataFrame(rows, columns=["veh_id", "route", "depart", "depart_speed"])
+    return df.sort_values(["depart", "veh_id"], kind="stable").reset_index(drop=True)
+
+
+@dataclass(frozen=True)
+class Leader:
+    """The vehicle ahead of the ego on its route: id, bumper-to-bumper gap (m) and speed (m/s)."""
+
+    veh_id: str
+    gap: float
+    v: float
+
+
+class Traffic:
+    """A libsumo simulation of the study network with seeded traffic and the ego vehicle.
+
+    Use as a context manager: ``with Traffic(seed) as tr: tr.insert_ego(); while ...: tr.set_ego_speed(v);
+    tr.step()``. Times are SUMO simulation times (s).
+    """
+
+    def __init__(self, seed: int, net_file: Path | None = None, demand: dict | None = None,
+                 step_length: float = DT) -> None:
+        self.seed = int(seed)
+        self.net_file = Path(net_file or build_network())
+        self.demand = demand or load_demand()
+        self.step_length = float(step_length)
+        self.ego_depart = float(self.demand["ego_depart"])
+        self.ego_min_gap = 0.0
+        self._ls = None
+
+    # --- life cycle -------------------------------------------------------------------------------------------
+    def sumo_args(self) -> list[str]:
+        """Command line of the SUMO run (no GUI, ballistic position update as eq. (3b), no teleports)."""
+        return ["sumo", "-n", str(self.net_file), "-r", str(NETWORK_DIR / ROUTES), "-a", str(NETWORK_DIR / VTYPES),
+                "--step-length", f"{self.step_length}", "--seed", str(self.seed % 2**31),
+                "--step-method.ballistic", "true", "--time-to-teleport", "-1", "--no-step-log", "true",
+                "--no-warnings", "true", "--xml-validation", "never", "--collision.action", "warn",
+                "--collision.check-junctions", "false", "--collision.mingap-factor", "0", "--begin", "0"]
+
+    def start(self) -> "Traffic":
+        """Start SUMO and add the seeded traffic (departures in the future are queued by SUMO)."""
+        global _ACTIVE
+        import libsumo
+
+        if _ACTIVE is not None:
+            raise RuntimeError("a SUMO simulation is already running in this process (libsumo allows one)")
+        libsumo.start(self.sumo_args())
+        _ACTIVE = self
+        self._ls = libsumo
+        for row in departures(self.seed, self.demand).itertuples(index=False):
+            libsumo.vehicle.add(row.veh_id, row.route, typeID="car", depart=f"{row.depart:.1f}",
+                                departLane="first", departPos="base", departSpeed=row.depart_speed)
+        libsumo.vehicle.add(EGO_ID, EGO_ROUTE, typeID=EGO_TYPE, depart=f"{self.ego_depart:.1f}", departLane="first",
+                            departPos="0", departSpeed="0")
+        self.ego_min_gap = float(libsumo.vehicletype.getMinGap(EGO_TYPE))
+        return self
+
+    def close(self) -> None:
+        """End the simulation (idempotent)."""
+        global _ACTIVE
+        if self._ls is not None:
+            try:
+                self._ls.close()
+            finally:
+                self._ls = None
+                _ACTIVE = None
+
+    def __enter__(self) -> "Traffic":
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    # --- stepping ---------------------------------------------------------------------------------------------
+    @property
+    def time(self) -> float:
+        """Current simulation time in s."""
+        return float(self._ls.simulation.getTime())
+
+    def step(self) -> None:
+        """Advance one step of `step_length` s."""
+        self._ls.simulationStep()
+
+    def insert_ego(self, max_wait: float = 120.0) -> float:
+        """Step until the ego vehicle is in the network (it departs at `ego_depart`, later if its start is
+        blocked); switch off SUMO's speed checks and lane changes for it. Returns the insertion time (s)."""
+        ls = self._ls
+        t_end = self.ego_depart + max_wait
+        while EGO_ID not in ls.vehicle.getIDList():
+            if self.time > t_end:
+                raise RuntimeError(f"ego vehicle could not be inserted before t={t_end} s")
+            self.step()
+        ls.vehicle.setSpeedMode(EGO_ID, EGO_SPEED_MODE)
+        ls.vehicle.setLaneChangeMode(EGO_ID, 0)  # no overtaking, no lane changes (Sec. 4.3)
+        return self.time
+
+    # --- ego state --------------------------------------------------------------------------------------------
+    def ego_arrived(self) -> bool:
+        """True once the ego vehicle has reached the end of its route and left the simulation."""
+        return EGO_ID in self._ls.simulation.getArrivedIDList()
+
+    def ego_state(self) -> tuple[float, float]:
+        """(s, v): distance driven along the route (odometer, m) and speed (m/s)."""
+        ls = self._ls
+        return float(ls.vehicle.getDistance(EGO_ID)), float(ls.vehicle.getSpeed(EGO_ID))
+
+    def leader(self, lookahead: float = LEADER_LOOKAHEAD) -> Leader | None:
+        """The vehicle ahead on the ego's route within `lookahead` m (``vehicle.getLeader``), else None.
+
+        getLeader reports the gap minus the ego's minGap; it is added back to give the bumper-to-bumper gap.
+        """
+        ls = self._ls
+        res = ls.vehicle.getLeader(EGO_ID, lookahead)
+        if not res or not res[0]:
+            return None
+        vid, gap = res
+        return Leader(vid, float(gap) + self.ego_min_gap, float(ls.vehicle.getSpeed(vid)))
+
+    def set_ego_speed(self, v: float) -> None:
+        """Command the ego's speed (m/s) for the next step."""
+        self._ls.vehicle.setSpeed(EGO_ID, max(float(v), 0.0))
+
+    def ego_collided(self) -> bool:
+        """True if SUMO detected a collision involving the ego vehicle in the last step."""
+        return EGO_ID in self._ls.simulation.getCollidingVehiclesIDList()
+
+    def tl_state(self, tl_id: str, link_index: int = 0) -> str:
+        """SUMO's signal character of one link of a traffic light (as reported after the last step)."""
+        return self._ls.trafficlight.getRedYellowGreenState(tl_id)[link_index]
+
+    def vehicle_count(self) -> int:
+        """Vehicles currently in the network (incl. the ego)."""
+        return int(self._ls.vehicle.getIDCount())

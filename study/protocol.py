@@ -1,0 +1,206 @@
+"""The study protocol as data, and recording a participant's way through it.
+
+A protocol is a versioned JSON file ``study/protocols/<name>.json`` with an ordered list of ``phases`` (each a
+``name``, ``planned_minutes``, whether it is a ``drive`` and for which ``condition``). Extra keys are kept in
+:attr:`Phase.extra` / :attr:`Protocol.extra` so that newer files load in older code.
+
+Semantics of the phase log (table ``phase_events``, one row per phase a participant entered):
+
+* :func:`advance` starts the next phase. The phase must be exactly the one after the last recorded phase
+  (the first phase for a new participant); anything else is refused as out of order. A phase still in
+  progress is completed at the moment the next one starts.
+* :func:`abort` ends the phase in progress with outcome ``aborted`` and a reason (e.g. motion sickness).
+  The participant may still advance afterwards (a technical issue in the pEDAS drive does not stop the survey)
+  unless excluded with scope ``all``: such a participant's protocol is closed.
+* :func:`complete` ends the phase in progress with outcome ``completed`` without starting another (the end of
+  the last phase, or a stop after an aborted drive).
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from study.audit import utcnow
+from study.errors import UserError
+
+PROTOCOL_DIR = Path(__file__).with_name("protocols")
+DEFAULT_PROTOCOL = "paper_v1"
+
+
+@dataclass(frozen=True)
+class Phase:
+    name: str
+    planned_minutes: float | None = None
+    drive: bool = False
+    condition: str | None = None
+    extra: dict[str, Any] = field(default_factory=dict, compare=False, hash=False)
+
+
+@dataclass(frozen=True)
+class Protocol:
+    """An ordered list of phases. ``.phases`` are the names in order, ``.steps`` the Phase objects."""
+
+    name: str
+    steps: tuple[Phase, ...]
+    version: int | None = None
+    extra: dict[str, Any] = field(default_factory=dict, compare=False, hash=False)
+
+    @property
+    def phases(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.steps)
+
+    def phase(self, name: str) -> Phase:
+        for p in self.steps:
+            if p.name == name:
+                return p
+        raise UserError(f"unknown phase {name!r} (protocol {self.name}: {', '.join(self.phases)})")
+
+    def index(self, name: str) -> int:
+        """0-based position of a phase; unknown phase -> UserError."""
+        return self.phases.index(self.phase(name).name)
+
+
+@lru_cache(maxsize=None)
+def load_protocol(name: str = DEFAULT_PROTOCOL) -> Protocol:
+    """Load ``study/protocols/<name>.json`` (unknown keys are kept, not refused)."""
+    path = PROTOCOL_DIR / f"{name}.json"
+    if not path.exists():
+        known = ", ".join(sorted(p.stem for p in PROTOCOL_DIR.glob("*.json")))
+        raise UserError(f"unknown protocol {name!r} (known: {known})")
+    data = json.loads(path.read_text(encoding="utf-8"))
+    steps = []
+    for raw in data.get("phases", []):
+        raw = {"name": raw} if isinstance(raw, str) else dict(raw)
+        known = {k: raw.pop(k) for k in ("name", "planned_minutes", "drive", "condition") if k in raw}
+        steps.append(Phase(extra=raw, **known))
+    names = [s.name for s in steps]
+    if not names or len(set(names)) != len(names):
+        raise UserError(f"protocol {name}: phases must be a non-empty list of distinct names")
+    extra = {k: v for k, v in data.items() if k not in ("name", "version", "phases")}
+    return Protocol(name=data.get("name", name), steps=tuple(steps), version=data.get("version"), extra=extra)
+
+
+def protocol_of(st, participant_id: str) -> Protocol:
+    """The protocol a registered participant follows; unknown participant -> UserError."""
+    name = st.one("SELECT protocol FROM participants WHERE participant_id = ?", [participant_id])
+    if name is None:
+        raise UserError(f"unknown participant {participant_id}")
+    return load_protocol(name)
+
+
+def _events(st, participant_id: str) -> pd.DataFrame:
+    return st.df("SELECT * FROM phase_events WHERE participant_id = ? ORDER BY seq", [participant_id])
+
+
+def _when(at: datetime | str | None) -> datetime:
+    if at is None:
+        return utcnow()
+    if isinstance(at, str):
+        try:
+            at = datetime.fromisoformat(at)
+        except ValueError:
+            raise UserError(f"bad time {at!r} (use ISO 8601, e.g. 2026-05-04T09:30)") from None
+    if at.tzinfo is not None:  # the store keeps UTC without zone
+        at = at.astimezone(timezone.utc).replace(tzinfo=None)
+    return at
+
+
+def _closed_by_exclusion(st, participant_id: str) -> str | None:
+    return st.one("SELECT reason FROM exclusions WHERE participant_id = ? AND scope = 'all'", [participant_id])
+
+
+def _end_current(st, participant_id: str, ev: pd.DataFrame, outcome: str, at: datetime, note: str | None) -> str | None:
+    cur = ev[ev["outcome"] == "in_progress"]
+    if cur.empty:
+        return None
+    row = cur.iloc[-1]
+    if at < row["started_at"]:
+        raise UserError(f"end time {at:%Y-%m-%d %H:%M:%S} is before the start of {row['phase']} "
+                        f"({row['started_at']:%Y-%m-%d %H:%M:%S})")
+    values: dict[str, Any] = {"ended_at": at, "outcome": outcome}
+    if note:
+        old = row["note"] if isinstance(row["note"], str) else ""
+        values["note"] = f"{old}; {note}" if old else note
+    st.update("phase_events", {"participant_id": participant_id, "phase": row["phase"]}, values)
+    return str(row["phase"])
+
+
+def advance(st, participant_id: str, phase: str, note: str | None = None,
+            at: datetime | str | None = None) -> dict[str, Any]:
+    """Start `phase` for a participant, completing the phase in progress. Refuses unknown and out-of-order phases.
+
+    Returns {"started": phase, "completed": previous phase or None}.
+    """
+    proto = protocol_of(st, participant_id)
+    idx = proto.index(phase)
+    when = _when(at)
+    with st.transaction():
+        reason = _closed_by_exclusion(st, participant_id)
+        if reason:
+            raise UserError(f"{participant_id} is excluded from all analyses ({reason}); the protocol is closed")
+        ev = _events(st, participant_id)
+        done = list(ev["phase"])
+        if phase in done:
+            raise UserError(f"{participant_id} already started {phase}")
+        expected = proto.phases[len(done)] if len(done) < len(proto.phases) else None
+        if phase != expected:
+            raise UserError(f"phase out of order: {participant_id} is at "
+                            f"{done[-1] if done else 'the start'}, next is {expected}, not {phase}")
+        prev = _end_current(st, participant_id, ev, "completed", when, None)
+        if not ev.empty and when < ev["started_at"].max():
+            raise UserError(f"start time {when:%Y-%m-%d %H:%M:%S} is before the previous phase started")
+        st.insert("phase_events", {"participant_id": participant_id, "phase": phase, "seq": idx + 1,
+                                   "started_at": when, "outcome": "in_progress", "note": note})
+    return {"started": phase, "completed": prev}
+
+
+def abort(st, participant_id: str, reason: str, at: datetime | str | None = None) -> str:
+    """End the phase in progress with outcome 'aborted' and `reason` as note; returns the phase name."""
+    protocol_of(st, participant_id)
+    if not reason or not reason.strip():
+        raise UserError("an abort needs a reason")
+    with st.transaction():
+        phase = _end_current(st, participant_id, _events(st, participant_id), "aborted", _when(at), reason.strip())
+        if phase is None:
+            raise UserError(f"{participant_id} has no phase in progress to abort")
+    return phase
+
+
+def complete(st, participant_id: str, note: str | None = None, at: datetime | str | None = None) -> str:
+    """End the phase in progress with outcome 'completed' without starting another; returns the phase name."""
+    protocol_of(st, participant_id)
+    with st.transaction():
+        phase = _end_current(st, participant_id, _events(st, participant_id), "completed", _when(at), note)
+        if phase is None:
+            raise UserError(f"{participant_id} has no phase in progress to complete")
+    return phase
+
+
+def status(st, participant_id: str) -> pd.DataFrame:
+    """One row per protocol phase: phase, seq, planned_minutes, started_at, ended_at, minutes, outcome, note.
+
+    Phases not yet entered have outcome 'pending' (or 'skipped' when a later phase was entered, which the
+    refusal of out-of-order steps normally prevents).
+    """
+    proto = protocol_of(st, participant_id)
+    ev = _events(st, participant_id).set_index("phase")
+    rows = []
+    last_seq = int(ev["seq"].max()) if len(ev) else 0
+    for i, p in enumerate(proto.steps, start=1):
+        if p.name in ev.index:
+            e = ev.loc[p.name]
+            minutes = ((e["ended_at"] - e["started_at"]).total_seconds() / 60.0) if pd.notna(e["ended_at"]) else None
+            rows.append({"phase": p.name, "seq": i, "planned_minutes": p.planned_minutes,
+                         "started_at": e["started_at"], "ended_at": e["ended_at"], "minutes": minutes,
+                         "outcome": e["outcome"], "note": e["note"] if isinstance(e["note"], str) else None})
+        else:
+            rows.append({"phase": p.name, "seq": i, "planned_minutes": p.planned_minutes, "started_at": None,
+                         "ended_at": None, "minutes": None, "outcome": "skipped" if i < last_seq else "pending",
+                         "note": None})
+    return pd.DataFrame(rows)

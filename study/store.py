@@ -1,0 +1,331 @@
+"""The study store: one embedded DuckDB file holding participants, protocol events, exclusions, drive logs,
+survey answers and the audit trail.
+
+    from study.store import Store
+    with Store.open("data/study.duckdb", actor="alice") as st:
+        with st.transaction():                       # all or nothing
+            st.insert("participants", {"participant_id": "P001", "age": 30})
+            st.update("participants", {"participant_id": "P001"}, {"style": "normal"})
+        st.df("SELECT * FROM participants")
+
+Every :meth:`Store.insert`, :meth:`Store.update` and :meth:`Store.delete` writes an ``audit_log`` row in the same
+transaction. :meth:`Store.insert_df` is the bulk path for drive samples and is not audited per row (the parent
+``drives`` row is). Opening a store creates the file if needed and applies pending migrations; a store with a
+newer schema than this code is refused.
+"""
+from __future__ import annotations
+
+import time
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any, Iterator, Mapping, Sequence
+
+import duckdb
+
+from study import audit, migrate
+from study.errors import UserError
+
+INSTRUMENT_DIR = Path(__file__).with_name("instruments")
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split())
+
+
+class Store:
+    """An open study store. Create with :meth:`Store.open`; use as a context manager to close it."""
+
+    def __init__(self, con: duckdb.DuckDBPyConnection, path: Path, actor: str, read_only: bool) -> None:
+        self.con = con
+        self.path = path
+        self.actor = actor
+        self.read_only = read_only
+        self._depth = 0           # transaction nesting: only the outermost level talks to DuckDB
+        self._columns: dict[str, list[str]] = {}
+        self._keys: dict[str, list[str]] = {}
+
+    # ------------------------------------------------------------------ opening
+    @classmethod
+    def open(cls, path: str | Path, actor: str | None = None, read_only: bool = False,
+             lock_timeout: float = 10.0) -> "Store":
+        """Open (creating and migrating if needed) the store at `path`.
+
+        `actor` is recorded in the audit log (default $PEDAS_STUDY_ACTOR, else the OS user). `read_only=True`
+        neither creates nor migrates. DuckDB allows one writing process per file: while another process holds
+        the file, opening is retried for `lock_timeout` seconds, then refused with a one-line reason.
+        """
+        path = Path(path)
+        if read_only and not path.exists():
+            raise UserError(f"store {path} does not exist (run `pedas-study init`)")
+        if not read_only:
+            path.parent.mkdir(parents=True, exist_ok=True)
+        con = cls._connect(path, read_only, lock_timeout)
+        try:
+            con.execute("SET TimeZone = 'UTC'")
+            if read_only:
+                migrate.check_not_newer(con)
+            else:
+                migrate.migrate(con)
+            st = cls(con, path, audit.resolve_actor(actor), read_only)
+            if not read_only:
+                st._load_instruments()
+        except BaseException:
+            con.close()
+            raise
+        return st
+
+    @staticmethod
+    def _connect(path: Path, read_only: bool, lock_timeout: float) -> duckdb.DuckDBPyConnection:
+        deadline = time.monotonic() + lock_timeout
+        while True:
+            try:
+                return duckdb.connect(str(path), read_only=read_only)
+            except duckdb.IOException as exc:
+                msg = str(exc)
+                if "lock" not in msg.lower():
+                    raise UserError(f"cannot open store {path}: {_one_line(exc)}") from exc
+                if time.monotonic() >= deadline:
+                    raise UserError(f"store {path} is in use by another process; try again later") from exc
+                time.sleep(0.1)
+            except duckdb.Error as exc:
+                raise UserError(f"cannot open store {path}: {_one_line(exc)}") from exc
+
+    def close(self) -> None:
+        self.con.close()
+
+    def __enter__(self) -> "Store":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    @property
+    def schema_version(self) -> int:
+        return migrate.current_version(self.con)
+
+    # ------------------------------------------------------------------ transactions
+    @contextmanager
+    def transaction(self) -> Iterator["Store"]:
+        """BEGIN ... COMMIT; ROLLBACK on any exception. Nested uses join the outer transaction."""
+        if self._depth:
+            self._depth += 1
+            try:
+                yield self
+            finally:
+                self._depth -= 1
+            return
+        self.con.begin()
+        self._depth = 1
+        try:
+            yield self
+        except BaseException:
+            self._depth = 0
+            self.con.rollback()
+            raise
+        self._depth = 0
+        try:
+            self.con.commit()
+        except duckdb.Error as exc:  # a constraint checked at commit
+            raise UserError(f"commit failed: {_one_line(exc)}") from exc
+
+    @property
+    def in_transaction(self) -> bool:
+        return self._depth > 0
+
+    # ------------------------------------------------------------------ schema helpers
+    def columns(self, table: str) -> list[str]:
+        """Column names of `table` in order; unknown table -> UserError."""
+        if table not in self._columns:
+            rows = self.con.execute(
+                "SELECT column_name FROM duckdb_columns() WHERE table_name = ? AND schema_name = 'main' "
+                "ORDER BY column_index", [table]).fetchall()
+            if not rows:
+                raise UserError(f"no table {table!r} in the store")
+            self._columns[table] = [r[0] for r in rows]
+        return self._columns[table]
+
+    def key_columns(self, table: str) -> list[str]:
+        """The primary key of `table` (else its first UNIQUE constraint, else [] = whole row)."""
+        if table not in self._keys:
+            self.columns(table)
+            rows = self.con.execute(
+                "SELECT constraint_type, constraint_column_names FROM duckdb_constraints() "
+                "WHERE table_name = ? AND schema_name = 'main' AND constraint_type IN ('PRIMARY KEY', 'UNIQUE') "
+                "ORDER BY constraint_type = 'PRIMARY KEY' DESC, constraint_index", [table]).fetchall()
+            self._keys[table] = list(rows[0][1]) if rows else []
+        return self._keys[table]
+
+    def tables(self) -> list[str]:
+        """Base tables of the store (alphabetical)."""
+        return [r[0] for r in self.con.execute(
+            "SELECT table_name FROM duckdb_tables() WHERE schema_name = 'main' ORDER BY table_name").fetchall()]
+
+    def counts(self) -> dict[str, int]:
+        """Row count of every table (used to show that a refused operation changed nothing)."""
+        return {t: int(self.con.execute(f'SELECT count(*) FROM "{t}"').fetchone()[0]) for t in self.tables()}
+
+    def _check_columns(self, table: str, names: Sequence[str]) -> None:
+        known = self.columns(table)
+        for n in names:
+            if n not in known:
+                raise UserError(f"table {table} has no column {n!r}")
+
+    def _key_of(self, table: str, row: Mapping[str, Any]) -> dict[str, Any]:
+        cols = self.key_columns(table)
+        return {c: row[c] for c in cols} if cols else dict(row)
+
+    @staticmethod
+    def _where(key: Mapping[str, Any]) -> tuple[str, list[Any]]:
+        if not key:
+            raise UserError("an empty key would match every row")
+        parts, params = [], []
+        for c, v in key.items():
+            if v is None:
+                parts.append(f'"{c}" IS NULL')
+            else:
+                parts.append(f'"{c}" = ?')
+                params.append(v)
+        return " AND ".join(parts), params
+
+    def _fetch(self, table: str, key: Mapping[str, Any]) -> list[dict[str, Any]]:
+        where, params = self._where(key)
+        cur = self.con.execute(f'SELECT * FROM "{table}" WHERE {where}', params)
+        names = [d[0] for d in cur.description]
+        return [dict(zip(names, r)) for r in cur.fetchall()]
+
+    def _write(self, sql: str, params: list[Any], table: str):
+        try:
+            return self.con.execute(sql, params)
+        except duckdb.ConstraintException as exc:
+            raise UserError(f"{table}: {_one_line(exc)}") from exc
+        except (duckdb.ConversionException, duckdb.InvalidInputException) as exc:
+            raise UserError(f"{table}: {_one_line(exc)}") from exc
+
+    # ------------------------------------------------------------------ audited writes
+    def insert(self, table: str, row: Mapping[str, Any]) -> dict[str, Any]:
+        """Insert one row (audited); returns the row as stored, defaults included."""
+        self._writable()
+        row = dict(row)
+        self._check_columns(table, list(row))
+        cols = ", ".join(f'"{c}"' for c in row)
+        marks = ", ".join("?" for _ in row)
+        with self.transaction():
+            cur = self._write(f'INSERT INTO "{table}" ({cols}) VALUES ({marks}) RETURNING *', list(row.values()), table)
+            names = [d[0] for d in cur.description]
+            stored = dict(zip(names, cur.fetchone()))
+            audit.record(self.con, self.actor, "insert", table, self._key_of(table, stored), None, stored)
+        return stored
+
+    def update(self, table: str, key: Mapping[str, Any], values: Mapping[str, Any]) -> dict[str, Any]:
+        """Update the row(s) matching `key` with `values` (audited old -> new of the changed columns).
+
+        Returns the new row (the first when several match). No matching row -> UserError.
+        """
+        self._writable()
+        key, values = dict(key), dict(values)
+        self._check_columns(table, list(key) + list(values))
+        if not values:
+            raise UserError("update without values")
+        with self.transaction():
+            old_rows = self._fetch(table, key)
+            if not old_rows:
+                raise UserError(f"no {table} row with {audit.to_json(key)}")
+            sets = ", ".join(f'"{c}" = ?' for c in values)
+            where, params = self._where(key)
+            cur = self._write(f'UPDATE "{table}" SET {sets} WHERE {where} RETURNING *',
+                              list(values.values()) + params, table)
+            names = [d[0] for d in cur.description]
+            new_rows = [dict(zip(names, r)) for r in cur.fetchall()]
+            by_key = {audit.to_json(self._key_of(table, r)): r for r in old_rows}
+            for new in new_rows:
+                k = self._key_of(table, new)
+                old = by_key.get(audit.to_json(k), old_rows[0])
+                changed = [c for c in values if old.get(c) != new.get(c)]
+                audit.record(self.con, self.actor, "update", table, k,
+                             {c: old.get(c) for c in changed}, {c: new.get(c) for c in changed})
+        return new_rows[0]
+
+    def delete(self, table: str, key: Mapping[str, Any]) -> int:
+        """Delete the row(s) matching `key` (each audited with its old values); returns how many."""
+        self._writable()
+        key = dict(key)
+        self._check_columns(table, list(key))
+        with self.transaction():
+            old_rows = self._fetch(table, key)
+            if not old_rows:
+                return 0
+            where, params = self._where(key)
+            self._write(f'DELETE FROM "{table}" WHERE {where}', params, table)
+            for old in old_rows:
+                audit.record(self.con, self.actor, "delete", table, self._key_of(table, old), old, None)
+        return len(old_rows)
+
+    # ------------------------------------------------------------------ bulk
+    def insert_df(self, table: str, df) -> int:
+        """Bulk insert a pandas DataFrame (or Arrow table) whose columns are a subset of `table`'s, by name.
+
+        Not audited per row: the caller audits the parent row (e.g. ``drives``) in the same transaction.
+        """
+        self._writable()
+        names = list(df.column_names if hasattr(df, "column_names") else df.columns)
+        self._check_columns(table, names)
+        view = f"_insert_df_{id(df)}"
+        cols = ", ".join(f'"{c}"' for c in names)
+        with self.transaction():
+            self.con.register(view, df)
+            try:
+                self._write(f'INSERT INTO "{table}" ({cols}) SELECT {cols} FROM "{view}"', [], table)
+            finally:
+                try:
+                    self.con.unregister(view)
+                except duckdb.Error:  # an aborted transaction refuses it; the name is replaced on next use
+                    pass
+        return len(df) if hasattr(df, "__len__") else df.num_rows
+
+    # ------------------------------------------------------------------ reads
+    def df(self, sql: str, params: Sequence[Any] | Mapping[str, Any] | None = None):
+        """Run a query and return a pandas DataFrame."""
+        return self.con.execute(sql, params).df() if params is not None else self.con.execute(sql).df()
+
+    def one(self, sql: str, params: Sequence[Any] | None = None) -> Any:
+        """First column of the first row (None when no row)."""
+        row = self.con.execute(sql, params or []).fetchone()
+        return None if row is None else row[0]
+
+    # ------------------------------------------------------------------ internals
+    def _writable(self) -> None:
+        if self.read_only:
+            raise UserError(f"store {self.path} is open read-only")
+
+    def _load_instruments(self) -> None:
+        """Load every shipped survey codebook not yet in the store (reference data, not audited)."""
+        have = {r[0] for r in self.con.execute("SELECT instrument FROM instruments").fetchall()}
+        todo = [p for p in sorted(INSTRUMENT_DIR.glob("*.csv")) if p.stem not in have]
+        if not todo:
+            return
+        from study.instrument import load_instrument
+
+        with self.transaction():
+            for p in todo:
+                ins = load_instrument(p.stem)
+                items = ins.items.reset_index()
+                self.con.execute("INSERT INTO instruments (instrument, version, n_items, loaded_at) VALUES (?, ?, ?, ?)",
+                                 [ins.name, ins.version, len(items), audit.utcnow()])
+                cols = [c for c in self.columns("items") if c in items.columns and c != "instrument"]
+                for pos, r in enumerate(items.to_dict("records"), start=1):
+                    vals = {c: _codebook_value(c, r[c]) for c in cols}
+                    vals.update(instrument=ins.name, position=pos)
+                    names = ", ".join(f'"{c}"' for c in vals)
+                    self.con.execute(f"INSERT INTO items ({names}) VALUES ({', '.join('?' for _ in vals)})",
+                                     list(vals.values()))
+
+
+def _codebook_value(column: str, value: Any) -> Any:
+    """A codebook cell as stored: empty text -> NULL, 0/1 flags -> bool, scale bounds -> int."""
+    if value is None or (isinstance(value, str) and value.strip() == ""):
+        return None
+    if column in ("reverse_scored", "required"):
+        return bool(int(value))
+    if column in ("scale_min", "scale_max"):
+        return int(float(value))
+    return value

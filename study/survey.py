@@ -1,0 +1,468 @@
+"""Survey answers in the study store: participant links, web drafts, atomic submission, double data entry of
+paper forms, the discrepancy report, resolution, and the final answers the analysis reads.
+
+Entry rounds (the `responses.entry_round` column):
+
+* a **single electronic entry** (the participant's own web form, or ``survey import FILE`` of an electronic
+  export) is round 1 and is final as entered;
+* a **paper form** is typed in twice by two people (rounds 1 and 2, ``double_entry``); an item is final when the
+  two entries agree, otherwise when a resolution has been recorded after checking the paper form.
+
+:func:`final_responses` applies exactly this rule (resolution > agreed double entry; single entry as is) and
+leaves out participants whose answers are not final yet (second entry missing or a discrepancy unresolved).
+
+Missing answers are NULL, never 0. Every write of research data goes through the audited Store API; web drafts
+are not research data until submitted and are not audited. The caller serialises access to a Store shared
+between threads (the web app holds a lock around every call).
+"""
+from __future__ import annotations
+
+import hashlib
+import re
+import secrets
+from contextlib import contextmanager
+from dataclasses import dataclass
+from typing import Any, Iterator, Mapping
+
+import pandas as pd
+
+from study.audit import utcnow
+from study.errors import UserError
+from study.instrument import DEFAULT_INSTRUMENT, Answer, Instrument, load_instrument
+
+WEB_ENTERED_BY = "participant"  # `responses.entered_by` of answers the participant gave on the web form
+DEMO = "DEMO"                   # construct of the socio-demographic block (kept on the participants row)
+# socio-demographic item -> participants column; choice codes -> the participants table's categories
+DEMOGRAPHIC_FIELDS = {"AGE": "age", "GENDER": "gender", "LICENSE_YEARS": "license_years", "STYLE": "style",
+                      "ECO_FAM": "eco_familiarity"}
+DEMOGRAPHIC_CODES = {"GENDER": {1: "female", 2: "male", 3: "diverse", 4: "undisclosed"},
+                     "STYLE": {1: "cautious", 2: "normal", 3: "sporty"}}
+MIN_LICENSE_AGE = 16  # the store refuses license_years > age - 16 (participants CHECK)
+_TOKEN = re.compile(r"^[A-Za-z0-9_-]{43}$")  # secrets.token_urlsafe(32)
+_PID = re.compile(r"^P[0-9]{3,}$")
+
+
+class SubmittedError(UserError):
+    """The survey has been submitted; it is read-only now."""
+
+
+class LinkError(UserError):
+    """A participant link that cannot be used; `status` is the HTTP status the web form answers with."""
+
+    def __init__(self, message: str, status: int) -> None:
+        super().__init__(message)
+        self.status = status
+
+
+@dataclass(frozen=True)
+class Link:
+    """What a valid participant link grants: one participant's survey of one instrument."""
+
+    participant_id: str
+    instrument: str
+    submitted: bool
+
+
+# ---------------------------------------------------------------------------------------------- helpers
+def response_items(ins: Instrument) -> list[str]:
+    """Items whose answers go to `responses` (everything but the socio-demographic block), in order."""
+    return [i for i in ins.items.index if ins.items.loc[i, "construct"] != DEMO]
+
+
+@contextmanager
+def acting_as(st, actor: str) -> Iterator[None]:
+    """Record `actor` in the audit log for the writes inside the block (the caller holds the store's lock)."""
+    old = st.actor
+    st.actor = actor
+    try:
+        yield
+    finally:
+        st.actor = old
+
+
+def _participant_exists(st, participant_id: str) -> bool:
+    return bool(st.one("SELECT count(*) FROM participants WHERE participant_id = ?", [participant_id]))
+
+
+def _require_participant(st, participant_id: str) -> None:
+    if not _PID.match(str(participant_id)):
+        raise UserError(f"participant id {participant_id!r} is not of the form P001")
+    if not _participant_exists(st, participant_id):
+        raise UserError(f"unknown participant {participant_id} (add it first: pedas-study participant add "
+                        f"{participant_id})")
+
+
+def parse_answers(ins: Instrument, answers: Mapping[str, Any], items: list[str] | None = None) -> dict[str, Answer]:
+    """Validate raw answers {item_id: raw}; unknown items and bad values raise UserError (one line).
+
+    `items` limits which items are accepted (default: every item of the instrument).
+    """
+    allowed = set(ins.items.index if items is None else items)
+    out: dict[str, Answer] = {}
+    for item, raw in answers.items():
+        if item not in allowed:
+            raise UserError(f"unknown item {item!r} for instrument {ins.name}")
+        try:
+            out[item] = ins.parse(item, raw)
+        except ValueError as exc:
+            raise UserError(str(exc)) from None
+    return out
+
+
+def _rows_to_answers(df: pd.DataFrame) -> dict[str, Answer]:
+    out = {}
+    for r in df.itertuples(index=False):
+        value = None if pd.isna(r.value) else int(r.value)
+        text = None if r.text is None or pd.isna(r.text) else str(r.text)
+        out[r.item_id] = Answer(value=value, text=text)
+    return out
+
+
+# ---------------------------------------------------------------------------------------------- links
+def hash_token(token: str) -> str:
+    """SHA-256 hex of a link token (the store keeps only this)."""
+    return hashlib.sha256(token.encode("utf-8")).hexdigest()
+
+
+def issue_link(st, participant_id: str, instrument: str = DEFAULT_INSTRUMENT) -> str:
+    """A new one-participant link token (URL-safe, 256 bits); earlier links of the participant are revoked.
+
+    Refused for unknown participants and for participants whose survey answers are already in the store.
+    """
+    load_instrument(instrument)
+    _require_participant(st, participant_id)
+    sub = submission(st, participant_id, 1, instrument)
+    if sub is not None:
+        raise UserError(f"{participant_id} already has survey answers ({sub['source']}, "
+                        f"{sub['submitted_at']:%Y-%m-%d %H:%M} UTC); no new link issued")
+    token = secrets.token_urlsafe(32)
+    now = utcnow()
+    with st.transaction():
+        for (h,) in st.con.execute("SELECT token_hash FROM survey_tokens WHERE participant_id = ? AND instrument = ? "
+                                   "AND revoked_at IS NULL", [participant_id, instrument]).fetchall():
+            st.update("survey_tokens", {"token_hash": h}, {"revoked_at": now})
+        st.insert("survey_tokens", {"token_hash": hash_token(token), "participant_id": participant_id,
+                                    "instrument": instrument, "issued_at": now, "issued_by": st.actor})
+    return token
+
+
+def resolve_token(st, token: str) -> Link:
+    """The link a token grants, or LinkError: 404 malformed/unknown, 403 replaced by a newer link."""
+    if not isinstance(token, str) or not _TOKEN.match(token):
+        raise LinkError("This survey link is not valid. Please check the address or ask the researcher for a "
+                        "new link.", 404)
+    row = st.con.execute("SELECT participant_id, instrument, revoked_at FROM survey_tokens WHERE token_hash = ?",
+                         [hash_token(token)]).fetchone()
+    if row is None:
+        raise LinkError("This survey link is not valid. Please check the address or ask the researcher for a "
+                        "new link.", 404)
+    pid, instrument, revoked = row
+    if revoked is not None:
+        raise LinkError("This survey link has been replaced by a newer one. Please ask the researcher.", 403)
+    return Link(pid, instrument, submission(st, pid, 1, instrument) is not None)
+
+
+# ---------------------------------------------------------------------------------------------- web drafts
+def save_draft(st, participant_id: str, answers: Mapping[str, Any],
+               instrument: str = DEFAULT_INSTRUMENT) -> dict[str, Answer]:
+    """Keep the given answers of a participant's unsubmitted web survey (upsert per item; '' clears one).
+
+    All answers are validated first; one bad answer stores none of them. Refused after submission.
+    """
+    ins = load_instrument(instrument)
+    parsed = parse_answers(ins, answers)
+    if submission(st, participant_id, 1, instrument) is not None:
+        raise SubmittedError("This survey has been submitted and can no longer be changed.")
+    now = utcnow()
+    with st.transaction():
+        for item, a in parsed.items():
+            st.con.execute(
+                "INSERT INTO survey_drafts (participant_id, instrument, item_id, value, text, saved_at) "
+                "VALUES (?, ?, ?, ?, ?, ?) ON CONFLICT (participant_id, instrument, item_id) "
+                "DO UPDATE SET value = excluded.value, text = excluded.text, saved_at = excluded.saved_at",
+                [participant_id, instrument, item, a.value, a.text, now])
+    return parsed
+
+
+def draft(st, participant_id: str, instrument: str = DEFAULT_INSTRUMENT) -> dict[str, Answer]:
+    """The participant's saved, unsubmitted web answers {item_id: Answer}."""
+    return _rows_to_answers(st.df("SELECT item_id, value, text FROM survey_drafts WHERE participant_id = ? "
+                                  "AND instrument = ?", [participant_id, instrument]))
+
+
+def missing_required(ins: Instrument, answers: Mapping[str, Answer]) -> list[str]:
+    """Required items without an answer, in questionnaire order."""
+    return [i for i in ins.required_items if i not in answers or answers[i].missing]
+
+
+def check_demographics(answers: Mapping[str, Answer]) -> None:
+    """Cross-item check the store enforces: driving experience <= age - 16 years."""
+    age, lic = answers.get("AGE"), answers.get("LICENSE_YEARS")
+    if age and lic and age.value is not None and lic.value is not None and lic.value > age.value - MIN_LICENSE_AGE:
+        raise UserError(f"LICENSE_YEARS: {lic.value} years of driving experience is more than age "
+                        f"{age.value} minus {MIN_LICENSE_AGE}")
+
+
+def submit_web(st, participant_id: str, instrument: str = DEFAULT_INSTRUMENT) -> int:
+    """Submit a participant's web survey atomically; returns the number of `responses` rows written.
+
+    Required items must be answered. In one transaction: the socio-demographic answers update the participants
+    row, one `responses` row per item (NULL where unanswered) is written as entry round 1 by
+    ``participant``, the submission is recorded as a single (final) entry and the draft is deleted.
+    """
+    ins = load_instrument(instrument)
+    answers = draft(st, participant_id, instrument)
+    if submission(st, participant_id, 1, instrument) is not None:
+        raise SubmittedError("This survey has already been submitted.")
+    missing = missing_required(ins, answers)
+    if missing:
+        raise UserError(f"please answer every question before submitting ({len(missing)} unanswered: "
+                        f"{', '.join(missing)})")
+    check_demographics(answers)
+    now = utcnow()
+    with st.transaction():
+        demo = {}
+        for item, field in DEMOGRAPHIC_FIELDS.items():
+            if item in ins.items.index and item in answers and answers[item].value is not None:
+                v = answers[item].value
+                demo[field] = DEMOGRAPHIC_CODES.get(item, {}).get(v, v)
+        if demo:
+            st.update("participants", {"participant_id": participant_id}, demo)
+        n = _write_round(st, ins, participant_id, 1, answers, WEB_ENTERED_BY, now)
+        st.insert("survey_submissions", {"participant_id": participant_id, "instrument": instrument,
+                                         "entry_round": 1, "source": "web", "double_entry": False,
+                                         "submitted_by": WEB_ENTERED_BY, "submitted_at": now})
+        st.con.execute("DELETE FROM survey_drafts WHERE participant_id = ? AND instrument = ?",
+                       [participant_id, instrument])
+    return n
+
+
+def _write_round(st, ins: Instrument, participant_id: str, entry_round: int, answers: Mapping[str, Answer],
+                 entered_by: str, now) -> int:
+    """Insert or update (audited) one row per response item of one entry round; returns rows touched."""
+    existing = _rows_to_answers(st.df(
+        "SELECT item_id, value, text FROM responses WHERE participant_id = ? AND instrument = ? AND entry_round = ?",
+        [participant_id, ins.name, entry_round]))
+    n = 0
+    for item in response_items(ins):
+        a = answers.get(item, Answer())
+        key = {"participant_id": participant_id, "instrument": ins.name, "item_id": item, "entry_round": entry_round}
+        if item not in existing:
+            st.insert("responses", {**key, "value": a.value, "text": a.text, "entered_by": entered_by,
+                                    "entered_at": now})
+            n += 1
+        elif existing[item] != a:
+            st.update("responses", key, {"value": a.value, "text": a.text, "entered_by": entered_by,
+                                         "entered_at": now})
+            n += 1
+    return n
+
+
+# ---------------------------------------------------------------------------------------------- data entry
+def submission(st, participant_id: str, entry_round: int, instrument: str = DEFAULT_INSTRUMENT) -> dict | None:
+    """The survey_submissions row of one entry round, or None."""
+    cur = st.con.execute("SELECT * FROM survey_submissions WHERE participant_id = ? AND instrument = ? "
+                         "AND entry_round = ?", [participant_id, instrument, entry_round])
+    row = cur.fetchone()
+    return None if row is None else dict(zip([d[0] for d in cur.description], row))
+
+
+def entry_answers(st, participant_id: str, entry_round: int,
+                  instrument: str = DEFAULT_INSTRUMENT) -> dict[str, Answer]:
+    """The stored answers of one entry round {item_id: Answer} (empty when not entered)."""
+    return _rows_to_answers(st.df(
+        "SELECT item_id, value, text FROM responses WHERE participant_id = ? AND instrument = ? AND entry_round = ?",
+        [participant_id, instrument, entry_round]))
+
+
+def save_entry(st, participant_id: str, entry_round: int, answers: Mapping[str, Any], *,
+               instrument: str = DEFAULT_INSTRUMENT, double_entry: bool = True, source: str = "entry",
+               replace: bool = False) -> int:
+    """Store one complete entry round of a participant's survey (items not given are stored as missing).
+
+    `double_entry=True` (paper forms): round 1 and round 2 are typed in by two people and compared;
+    `double_entry=False` (only round 1): a single electronic entry, final as is. `replace=True` lets a
+    researcher correct an existing double-entry round (each changed item audited). Returns rows written.
+    """
+    ins = load_instrument(instrument)
+    if entry_round not in (1, 2):
+        raise UserError(f"entry round must be 1 or 2, not {entry_round}")
+    _require_participant(st, participant_id)
+    parsed = parse_answers(ins, answers, response_items(ins))
+    first = submission(st, participant_id, 1, instrument)
+    this = submission(st, participant_id, entry_round, instrument)
+    if first is not None and not first["double_entry"]:
+        raise UserError(f"{participant_id} already has final survey answers from a single {first['source']} entry")
+    if entry_round == 2:
+        if not double_entry:
+            raise UserError("a second entry round is always part of a double entry")
+        if first is None:
+            raise UserError(f"{participant_id}: enter round 1 before round 2")
+    elif not double_entry and (first is not None or submission(st, participant_id, 2, instrument) is not None):
+        raise UserError(f"{participant_id} already has double-entry answers; a single entry cannot replace them")
+    if this is not None and not replace:
+        raise UserError(f"{participant_id} already has entry round {entry_round} "
+                        f"(by {this['submitted_by']}, {this['submitted_at']:%Y-%m-%d %H:%M} UTC)")
+    now = utcnow()
+    with st.transaction():
+        n = _write_round(st, ins, participant_id, entry_round, parsed, st.actor, now)
+        if this is None:
+            st.insert("survey_submissions", {"participant_id": participant_id, "instrument": instrument,
+                                             "entry_round": entry_round, "source": source,
+                                             "double_entry": double_entry, "submitted_by": st.actor,
+                                             "submitted_at": now})
+    return n
+
+
+# ---------------------------------------------------------------------------------------------- discrepancies
+def discrepancies(st, instrument: str = DEFAULT_INSTRUMENT) -> pd.DataFrame:
+    """Every item where the two entries of a double data entry differ.
+
+    Columns: participant_id, item_id, value_1, text_1, value_2, text_2, entered_by_1, entered_by_2,
+    resolved (bool), resolved_value, resolved_text, resolved_by. Missing vs. a value counts as a difference.
+    """
+    df = st.df("""
+        SELECT r1.participant_id, r1.item_id, r1.value AS value_1, r1.text AS text_1, r2.value AS value_2,
+               r2.text AS text_2, r1.entered_by AS entered_by_1, r2.entered_by AS entered_by_2,
+               res.participant_id IS NOT NULL AS resolved, res.value AS resolved_value, res.text AS resolved_text,
+               res.resolved_by, it.position
+        FROM responses r1
+        JOIN responses r2 ON r2.participant_id = r1.participant_id AND r2.instrument = r1.instrument
+                         AND r2.item_id = r1.item_id AND r2.entry_round = 2
+        LEFT JOIN survey_resolutions res ON res.participant_id = r1.participant_id
+                         AND res.instrument = r1.instrument AND res.item_id = r1.item_id
+        LEFT JOIN items it ON it.instrument = r1.instrument AND it.item_id = r1.item_id
+        WHERE r1.instrument = ? AND r1.entry_round = 1
+          AND (r1.value IS DISTINCT FROM r2.value OR r1.text IS DISTINCT FROM r2.text)
+        ORDER BY r1.participant_id, it.position, r1.item_id""", [instrument])
+    df = df.drop(columns="position")
+    for c in ("value_1", "value_2", "resolved_value"):
+        df[c] = df[c].astype("Int64")
+    df["resolved"] = df["resolved"].astype(bool)
+    return df.reset_index(drop=True)
+
+
+def resolve(st, participant_id: str, item_id: str, raw: Any, note: str | None = None,
+            instrument: str = DEFAULT_INSTRUMENT) -> Answer:
+    """Record the final value of a double-entry discrepancy (audited); '' / None = missing on the form.
+
+    Only items listed by :func:`discrepancies` can be resolved; resolving again replaces the value.
+    """
+    ins = load_instrument(instrument)
+    parsed = parse_answers(ins, {item_id: raw}, response_items(ins))[item_id]
+    d = discrepancies(st, instrument)
+    if not ((d["participant_id"] == participant_id) & (d["item_id"] == item_id)).any():
+        raise UserError(f"{participant_id} {item_id}: no discrepancy between the two entries to resolve")
+    key = {"participant_id": participant_id, "instrument": instrument, "item_id": item_id}
+    values = {"value": parsed.value, "text": parsed.text, "note": note or None, "resolved_by": st.actor,
+              "resolved_at": utcnow()}
+    with st.transaction():
+        if st.one("SELECT count(*) FROM survey_resolutions WHERE participant_id = ? AND instrument = ? "
+                  "AND item_id = ?", [participant_id, instrument, item_id]):
+            st.update("survey_resolutions", key, values)
+        else:
+            st.insert("survey_resolutions", {**key, **values})
+    return parsed
+
+
+# ---------------------------------------------------------------------------------------------- final answers
+def _final_long(st, instrument: str) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """(final answers long: participant_id, item_id, value, text, basis; per-participant status)."""
+    resp = st.df("SELECT participant_id, item_id, entry_round, value, text FROM responses WHERE instrument = ?",
+                 [instrument])
+    subs = st.df("SELECT participant_id, entry_round, source, double_entry FROM survey_submissions "
+                 "WHERE instrument = ?", [instrument])
+    res = st.df("SELECT participant_id, item_id, value, text FROM survey_resolutions WHERE instrument = ?",
+                [instrument])
+    double_flag = {r.participant_id: bool(r.double_entry) for r in subs.itertuples() if r.entry_round == 1}
+    rows, status = [], []
+    for pid, g in resp.groupby("participant_id", sort=True):
+        r1 = g[g["entry_round"] == 1].set_index("item_id")
+        r2 = g[g["entry_round"] == 2].set_index("item_id")
+        double = double_flag.get(pid, False) or not r2.empty
+        pres = res[res["participant_id"] == pid].set_index("item_id")
+        n_disc = n_open = 0
+        final: list[tuple] = []
+        if not double:
+            final = [(pid, i, r.value, r.text, "single") for i, r in r1.iterrows()]
+        elif not r1.empty and not r2.empty:
+            for item in r1.index.union(r2.index):
+                a = r1.loc[item] if item in r1.index else None
+                b = r2.loc[item] if item in r2.index else None
+                same = (a is not None and b is not None and _same(a.value, b.value) and _same(a.text, b.text))
+                if not same:
+                    n_disc += 1
+                if item in pres.index:
+                    final.append((pid, item, pres.loc[item, "value"], pres.loc[item, "text"], "resolved"))
+                elif same:
+                    final.append((pid, item, a.value, a.text, "agreed"))
+                else:
+                    n_open += 1
+        state = ("single" if not double else "awaiting_second_entry" if r2.empty or r1.empty
+                 else "unresolved" if n_open else "double_entry_final")
+        status.append({"participant_id": pid, "basis": state, "discrepancies": n_disc, "unresolved": n_open,
+                       "final": state in ("single", "double_entry_final")})
+        if state in ("single", "double_entry_final"):
+            rows.extend(final)
+    long = pd.DataFrame(rows, columns=["participant_id", "item_id", "value", "text", "basis"])
+    return long, pd.DataFrame(status, columns=["participant_id", "basis", "discrepancies", "unresolved", "final"])
+
+
+def _same(a, b) -> bool:
+    na, nb = a is None or pd.isna(a), b is None or pd.isna(b)
+    return (na and nb) or (not na and not nb and a == b)
+
+
+def final_responses(st, instrument: str = DEFAULT_INSTRUMENT) -> pd.DataFrame:
+    """The final survey answers, wide, in the DESIGN.md survey format.
+
+    Columns: participant_id, then every scaled item of the instrument (float, NaN = missing; raw answers as
+    ticked, reverse-scored items NOT reversed), then the free-text items (str or None). One row per participant
+    whose answers are final: a single electronic entry as is; a double entry where per item the two entries
+    agree or a resolution was recorded (resolution wins). Participants still awaiting their second entry or
+    with unresolved discrepancies are left out (see :func:`survey_status`). Exclusions are not applied here.
+    """
+    ins = load_instrument(instrument)
+    long, _ = _final_long(st, instrument)
+    pids = sorted(long["participant_id"].unique())
+    out = pd.DataFrame({"participant_id": pd.Series(pids, dtype=object)})
+    for item in ins.scaled_items:
+        sub = long[long["item_id"] == item].set_index("participant_id")["value"]
+        out[item] = pd.to_numeric(out["participant_id"].map(sub), errors="coerce").astype("float64")
+    for item in ins.text_items:
+        sub = long[long["item_id"] == item].set_index("participant_id")["text"]
+        col = out["participant_id"].map(sub).astype(object)
+        out[item] = col.where(col.notna(), None)
+    out.attrs["instrument"] = instrument
+    return out
+
+
+def survey_status(st, instrument: str = DEFAULT_INSTRUMENT) -> pd.DataFrame:
+    """One row per participant: link (none|issued|revoked), draft_items, entry_1/entry_2 (source or ''),
+    basis (none|single|awaiting_second_entry|unresolved|double_entry_final), discrepancies, unresolved, final."""
+    parts = st.df("SELECT participant_id FROM participants ORDER BY participant_id")
+    links = st.df("SELECT participant_id, bool_or(revoked_at IS NULL) AS active FROM survey_tokens "
+                  "WHERE instrument = ? GROUP BY participant_id", [instrument]).set_index("participant_id")["active"]
+    drafts = st.df("SELECT participant_id, count(*) AS n FROM survey_drafts WHERE instrument = ? "
+                   "GROUP BY participant_id", [instrument]).set_index("participant_id")["n"]
+    subs = st.df("SELECT participant_id, entry_round, source FROM survey_submissions WHERE instrument = ?",
+                 [instrument])
+    _, status = _final_long(st, instrument)
+    status = status.set_index("participant_id")
+    rows = []
+    for pid in parts["participant_id"]:
+        s = subs[subs["participant_id"] == pid]
+        src = {int(r.entry_round): r.source for r in s.itertuples()}
+        st_row = status.loc[pid] if pid in status.index else None
+        rows.append({
+            "participant_id": pid,
+            "link": "none" if pid not in links.index else ("issued" if links[pid] else "revoked"),
+            "draft_items": int(drafts.get(pid, 0)),
+            "entry_1": src.get(1, ""), "entry_2": src.get(2, ""),
+            "basis": "none" if st_row is None else st_row["basis"],
+            "discrepancies": 0 if st_row is None else int(st_row["discrepancies"]),
+            "unresolved": 0 if st_row is None else int(st_row["unresolved"]),
+            "final": False if st_row is None else bool(st_row["final"]),
+        })
+    return pd.DataFrame(rows, columns=["participant_id", "link", "draft_items", "entry_1", "entry_2", "basis",
+                                       "discrepancies", "unresolved", "final"])

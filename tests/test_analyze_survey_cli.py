@@ -1,0 +1,151 @@
+"""`analyze_survey` and `pedas-study analyze survey`: outputs as DESIGN.md, determinism, bad input, the store path."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from analysis.bench_survey import simulate_responses
+from analysis.survey import COLUMNS, analyze_survey
+
+DESIGN_FILES = ["descriptives", "loadings", "fit", "reliability", "correlations", "htmt", "regressions", "hypotheses"]
+
+
+@pytest.fixture(scope="module")
+def data():
+    return simulate_responses(40, seed=11)
+
+
+@pytest.fixture(scope="module")
+def res(data):
+    return analyze_survey(data, n_boot=300, seed=5)
+
+
+def test_frames_follow_the_design_columns(res):
+    for name in DESIGN_FILES:
+        frame = getattr(res, name)
+        assert list(frame.columns[:len(COLUMNS[name])]) == COLUMNS[name], name
+    assert set(res.fit["stage"]) == {"initial", "final"}
+    assert len(res.descriptives) == 25 and (res.descriptives["n"] == 40).all()
+    assert list(res.composites.columns) == ["PU", "PEoU", "ATT", "PBC", "SN", "BI"]
+    assert len(res.correlations) == 15 and len(res.htmt) == 15 and len(res.hypotheses) == 7
+
+
+def test_default_deletion_is_the_papers_final_model(res):
+    lo = res.loadings
+    fin = set(lo.loc[lo.stage == "final", "item"])
+    ini = lo[lo.stage == "initial"]
+    assert fin.isdisjoint({"PEoU3", "ATT1", "ATT2", "ATT3", "ATT4", "ATT5"}) and len(fin) == 19
+    assert set(ini.loc[~ini.retained, "item"]) == {"PEoU3", "ATT1", "ATT2", "ATT3", "ATT4", "ATT5"}
+    assert {"flag_low", "flag_negative", "flag_cross", "rule"} <= set(ini.columns)
+
+
+def test_composites_and_regressions_are_consistent(res, data):
+    from analysis.scoring import score_responses
+
+    s = score_responses(data).scored
+    assert np.allclose(res.composites["ATT"], s[["ATT6", "ATT7", "ATT8", "ATT9"]].mean(axis=1))
+    m1 = res.regressions[(res.regressions.model == "1") & (res.regressions.predictor == "PEoU")].iloc[0]
+    r = res.correlations.set_index(["a", "b"]).loc[("PU", "PEoU"), "r"]
+    assert m1.beta == pytest.approx(r) and m1.r2 == pytest.approx(r ** 2)  # one predictor: beta = r, R^2 = r^2
+    h1 = res.hypotheses.set_index("hypothesis").loc["H1"]
+    assert h1.beta == pytest.approx(m1.beta) and bool(h1.supported) == bool(m1.beta > 0 and m1.p < 0.05)
+
+
+def test_reliability_uses_final_items(res):
+    from analysis.reliability import cronbach_alpha
+    from analysis.scoring import score_responses
+
+    rel = res.reliability.set_index("construct")
+    s = score_responses(simulate_responses(40, seed=11)).scored
+    assert rel.loc["PEoU", "alpha"] == pytest.approx(cronbach_alpha(s[["PEoU1", "PEoU2", "PEoU4"]])[0])
+    assert rel.loc["PEoU", "n_items"] == 3 and rel.loc["ATT", "n_items"] == 4
+
+
+def test_same_seed_same_output(data, res):
+    again = analyze_survey(data, n_boot=300, seed=5)
+    for name in DESIGN_FILES:
+        pd.testing.assert_frame_equal(getattr(res, name), getattr(again, name))
+
+
+def test_custom_config_and_models(data):
+    out = analyze_survey(data, n_boot=0, cfa_config={"drop": []},
+                         models=[{"name": "x", "dv": "BI", "steps": [["PU", "PEoU"]]}],
+                         hypotheses=[{"hypothesis": "Hx", "predictor": "PU", "dv": "BI", "model": "x", "step": 1}])
+    assert (out.loadings.loc[out.loadings.stage == "final", "item"].size == 25)
+    assert list(out.hypotheses["hypothesis"]) == ["Hx"] and out.regressions["boot_ci_low"].isna().all()
+
+
+@pytest.mark.parametrize("kwargs,match", [
+    ({"models": [{"name": "x", "dv": "BI", "steps": [["TRUST"]]}]}, "unknown construct 'TRUST'"),
+    ({"cfa_config": {"drop": ["ATT99"]}}, "drops unknown item"),
+    ({"cfa_config": {"drop": ["BI1"]}}, "at least 2 are needed"),
+])
+def test_bad_specs(data, kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        analyze_survey(data, n_boot=0, **kwargs)
+
+
+def test_constant_column_is_refused(data):
+    with pytest.raises(ValueError, match="item SN2 is constant"):
+        analyze_survey(data.assign(SN2=4), n_boot=0)
+
+
+def test_too_few_rows_is_refused(data):
+    with pytest.raises(ValueError):
+        analyze_survey(data.head(3), n_boot=0)
+
+
+def test_cli_writes_the_design_files(cli, data, tmp_path):
+    csv = tmp_path / "survey.csv"
+    data.to_csv(csv, index=False)
+    out = tmp_path / "out"
+    r = cli("analyze", "survey", "--responses", csv, "--out", out, "--bootstrap", "200", "--seed", "3")
+    assert r.code == 0, r.err
+    assert "H7" in r.out and "40 participants" in r.out
+    for name in DESIGN_FILES:
+        frame = pd.read_csv(out / f"{name}.csv")
+        assert list(frame.columns[:len(COLUMNS[name])]) == COLUMNS[name]
+    for t in ("table3", "table4", "table5"):
+        assert (out / f"{t}.md").read_text().startswith("**")
+        tex = (out / f"{t}.tex").read_text()
+        assert r"\toprule" in tex and r"\bottomrule" in tex
+    assert json.loads((out / "settings.json").read_text())["n_boot"] == 200
+
+
+def test_cli_bad_input_is_one_line(cli, data, tmp_path):
+    csv = tmp_path / "bad.csv"
+    data.assign(PU2=9).to_csv(csv, index=False)
+    r = cli("analyze", "survey", "--responses", csv, "--out", tmp_path / "o")
+    assert r.code == 2 and r.err.count("\n") == 1 and "outside 1..5" in r.err
+    r = cli("analyze", "survey", "--responses", tmp_path / "missing.csv", "--out", tmp_path / "o")
+    assert r.code == 2 and "not found" in r.err
+
+
+def test_cli_from_the_store_applies_subjective_exclusions(cli, tmp_db, data, tmp_path):
+    from study.exclusions import exclude
+    from study.instrument import load_instrument
+    from study.store import Store
+
+    items = load_instrument().scaled_items
+    with Store.open(tmp_db, actor="tester") as st:
+        with st.transaction():
+            for pid in data["participant_id"]:
+                st.insert("participants", {"participant_id": pid})
+            long = data.melt(id_vars="participant_id", value_vars=items, var_name="item_id", value_name="value")
+            long["instrument"] = "pedas_acceptance_v1"
+            long["entry_round"] = 1
+            long["value"] = long["value"].astype(int)
+            st.insert_df("responses", long[["participant_id", "instrument", "item_id", "entry_round", "value"]])
+        exclude(st, "P040", "subjective", "motion_sickness")
+        exclude(st, "P039", "objective", "technical_issue")  # does not affect the survey
+    out = tmp_path / "store_out"
+    r = cli("analyze", "survey", "--out", out, "--bootstrap", "0")
+    assert r.code == 0, r.err
+    assert "39 participants" in r.out
+    desc = pd.read_csv(out / "descriptives.csv")
+    assert (desc["n"] == 39).all()
+    expected = analyze_survey(data[data.participant_id != "P040"], n_boot=0)
+    assert np.allclose(desc["mean"], expected.descriptives["mean"])

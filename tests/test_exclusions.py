@@ -1,0 +1,71 @@
+"""Exclusion scopes and the one function analyses use."""
+import pandas as pd
+import pytest
+
+from study.errors import UserError
+from study.exclusions import apply_exclusions, exclude, included_participants, revoke
+from study.participants import add_participant
+from study.store import Store
+
+
+@pytest.fixture
+def st(tmp_db):
+    with Store.open(tmp_db) as s:
+        for i in range(1, 7):
+            add_participant(s, f"P{i:03d}")
+        yield s
+
+
+def test_scopes(st):
+    exclude(st, "P001", "all", "motion_sickness")
+    exclude(st, "P002", "objective", "technical_issue", note="HUD froze")
+    exclude(st, "P003", "subjective", "incomplete_survey")
+    assert included_participants(st, "objective") == ["P003", "P004", "P005", "P006"]
+    assert included_participants(st, "subjective") == ["P002", "P004", "P005", "P006"]
+    assert included_participants(st, "all") == ["P004", "P005", "P006"]
+
+
+def test_paper_counts(tmp_db):
+    """44 volunteers, 3 motion sickness (all), 7 technical issues (objective) -> N=41 subjective, N=34 objective."""
+    with Store.open(tmp_db) as st:
+        with st.transaction():
+            for i in range(1, 45):
+                add_participant(st, f"P{i:03d}")
+            for i in range(1, 4):
+                exclude(st, f"P{i:03d}", "all", "motion_sickness")
+            for i in range(4, 11):
+                exclude(st, f"P{i:03d}", "objective", "technical_issue")
+        n_sub = len(included_participants(st, "subjective"))
+        n_obj = len(included_participants(st, "objective"))
+    assert (n_sub, n_obj) == (41, 34)
+
+
+def test_apply_to_frame(st):
+    exclude(st, "P002", "objective", "technical_issue")
+    df = pd.DataFrame({"participant_id": ["P001", "P002", "P003"], "kwh": [1.0, 2.0, 3.0]})
+    assert apply_exclusions(st, df, "objective")["participant_id"].tolist() == ["P001", "P003"]
+    assert len(apply_exclusions(st, df, "subjective")) == 3
+
+
+def test_refusals(st):
+    with pytest.raises(UserError, match="unknown participant"):
+        exclude(st, "P099", "all", "other")
+    with pytest.raises(UserError, match="scope must be one of"):
+        exclude(st, "P001", "some", "other")
+    with pytest.raises(UserError, match="reason must be one of"):
+        exclude(st, "P001", "all", "bored")
+    exclude(st, "P001", "all", "withdrawn")
+    with pytest.raises(UserError, match="already excluded"):
+        exclude(st, "P001", "all", "other")
+    with pytest.raises(UserError, match="analysis scope"):
+        included_participants(st, "everything")
+
+
+def test_revoke_is_audited(st):
+    exclude(st, "P001", "objective", "technical_issue")
+    revoke(st, "P001", "objective")
+    assert "P001" in included_participants(st, "objective")
+    log = st.df("SELECT action FROM audit_log WHERE table_name = 'exclusions' ORDER BY audit_id")
+    assert log["action"].tolist() == ["insert", "delete"]
+    with pytest.raises(UserError, match="no exclusion"):
+        revoke(st, "P001", "objective")

@@ -1,0 +1,71 @@
+"""Scoring: reverse scoring from the instrument, listwise deletion, composites, input validation."""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from analysis.bench_survey import simulate_responses
+from analysis.descriptives import item_descriptives
+from analysis.scoring import check_not_constant, composites, score_responses
+
+
+@pytest.fixture
+def raw():
+    return simulate_responses(12, seed=4)
+
+
+def test_peou3_is_reversed_and_nothing_else(raw):
+    s = score_responses(raw)
+    assert s.reverse_items == ["PEoU3"]
+    assert np.array_equal(s.scored["PEoU3"].to_numpy(), 6 - raw["PEoU3"].to_numpy())
+    others = [c for c in s.scored.columns if c != "PEoU3"]
+    assert np.array_equal(s.scored[others].to_numpy(), raw[others].to_numpy(float))
+
+
+def test_reverse_scoring_is_an_involution(raw):
+    from study.instrument import load_instrument
+
+    inst = load_instrument()
+    items = raw[inst.scaled_items]
+    pd.testing.assert_frame_equal(inst.reverse(inst.reverse(items)), items)
+
+
+def test_listwise_drops_incomplete_rows(raw):
+    raw = raw.copy()
+    raw.loc[2, "SN1"] = np.nan
+    s = score_responses(raw)
+    assert s.n == 11 and s.dropped == [raw.loc[2, "participant_id"]] and s.n_input == 12
+    s2 = score_responses(raw, listwise=False)
+    assert s2.n == 12
+
+
+def test_composites_are_means_of_retained_items(raw):
+    s = score_responses(raw)
+    comp = composites(s.scored, {"PEoU": ["PEoU1", "PEoU2", "PEoU4"]})
+    assert np.allclose(comp["PEoU"], s.scored[["PEoU1", "PEoU2", "PEoU4"]].mean(axis=1))
+
+
+def test_descriptives_use_n_minus_1(raw):
+    s = score_responses(raw)
+    d = item_descriptives(s.scored, s.raw, s.constructs, s.reverse_items).set_index("item")
+    assert d.loc["PU1", "sd"] == pytest.approx(np.std(raw["PU1"], ddof=1))
+    assert d.loc["PU1", "n"] == 12 and bool(d.loc["PEoU3", "reversed"])
+    assert d.loc["PEoU3", "mean"] == pytest.approx(6 - d.loc["PEoU3", "mean_raw"])
+
+
+@pytest.mark.parametrize("mutate,match", [
+    (lambda d: d.drop(columns=["BI2"]), "lack item column"),
+    (lambda d: d.assign(PU1=7), "outside 1..5"),
+    (lambda d: d.assign(PU1=2.5), "outside 1..5"),
+    (lambda d: d.assign(PU1="x"), "numbers 1-5"),
+    (lambda d: d.assign(participant_id="P001"), "duplicate participant_id"),
+])
+def test_bad_input(raw, mutate, match):
+    with pytest.raises(ValueError, match=match):
+        score_responses(mutate(raw))
+
+
+def test_constant_column_is_named():
+    with pytest.raises(ValueError, match="item b is constant"):
+        check_not_constant(pd.DataFrame({"a": [1, 2], "b": [3, 3]}))
