@@ -141,7 +141,8 @@ def fit_cfa(data: pd.DataFrame, constructs: dict[str, list[str]], *, label: str 
         j = lat.index(c)
         for it in its:
             i = obs.index(it)
-            std = lam[i, j] * np.sqrt(max(psi[j, j], 0.0)) / np.sqrt(sigma[i, i])
+            # std.all; undefined (NaN) when the latent variance is improper (reported as a Heywood case)
+            std = lam[i, j] * np.sqrt(psi[j, j]) / np.sqrt(sigma[i, i]) if psi[j, j] > 0 else np.nan
             rows.append({"construct": c, "item": it, "estimate": lam[i, j], "se": se.get((it, c), np.nan),
                          "loading": float(std), "error_var": theta[i, i]})
     loadings = pd.DataFrame(rows)

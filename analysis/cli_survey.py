@@ -12,7 +12,8 @@ def register(cli) -> None:
                    help="wide survey CSV (participant_id + item columns, raw 1-5); default: the store")
     p.add_argument("--out", metavar="DIR", required=True, help="output directory for CSVs and tables")
     p.add_argument("--seed", type=int, default=20240101, help="bootstrap seed (default 20240101)")
-    p.add_argument("--bootstrap", type=int, default=2000, metavar="N", help="bootstrap resamples (default 2000; 0 = none)")
+    p.add_argument("--bootstrap", type=int, default=2000, metavar="N",
+                   help="bootstrap resamples (default 2000; 0 = none)")
     p.add_argument("--boot-ci", choices=("percentile", "bca"), default="percentile", help="bootstrap CI method")
     p.add_argument("--instrument", default=None, help="codebook name (default pedas_acceptance_v1)")
     p.add_argument("--cfa-config", metavar="JSON", default=None, help="item-deletion config (default specs/cfa.json)")
@@ -80,7 +81,8 @@ def _bench_survey(args) -> int:
         print(f"analyze survey, n = {r['n']}, {r['n_boot']} bootstrap resamples: median {r['median_s']:.3f} s "
               f"over {r['repeats']} runs; without bootstrap {r['median_s_no_bootstrap']:.3f} s "
               f"(ratio {r['ratio_vs_no_bootstrap']:.2f})")
-        print(f"bootstrap of one 3-predictor step, {b['n_boot']} resamples: stacked {b['median_s_stacked'] * 1e3:.1f} ms "
+        print(f"bootstrap of one 3-predictor step, {b['n_boot']} resamples: "
+              f"stacked {b['median_s_stacked'] * 1e3:.1f} ms "
               f"vs statsmodels loop {b['median_s_statsmodels_loop'] * 1e3:.0f} ms (speed-up {b['speedup']:.0f}x, "
               f"max |diff| {b['max_abs_diff']:.1e})")
     return 0

@@ -96,7 +96,9 @@ def fig10(per: pd.DataFrame, out: Path) -> list[Path]:
     ax.set_ylabel("Traffic lights crossed in green")
     ax.set_title("Comparison of traffic light signals crossed in green phase")
     ax.yaxis.get_major_locator().set_params(integer=True)
-    ax.legend(fontsize=8)
+    top = np.nanmax(np.r_[per["tl_green_baseline"], per["tl_green_pedas"], per.get("tl_crossed_pedas", 0), 1])
+    ax.set_ylim(0, top * 1.3 + 0.5)
+    ax.legend(fontsize=8, ncol=3, loc="upper center")
     ax.grid(axis="y", alpha=0.3)
     return _save(fig, out, "fig10_tl_green")
 

@@ -30,7 +30,8 @@ class Hypothesis:
             return cls(hypothesis=str(d["hypothesis"]), path=str(d.get("path", f"{d['predictor']} -> {d['dv']}")),
                        predictor=str(d["predictor"]), dv=str(d["dv"]), model=str(d["model"]), step=int(d["step"]))
         except (KeyError, TypeError, ValueError) as exc:
-            raise ValueError(f"bad hypothesis spec {d!r}: needs hypothesis, predictor, dv, model, step ({exc})") from None
+            raise ValueError(f"bad hypothesis spec {d!r}: needs hypothesis, predictor, dv, model, step "
+                             f"({exc})") from None
 
 
 def load_hypotheses(spec=None) -> tuple[list[Hypothesis], float]:

@@ -94,7 +94,8 @@ def check_not_constant(frame: pd.DataFrame, what: str = "item") -> None:
     for col in frame.columns:
         vals = frame[col].dropna()
         if len(vals) and vals.nunique() < 2:
-            raise ValueError(f"{what} {col} is constant (every answer = {vals.iloc[0]:g}); it has no variance to analyse")
+            raise ValueError(f"{what} {col} is constant (every answer = {vals.iloc[0]:g}); "
+                             "it has no variance to analyse")
 
 
 def composites(scored: pd.DataFrame, retained: dict[str, list[str]]) -> pd.DataFrame:

@@ -10,7 +10,6 @@ paper's Table 5 note); the CI column is the 95 % t-interval of B, the bootstrap 
 from __future__ import annotations
 
 import numpy as np
-import pandas as pd
 
 from analysis.validity import stars
 
@@ -77,7 +76,8 @@ def table3_rows(res) -> tuple[list[str], list[list[str]], list[str]]:
             name = item + ("†" if bool(desc.loc[item, "reversed"]) else "")
             lam = _f(fin.loc[item, "loading"]) if item in fin.index else _f(ini.loc[item, "loading"]) + "*"
             rows.append([name, _f(desc.loc[item, "mean"]), _f(desc.loc[item, "sd"]), lam, "", "", ""])
-    notes = [f"N = {res.n}. λ = standardized factor loading (final CFA; * initial CFA, item omitted from the analysis), "
+    notes = [f"N = {res.n}. λ = standardized factor loading (final CFA; * initial CFA, item omitted from the "
+             "analysis), "
              "Cα = Cronbach's alpha, CR = composite reliability, AVE = average variance extracted (final items).",
              "† reverse-scored item (mean and SD after reverse scoring)."]
     return header, rows, notes

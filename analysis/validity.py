@@ -84,5 +84,6 @@ def htmt(scored: pd.DataFrame, constructs: dict[str, list[str]], absolute: bool 
         het = R[np.ix_([pos[i] for i in constructs[a]], [pos[i] for i in constructs[b]])].mean()
         den = mono_mean[a] * mono_mean[b]
         h = float(het / np.sqrt(den)) if den > 0 else float("nan")
-        rows.append({"a": a, "b": b, "htmt": h, "above_085": bool(h > HTMT_STRICT), "above_090": bool(h > HTMT_LIBERAL)})
+        rows.append({"a": a, "b": b, "htmt": h, "above_085": bool(h > HTMT_STRICT),
+                     "above_090": bool(h > HTMT_LIBERAL)})
     return pd.DataFrame(rows, columns=["a", "b", "htmt", "above_085", "above_090"])

@@ -70,9 +70,10 @@ def _stage_cost(vj, vk, h, grade, p, w_time, a_min, a_max):
         dt = np.where(vm > 0, h / np.maximum(vm, 1e-12), np.inf)
     f = p.m_eq * a + resistance(vm, grade, p)
     ft, fb = np.maximum(f, 0.0), np.maximum(-f, 0.0)
+    bad = (a > a_max + 1e-9) | (a < a_min - 1e-9) | ~np.isfinite(dt)
+    dt = np.where(bad, 0.0, dt)  # standstill-to-standstill has no finite time: masked out below
     e = battery_power(vm, ft, fb, p=p) * dt
     cost = e + w_time * dt
-    bad = (a > a_max + 1e-9) | (a < a_min - 1e-9) | ~np.isfinite(dt)
     bad |= ft > traction_envelope(vm, p) + 1e-6
     bad |= fb > p.F_b_max
     return np.where(bad, np.inf, cost), np.where(bad, 0.0, e), np.where(bad, 0.0, dt)

@@ -43,6 +43,8 @@ TRACK_TIME = 1.5  # s, time constant with which an assisted driver closes a spee
 TRACK_DONE = 0.3 * KMH  # m/s, an assisted driver accelerating towards the target stops pressing this close to it
 COAST_EXCESS = 6.0 * KMH  # m/s, above the target by less than this the assisted driver coasts instead of braking
 WARN_BRAKE = 3.5  # m/s^2, firm braking on the warning tone (a slow-down advice that was not followed)
+WARN_MEMORY = 5.0  # s, after a warning tone the driver follows the advice fully for this long
+WARN_LEARN = 0.5  # each new warning tone closes this share of the gap between the driver's compliance and 1
 
 
 @dataclass(frozen=True)
@@ -211,6 +213,10 @@ class HumanDriver:
         self._f_peak = float(traction_envelope(0.0, vp))
         self._p_max = vp.P_max * vp.eta_gear
         self._tracking = False  # assisted: closing a gap to the target (pedal hysteresis)
+        self._warned_until = -math.inf  # assisted: follows the advice fully until then (after a warning tone)
+        self.compliance = params.compliance  # grows with every warning tone (WARN_LEARN)
+        self._v_min = np.asarray(route.v_min, float)
+        self._t = 0.0
         self._lights = tuple(route.lights)
         self._stops = tuple(route.stops)
         n_delay = max(0, int(round(params.reaction / dt)))
@@ -255,6 +261,7 @@ class HumanDriver:
         line closer than the comfortable braking distance imposes the kinematic deceleration v^2 / (2 d).
         """
         p = self.p
+        self._t = t
         self._buf.append(obs)
         seen = self._buf[0]  # the oldest = `reaction` s ago (shorter at the start of the drive)
         lag = t - seen.t
@@ -341,16 +348,23 @@ class HumanDriver:
         speed is never exceeded.
         """
         p = self.p
-        c = 1.0 if (warn and adv < v) else p.compliance
+        if warn and adv < v:
+            if self._t >= self._warned_until:  # a new warning: the driver learns to comply more
+                self.compliance += (1.0 - self.compliance) * WARN_LEARN
+            self._warned_until = self._t + WARN_MEMORY
+        c = 1.0 if self._t < self._warned_until else self.compliance
         target = adv + (1.0 - c) * (v_own - adv)
+        if self._v_min[self._idx(s)] > 0.0:  # the instructed highway minimum holds whatever the advice
+            target = max(target, self._v_min[self._idx(s)] + HUD_BAND + 0.5 * KMH)
         err = target - v
         if err > HUD_BAND or (self._tracking and err > TRACK_DONE):
             self._tracking = True
             a = min(err / TRACK_TIME, p.a_max)
         else:
             self._tracking = False
-            if err < -COAST_EXCESS or (warn and err < -HUD_BAND):
-                a = max(err / TRACK_TIME, -(WARN_BRAKE if warn else p.b_comf))
+            warned = self._t < self._warned_until
+            if err < -COAST_EXCESS or (warned and err < -HUD_BAND):
+                a = max(err / TRACK_TIME, -(WARN_BRAKE if warned else p.b_comf))
                 a = min(a, self.coast_accel(v, s))
             else:
                 a = self.coast_accel(v, s)

@@ -34,6 +34,7 @@ import scipy.sparse as sp
 
 from pedas.constants import DT, N_HORIZON
 
+SHIFT_WARM_START = False  # warm start from the previous solution shifted by one sample (measured: no gain)
 KN = 1000.0  # N per kN: forces inside the QP are in kN
 KW = 1000.0  # W per kW: the power cost inside the QP is in kW
 INF = np.inf
@@ -97,6 +98,7 @@ class MpcWeights:
     h_c: float = 2.5
     d_min: float = 3.0
     dFt_max: float = 700.0
+    zeta_v: float = 0.0  # kW/(m/s)^2, cf only: speed matching (v_{k+1} - v_p)^2, a regulariser beyond eq. (10)
 
 
 def power_hessian_eigs(m: MpcModel) -> np.ndarray:
@@ -188,6 +190,8 @@ class SparseMpc:
             add(self.iv[1:], self.iv[1:], 2.0 * w.zeta1)
         else:
             add(self.ie3, self.ie3, 2.0 * w.zeta1)
+            if w.zeta_v > 0:
+                add(self.iv[1:], self.iv[1:], 2.0 * w.zeta_v)
         add(self.ifb, self.ifb, 2.0 * w.zeta2)
         add(self.ie1, self.ie1, 2.0 * w.zeta3)
         add(self.ie2, self.ie2, 2.0 * w.zeta4)
@@ -253,6 +257,15 @@ class SparseMpc:
             block("comfort", sel(self.ir[1:]) + sel(self.iv[1:], -w.h_c) + sel(self.ie3, -1.0))
         self.A = sp.vstack(A_rows, format="csc")
         self.m = nrow
+        # warm start shifted by one sample: element k of every horizon block takes the value of element k+1
+        self._shift_x = np.arange(self.nx)
+        for idx in [self.iv, self.id, self.ift, self.ifb, self.ie1, self.ie2] + (
+                [self.ir, self.ie3] if follow else []):
+            self._shift_x[idx[:-1]] = idx[1:]
+        self._shift_y = np.arange(self.m)
+        for rows_ in self.rows.values():
+            if rows_.size > 1:
+                self._shift_y[rows_[:-1]] = rows_[1:]
 
         # ---- vectors, updated in place each step ---------------------------------------------------------
         self.q = np.zeros(self.nx)
@@ -274,10 +287,14 @@ class SparseMpc:
             self.u[R["comfort"]] = w.d_min
         self.dFt = w.dFt_max / KN
         self.settings = {**OSQP_SETTINGS, **(settings or {})}
+        self.shift_warm_start = bool(self.settings.pop("shift_warm_start", SHIFT_WARM_START))
         self.solver = osqp.OSQP()
         self.solver.setup(P=self.P, q=self.q, A=self.A, l=np.maximum(self.l, -1e30), u=np.minimum(self.u, 1e30),
                           **self.settings)
         self.x_prev: np.ndarray | None = None
+        self.y_prev: np.ndarray | None = None
+        self._lo = np.empty(self.m)
+        self._hi = np.empty(self.m)
         self.last_solve_time = 0.0
         self.last_iter = 0
         self.const = 0.0  # objective constant of the current step (power offsets), for reporting the true cost
@@ -336,14 +353,19 @@ class SparseMpc:
         if not self.follow:
             q[self.iv[1:]] += -2.0 * self.w.zeta1 * v_ref
             const += self.w.zeta1 * float(v_ref @ v_ref)
+        elif self.w.zeta_v > 0:
+            q[self.iv[1:]] += -2.0 * self.w.zeta_v * v_p
+            const += self.w.zeta_v * N * v_p * v_p
         self.const = const
 
     def solve(self) -> MpcPlan:
         """Update OSQP's vectors, solve, check the status and the residual, and unpack the plan (SI)."""
-        lo = np.maximum(self.l, -1e30)
-        hi = np.minimum(self.u, 1e30)
-        self.solver.update(q=self.q, l=lo, u=hi)
-        res = self.solver.solve()
+        np.maximum(self.l, -1e30, out=self._lo)
+        np.minimum(self.u, 1e30, out=self._hi)
+        self.solver.update(q=self.q, l=self._lo, u=self._hi)
+        if self.shift_warm_start and self.x_prev is not None and self.y_prev is not None:
+            self.solver.warm_start(x=self.x_prev[self._shift_x], y=self.y_prev[self._shift_y])
+        res = self.solver.solve(raise_error=False)
         self.last_solve_time = float(res.info.run_time)   # s, OSQP's own timer (update excluded)
         self.last_iter = int(res.info.iter)
         status = res.info.status
@@ -356,6 +378,7 @@ class SparseMpc:
         if not ok:
             return MpcPlan(status, False, *([None] * 8), float("nan"), int(res.info.iter), None)
         self.x_prev = x
+        self.y_prev = res.y
         return self.unpack(x, status, float(res.info.obj_val) + self.const, int(res.info.iter))
 
     def residual(self, x: np.ndarray) -> float:

@@ -181,21 +181,39 @@ class Route:
         """Route length in m."""
         return float(self.s[-1])
 
+    def _cached(self, key: str, compute):
+        # the arrays are fixed after construction (treat a Route as immutable); derived profiles are computed once
+        if key not in self._cache:
+            self._cache[key] = compute()
+        return self._cache[key]
+
     @property
     def v_curve(self) -> np.ndarray:
         """Curve speed limit sqrt(a_lat_max / |kappa|) in m/s (inf on straight road)."""
-        k = np.abs(self.curvature)
-        with np.errstate(divide="ignore"):
-            return np.where(k > 1e-9, np.sqrt(self.a_lat_max / np.maximum(k, 1e-12)), np.inf)
+        def compute():
+            k = np.abs(self.curvature)
+            with np.errstate(divide="ignore"):
+                return np.where(k > 1e-9, np.sqrt(self.a_lat_max / np.maximum(k, 1e-12)), np.inf)
+        return self._cached("v_curve", compute)
 
     @property
     def v_max(self) -> np.ndarray:
         """Maximum allowable speed min(speed_limit, v_curve) in m/s (Fig. 2b)."""
-        return np.minimum(self.speed_limit, self.v_curve)
+        return self._cached("v_max", lambda: np.minimum(self.speed_limit, self.v_curve))
 
     def at(self, s, field: str):
         """Linear interpolation of a numeric field ('z', 'grade', 'v_max', ...) at distance(s) s; 'segment' gives
         the segment of the grid interval containing s. Clamped to the route ends."""
+        if isinstance(s, (int, float)) and field != "segment":  # scalar fast path (called every control step)
+            values = getattr(self, field)
+            grid = self.s
+            if s <= grid[0]:
+                return float(values[0])
+            if s >= grid[-1]:
+                return float(values[-1])
+            i = int(np.searchsorted(grid, s, side="right")) - 1
+            w = (s - grid[i]) / (grid[i + 1] - grid[i])
+            return float(values[i] + w * (values[i + 1] - values[i]))
         s_arr = np.asarray(s, dtype=float)
         if field == "segment":
             idx = np.clip(np.searchsorted(self.s, s_arr, side="right") - 1, 0, self.s.size - 1)
@@ -208,10 +226,10 @@ class Route:
     def min_over(self, s0: float, s1: float, field: str = "v_max") -> float:
         """Minimum of a numeric field over [s0, s1] (grid points inside plus both interpolated ends)."""
         lo, hi = min(s0, s1), max(s0, s1)
-        values = np.asarray(getattr(self, field), dtype=float)
-        inside = values[(self.s >= lo) & (self.s <= hi)]
-        ends = [self.at(lo, field), self.at(hi, field)]
-        return float(min([*ends, *inside.tolist()]))
+        values = getattr(self, field)
+        i0, i1 = np.searchsorted(self.s, lo, side="left"), np.searchsorted(self.s, hi, side="right")
+        m = min(self.at(lo, field), self.at(hi, field))
+        return float(min(m, values[i0:i1].min())) if i1 > i0 else float(m)
 
     # --- objects ahead ----------------------------------------------------------------------------------------
     def next_light(self, s: float) -> TrafficLight | None:

@@ -86,8 +86,8 @@ def _first(mask: np.ndarray) -> int | None:
     return int(idx[0]) if idx.size else None
 
 
-def _text(df: pd.DataFrame, col: str, allowed: tuple[str, ...] | None, required: bool) -> np.ndarray:
-    """Column as an object array of stripped text (None = missing), checked against `allowed`.
+def _text(df: pd.DataFrame, col: str, allowed: tuple[str, ...] | None, required: bool) -> pd.Categorical:
+    """Column as a categorical of stripped text (NaN = missing), checked against `allowed`.
 
     Works on the distinct values (pd.factorize) because logs have millions of rows but a handful of values.
     """
@@ -105,29 +105,30 @@ def _text(df: pd.DataFrame, col: str, allowed: tuple[str, ...] | None, required:
         if bad:
             i = _first(np.isin(codes, bad))
             raise UserError(f"column {col} row {_row(i)}: {labels[codes[i]]!r} is not one of {'|'.join(allowed)}")
-    return labels[codes]
+    # a categorical keeps the few distinct strings once (DuckDB stores it as text on insert)
+    cats = sorted({u for u in labels[:-1] if u is not None})
+    pos = np.array([cats.index(u) if u is not None else -1 for u in labels[:-1]] + [-1], dtype=np.int64)
+    return pd.Categorical.from_codes(pos[codes], categories=cats)
 
 
-def _bool(df: pd.DataFrame, col: str) -> pd.Series:
+def _bool(df: pd.DataFrame, col: str) -> pd.arrays.BooleanArray:
     s = df[col]
     if pd.api.types.is_bool_dtype(s):
-        return s.astype("boolean")
+        return pd.array(s, dtype="boolean")
     if pd.api.types.is_numeric_dtype(s):
         vals = s.to_numpy(dtype="float64", na_value=np.nan)
-        bad = ~np.isnan(vals) & ~np.isin(vals, (0.0, 1.0))
-        if bad.any():
-            i = _first(bad)
-            raise UserError(f"column {col} row {_row(i)}: {vals[i]!r} is not a boolean (0/1, true/false)")
-        return pd.array(np.where(np.isnan(vals), None, vals == 1.0), dtype="boolean")
-    low = s.astype("string").str.strip().str.lower()
-    out = pd.Series(pd.NA, index=s.index, dtype="boolean")
-    out[low.isin(_TRUE).fillna(False).astype(bool)] = True
-    out[low.isin(_FALSE).fillna(False).astype(bool)] = False
-    bad = (out.isna() & low.notna() & (low != "")).to_numpy(dtype=bool)
+    else:
+        codes, uniques = pd.factorize(s, use_na_sentinel=True)
+        low = [str(u).strip().lower() for u in uniques]
+        table = np.array([1.0 if u in _TRUE else 0.0 if u in _FALSE else np.nan if u == "" else 2.0
+                          for u in low] + [np.nan])
+        vals = table[codes]
+    bad = ~np.isnan(vals) & ~np.isin(vals, (0.0, 1.0))
     if bad.any():
         i = _first(bad)
         raise UserError(f"column {col} row {_row(i)}: {s.iloc[i]!r} is not a boolean (0/1, true/false)")
-    return out
+    mask = np.isnan(vals)
+    return pd.arrays.BooleanArray(np.where(mask, False, vals == 1.0), mask)
 
 
 def validate_drive(df: pd.DataFrame) -> tuple[pd.DataFrame, tuple[str, ...]]:
@@ -194,7 +195,8 @@ def validate_drive(df: pd.DataFrame) -> tuple[pd.DataFrame, tuple[str, ...]]:
         i = _first(~np.isnan(x) & ~np.isin(x, (-1.0, 0.0, 1.0)))
         if i is not None:
             raise UserError(f"column hud_arrow row {_row(i)}: {x[i]:g} is not one of -1|0|1")
-        out["hud_arrow"] = pd.array(np.where(np.isnan(x), None, x), dtype="Int8")
+        mask = np.isnan(x)
+        out["hud_arrow"] = pd.arrays.IntegerArray(np.where(mask, 0, x).astype(np.int8), mask)
     for col in BOOL_OPTIONAL:
         if col in df.columns:
             out[col] = _bool(df, col)
@@ -234,17 +236,21 @@ def file_checksum(path: str | Path) -> str:
 
 def frame_checksum(df: pd.DataFrame) -> str:
     """sha256 (hex) of a canonical serialisation of a validated drive frame: for each known column in
-    canonical order its name, then float64 little-endian bytes (numbers) or unit-separated UTF-8 text."""
+    canonical order its name, then float64 little-endian bytes (numbers) or, for text and booleans, the
+    distinct values in order of first appearance followed by each row's int64 code (-1 = missing)."""
     h = hashlib.sha256()
     for col in COLUMNS:
         if col not in df.columns:
             continue
         s = df[col]
         h.update(f"\x1e{col}\x1d".encode())
-        if col in REQUIRED and col != "segment" or col in FLOAT_OPTIONAL or col == "hud_arrow":
-            h.update(np.ascontiguousarray(s.to_numpy(dtype="<f8", na_value=np.nan)).tobytes())
+        if isinstance(s.dtype, pd.CategoricalDtype) or not pd.api.types.is_numeric_dtype(s) \
+                or pd.api.types.is_bool_dtype(s):
+            codes, uniques = pd.factorize(s.astype(object), use_na_sentinel=True)
+            h.update("\x1f".join(str(u) for u in uniques).encode("utf-8") + b"\x1d")
+            h.update(np.ascontiguousarray(codes.astype("<i8")).tobytes())
         else:
-            h.update("\x1f".join("\x00" if pd.isna(x) else str(x) for x in s.tolist()).encode("utf-8"))
+            h.update(np.ascontiguousarray(s.to_numpy(dtype="<f8", na_value=np.nan)).tobytes())
     return h.hexdigest()
 
 

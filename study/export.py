@@ -119,7 +119,7 @@ LABELS: dict[str, str] = {
 }
 # Deidentified export: tables kept (others are left out) and columns dropped wherever they occur.
 DEIDENTIFIED_TABLES = ("participants", "phase_events", "exclusions", "drives", "drive_samples", "instruments",
-                       "items", "responses", "survey_submissions", "survey_resolutions")
+                       "items", "responses", "survey_submissions", "survey_resolutions", "order_assignments")
 IDENTIFYING_COLUMNS = ("note", "entered_by", "submitted_by", "resolved_by", "issued_by", "actor", "file_name",
                        "created_by", "email", "phone", "name")
 AGE_BANDS = ((16, 24), (25, 34), (35, 44), (45, 54), (55, 64), (65, 200))

@@ -88,10 +88,9 @@ def load_protocol(name: str = DEFAULT_PROTOCOL) -> Protocol:
 
 def protocol_of(st, participant_id: str) -> Protocol:
     """The protocol a registered participant follows; unknown participant -> UserError."""
-    name = st.one("SELECT protocol FROM participants WHERE participant_id = ?", [participant_id])
-    if name is None:
-        raise UserError(f"unknown participant {participant_id}")
-    return load_protocol(name)
+    from study.scheduling import participant_protocol  # a multi-order protocol in the participant's order
+
+    return participant_protocol(st, participant_id)
 
 
 def _events(st, participant_id: str) -> pd.DataFrame:
@@ -137,6 +136,9 @@ def advance(st, participant_id: str, phase: str, note: str | None = None,
 
     Returns {"started": phase, "completed": previous phase or None}.
     """
+    from study.scheduling import ensure_order
+
+    ensure_order(st, participant_id)  # multi-order protocols: balanced assignment before the first phase
     proto = protocol_of(st, participant_id)
     idx = proto.index(phase)
     when = _when(at)

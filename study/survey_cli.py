@@ -87,7 +87,15 @@ def _import(args):
 def _link(args):
     from study import survey as sv
 
-    with _open(args) as st:
+    from study.errors import UserError
+
+    try:
+        st = _open(args)
+    except UserError as exc:
+        if "in use" in str(exc):  # `survey serve` owns the store: DuckDB allows one writing process
+            raise UserError(f"{exc} (while `survey serve` runs, issue links on its researcher page /r/)") from None
+        raise
+    with st:
         token = sv.issue_link(st, args.participant_id, args.instrument)
     print(f"{args.base_url.rstrip('/')}/s/{token}")
 

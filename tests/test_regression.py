@@ -55,7 +55,6 @@ def _data(n=40, seed=5):
 
 def test_matches_statsmodels_ols_to_1e9():
     sm = pytest.importorskip("statsmodels.api")
-    from scipy import stats
 
     d = _data()
     m = ModelSpec(name="m", dv="Y", steps=(("A",), ("B", "C")))

@@ -244,6 +244,47 @@ def test_entry_rules(st):
         sv.save_entry(st, "P002", 1, {"AGE": 30})             # demographics are not responses
 
 
+@pytest.fixture(scope="module")
+def prop_store(tmp_path_factory):
+    s = Store.open(tmp_path_factory.mktemp("prop") / "study.duckdb", actor="first")
+    yield s
+    s.close()
+
+
+_pid_counter = iter(range(100, 10**6))
+ENTRY_ITEMS = ["PU1", "PEoU3", "ATT5", "Q2"]
+answer_st = hs.one_of(hs.none(), hs.integers(1, 5))
+
+
+@settings(max_examples=25, deadline=None)
+@given(e1=hs.lists(answer_st, min_size=3, max_size=3), e2=hs.lists(answer_st, min_size=3, max_size=3),
+       fix=hs.lists(hs.booleans(), min_size=3, max_size=3), resolved_to=hs.lists(answer_st, min_size=3, max_size=3))
+def test_final_rule_property(prop_store, e1, e2, fix, resolved_to):
+    """final = resolution where recorded, else the agreed value; a participant with an open discrepancy is left out."""
+    st = prop_store
+    pid = f"P{next(_pid_counter)}"
+    st.insert("participants", {"participant_id": pid})
+    items = ENTRY_ITEMS[:3]
+    sv.save_entry(st, pid, 1, {i: ("" if v is None else v) for i, v in zip(items, e1)})
+    with sv.acting_as(st, "second"):
+        sv.save_entry(st, pid, 2, {i: ("" if v is None else v) for i, v in zip(items, e2)})
+    differ = [a != b for a, b in zip(e1, e2)]
+    d = sv.discrepancies(st)
+    assert d.loc[d["participant_id"] == pid, "item_id"].tolist() == [i for i, x in zip(items, differ) if x]
+    for i, x, f, r in zip(items, differ, fix, resolved_to):
+        if x and f:
+            sv.resolve(st, pid, i, "" if r is None else r)
+    final = sv.final_responses(st).set_index("participant_id")
+    if any(x and not f for x, f in zip(differ, fix)):
+        assert pid not in final.index
+        return
+    for i, a, x, r in zip(items, e1, differ, resolved_to):
+        want = r if x else a
+        got = final.loc[pid, i]
+        assert (pd.isna(got) and want is None) or got == want
+    assert final.loc[pid, [c for c in SCALED if c not in items]].isna().all()   # not entered -> missing, not 0
+
+
 # ------------------------------------------------------------------------------------------------ import
 def test_import_single_entry_is_final(st, tmp_path):
     data = {"P001": full_answers(0), "P002": full_answers(1)}

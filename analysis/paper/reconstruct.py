@@ -172,12 +172,16 @@ def build_targets(published: pd.DataFrame | None = None, n: int = N_IMPLIED) -> 
 # ----------------------------------------------------------------------------------------------------------------
 
 class _Objective:
-    """Loss of a centred data matrix, and of every swap in one column, from the cross-product matrix alone."""
+    """Loss of an arrangement, computed from cross-products only, so every swap of a column can be scored at once.
+
+    Terms: Table 5 (every printed R², adj R², ΔR², β, B, SE B, scaled by its tolerance), composite correlations
+    and SDs (Table 4 / Cα), and item-level correlations (loading pattern, deleted items)."""
 
     def __init__(self, targets: Targets, w_r: float = W_COMPOSITE_R, w_sd: float = W_COMPOSITE_SD,
-                 w_within: float = W_ITEM_WITHIN, w_across: float = W_ITEM_ACROSS) -> None:
+                 w_within: float = W_ITEM_WITHIN, w_across: float = W_ITEM_ACROSS, w_t5: float = 0.0,
+                 published: pd.DataFrame | None = None) -> None:
         self.t = targets
-        self.w_r, self.w_sd = w_r, w_sd
+        self.w_r, self.w_sd, self.w_t5 = w_r, w_sd, w_t5
         self.n = targets.n
         self.W = targets.weights_matrix
         self.R = targets.composite_r.values
@@ -191,6 +195,34 @@ class _Objective:
         self.T = targets.item_r
         self.iu = np.triu_indices(len(CONSTRUCTS), 1)
         self.p = p
+        self.steps = _table5_steps(published)
+
+    def table5_loss(self, S: np.ndarray) -> np.ndarray:
+        """Σ ((value - printed)/tolerance)² over Table 5, for composite covariance(s) S (..., 6, 6)."""
+        sd = np.sqrt(np.diagonal(S, axis1=-2, axis2=-1))
+        R = S / (sd[..., :, None] * sd[..., None, :])
+        n = self.n
+        loss = np.zeros(S.shape[:-2])
+        r2_of = {}
+        for st in self.steps:
+            x, y = st["x"], st["y"]
+            k = len(x)
+            rxx = R[..., x, :][..., :, x]
+            rxy = R[..., x, y]
+            inv = np.linalg.inv(rxx)
+            beta = np.einsum("...ij,...j->...i", inv, rxy)
+            r2 = (beta * rxy).sum(-1)
+            r2_of[st["key"]] = r2
+            ratio = sd[..., y][..., None] / sd[..., x]
+            se_b = ratio * np.sqrt(np.maximum(1 - r2, 1e-12)[..., None] / (n - k - 1)
+                                   * np.diagonal(inv, axis1=-2, axis2=-1))
+            adj = 1 - (1 - r2) * (n - 1) / (n - k - 1)
+            d_r2 = r2 - (r2_of[st["prev"]] if st["prev"] else 0.0)
+            loss = loss + ((r2 - st["r2"]) / TOL_R2) ** 2 + ((adj - st["adj_r2"]) / TOL_R2) ** 2 \
+                + ((d_r2 - st["delta_r2"]) / TOL_R2) ** 2
+            loss = loss + (((beta - st["beta"]) / TOL_BETA) ** 2).sum(-1) \
+                + (((beta * ratio - st["b"]) / TOL_B) ** 2).sum(-1) + (((se_b - st["se_b"]) / TOL_B) ** 2).sum(-1)
+        return loss
 
     def composite_loss(self, S: np.ndarray) -> np.ndarray:
         """S: (..., 6, 6) composite covariance -> loss (...)."""
@@ -198,7 +230,10 @@ class _Objective:
         r = S / (d[..., :, None] * d[..., None, :])
         lr = ((r[..., self.iu[0], self.iu[1]] - self.R[self.iu]) ** 2).sum(-1)
         ls = ((d / self.sd_c - 1.0) ** 2).sum(-1)
-        return self.w_r * lr + self.w_sd * ls
+        out = self.w_r * lr + self.w_sd * ls
+        if self.w_t5:
+            out = out + self.w_t5 * self.table5_loss(S)
+        return out
 
     def item_loss(self, C: np.ndarray, sd: np.ndarray) -> float:
         r = C / ((self.n - 1) * np.outer(sd, sd))
@@ -207,6 +242,33 @@ class _Objective:
     def total(self, C: np.ndarray, sd: np.ndarray) -> float:
         S = self.W.T @ C @ self.W / (self.n - 1)
         return float(self.composite_loss(S)) + self.item_loss(C, sd)
+
+
+# Table 5 tolerances of the issue: ±0.01 for R², adj R², ΔR², β; ±0.02 for B and SE B
+TOL_R2, TOL_BETA, TOL_B = 0.01, 0.01, 0.02
+
+
+def _table5_steps(published: pd.DataFrame | None = None) -> list[dict]:
+    """Table 5 as index lists into CONSTRUCTS with the printed values (step order; ΔR² refers to 'prev')."""
+    st, co = P.table5_steps(published), P.table5_coefficients(published)
+    out = []
+    for model, (dv, steps) in P.TABLE5_MODELS.items():
+        prev = None
+        for step in range(1, len(steps) + 1):
+            preds = [p for s in steps[:step] for p in s]
+            row = st[(st["model"] == model) & (st["step"] == step)]
+            key = f"m{model}s{step}"
+            if row.empty:  # model 4 step 1 is printed as "same as model 3 step 1"
+                prev = "m3s1"
+                continue
+            c = co[(co["model"] == model) & (co["step"] == step)].set_index("predictor").loc[preds]
+            out.append({"key": key, "prev": prev, "y": CONSTRUCTS.index(dv),
+                        "x": [CONSTRUCTS.index(p) for p in preds],
+                        "r2": float(row["r2"].iloc[0]), "adj_r2": float(row["adj_r2"].iloc[0]),
+                        "delta_r2": float(row["delta_r2"].iloc[0]), "beta": c["beta"].values,
+                        "b": c["b"].values, "se_b": c["se_b"].values})
+            prev = key
+    return out
 
 
 def _start(targets: Targets, rng: np.random.Generator) -> np.ndarray:
@@ -292,7 +354,7 @@ def _arrange(targets: Targets, rng: np.random.Generator, time_budget: float = 45
     ref = _Objective(targets)
     info = {"loss_start": ref.total(*_cross(X)), "sweeps": []}
     for ph in PHASES:
-        obj = _Objective(targets, ph["w_r"], ph["w_sd"], ph["w_within"], ph["w_across"])
+        obj = _Objective(targets, ph["w_r"], ph["w_sd"], ph["w_within"], ph["w_across"], ph.get("w_t5", 0.0))
         X, k = _sweeps(X, obj, rng, ph["sweeps"], ph["temp0"], t0 + time_budget)
         info["sweeps"].append(k)
     info["loss"] = ref.total(*_cross(X))

@@ -83,7 +83,8 @@ def create_app(st, researcher_password: str, instrument: str = DEFAULT_INSTRUMEN
 
     def form_page(token: str, link, answers: dict[str, Answer], error: str | None = None,
                   invalid: list[str] | None = None, status: int = 200):
-        return render_template("survey.html", token=token, answers=answers, error=error, invalid=invalid or [],
+        return render_template("survey.html", token=token, participant_id=link.participant_id, answers=answers,
+                               error=error, invalid=invalid or [],
                                n_required=len(ins.required_items),
                                n_answered=len([i for i in ins.required_items if i in answers
                                                and not answers[i].missing])), status

@@ -1,0 +1,196 @@
+"""Simulate a cohort: many (participant, condition) drives in worker processes, cached by their inputs.
+
+libsumo runs one simulation per process, so drives run in separate worker processes: a local process pool
+('spawn' context) by default, or the workers of a Dask distributed cluster (``scheduler=ADDRESS``). Within one
+process drives are serialised by a lock, so a Dask worker with several threads stays correct.
+
+Every result is cached under ``cache_dir`` (default ``.report-cache/drives`` in the checkout, or
+``$PEDAS_DRIVE_CACHE``) by a hash of its inputs: the task (seed, style, condition, traffic seed) and the
+simulation code and network sources. A rerun with nothing changed reads the cache and starts no worker.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import threading
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import asdict, dataclass
+from functools import lru_cache
+from multiprocessing import get_context
+from pathlib import Path
+
+import pandas as pd
+
+from pedas.paths import NETWORK_DIR, REPO_ROOT
+
+_SUMO_LOCK = threading.Lock()  # one libsumo simulation per process
+_CODE_FILES = ("constants.py", "params.py", "vehicle.py", "power.py", "route.py", "dp.py", "greenwave.py", "mpc.py",
+               "mpc_rt.py", "mpc_cf.py", "speed_correction.py", "hud.py", "controller.py", "network.py",
+               "route_study.py", "traffic.py", "drivers.py", "drive.py")
+_NETWORK_FILES = ("study.nod.xml", "study.edg.xml", "study.con.xml", "study.tll.xml", "study.netccfg",
+                  "study.rou.xml", "vtypes.add.xml", "demand.json")
+
+
+@dataclass(frozen=True)
+class DriveTask:
+    """One drive to simulate: who (participant id, person seed, style), which condition, which traffic."""
+
+    participant_id: str
+    seed: int
+    style: str
+    condition: str
+    traffic_seed: int | None = None
+
+
+def default_cache_dir() -> Path:
+    """``$PEDAS_DRIVE_CACHE`` or ``.report-cache/drives`` in the checkout."""
+    env = os.environ.get("PEDAS_DRIVE_CACHE")
+    return Path(env) if env else REPO_ROOT / ".report-cache" / "drives"
+
+
+@lru_cache(maxsize=1)
+def code_version() -> str:
+    """Hash of everything a simulated drive depends on: the simulation modules and the network/traffic sources."""
+    h = hashlib.sha256()
+    pkg = Path(__file__).resolve().parent
+    for name in _CODE_FILES:
+        p = pkg / name
+        h.update(name.encode())
+        h.update(p.read_bytes() if p.exists() else b"")
+    for name in _NETWORK_FILES:
+        p = NETWORK_DIR / name
+        h.update(name.encode())
+        h.update(p.read_bytes() if p.exists() else b"")
+    try:
+        from importlib.metadata import version
+
+        h.update(version("eclipse-sumo").encode())
+        h.update(version("osqp").encode())
+    except Exception:  # pragma: no cover
+        pass
+    return h.hexdigest()[:16]
+
+
+def task_key(task: DriveTask) -> str:
+    """Cache key of a task: hash of its fields (not the participant id: the same person drives the same) and
+    :func:`code_version`."""
+    fields = {k: v for k, v in asdict(task).items() if k != "participant_id"}
+    blob = json.dumps({"task": fields, "code": code_version()}, sort_keys=True)
+    return hashlib.sha256(blob.encode()).hexdigest()[:24]
+
+
+def participant_seed(participant_id: str, base_seed: int = 0) -> int:
+    """The person seed of a participant id under a cohort seed (stable across runs and machines)."""
+    digest = hashlib.sha256(f"{int(base_seed)}:{participant_id}".encode()).digest()
+    return int.from_bytes(digest[:4], "big") & 0x7FFFFFFF
+
+
+def _cache_paths(cache_dir: Path, key: str) -> tuple[Path, Path]:
+    return cache_dir / f"{key}.parquet", cache_dir / f"{key}.json"
+
+
+def load_cached(task: DriveTask, cache_dir: Path | None = None) -> pd.DataFrame | None:
+    """The cached drive log of `task`, or None."""
+    data, meta = _cache_paths(Path(cache_dir or default_cache_dir()), task_key(task))
+    if not (data.exists() and meta.exists()):
+        return None
+    df = pd.read_parquet(data)
+    df.attrs["drive"] = json.loads(meta.read_text())
+    return df
+
+
+def _store_cached(task: DriveTask, df: pd.DataFrame, cache_dir: Path) -> None:
+    cache_dir.mkdir(parents=True, exist_ok=True)
+    data, meta = _cache_paths(cache_dir, task_key(task))
+    info = dict(df.attrs.get("drive", {}))
+    plain = df.copy()
+    plain.attrs = {}
+    for path, write in ((data, lambda p: plain.to_parquet(p, index=False)),
+                        (meta, lambda p: p.write_text(json.dumps(info, sort_keys=True, default=str)))):
+        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+        write(tmp)
+        os.replace(tmp, path)  # atomic: a concurrent reader sees a complete file or none
+
+
+def run_task(task: DriveTask, cache_dir: str | None = None) -> pd.DataFrame:
+    """Simulate one task (in the calling process) unless cached; store it in the cache. Worker entry point."""
+    from pedas.drive import drive
+
+    cdir = Path(cache_dir) if cache_dir else default_cache_dir()
+    hit = load_cached(task, cdir)
+    if hit is not None:
+        return hit
+    with _SUMO_LOCK:
+        df = drive(task.seed, task.style, task.condition, traffic_seed=task.traffic_seed)
+    _store_cached(task, df, cdir)
+    return df
+
+
+def _run_task_keyed(task: DriveTask, cache_dir: str | None) -> tuple[DriveTask, pd.DataFrame]:
+    return task, run_task(task, cache_dir)
+
+
+def simulate_cohort(tasks: list[DriveTask], workers: int | None = None, scheduler: str | None = None,
+                    cache_dir: str | Path | None = None, progress: bool = True,
+                    client=None) -> dict[tuple[str, str], pd.DataFrame]:
+    """Run all `tasks`; {(participant_id, condition): drive log}.
+
+    workers: size of the local process pool (default: CPU count, at most the number of tasks); scheduler: address
+    of a Dask distributed scheduler to run on instead (or pass a ``distributed.Client`` as `client`); cached
+    tasks are read without starting any worker. A drive that fails (e.g. SafetyViolation) raises here.
+    """
+    from tqdm import tqdm
+
+    cdir = Path(cache_dir or default_cache_dir())
+    out: dict[tuple[str, str], pd.DataFrame] = {}
+    todo: list[DriveTask] = []
+    for task in tasks:
+        hit = load_cached(task, cdir)
+        if hit is not None:
+            out[(task.participant_id, task.condition)] = hit
+        else:
+            todo.append(task)
+    bar = tqdm(total=len(tasks), initial=len(tasks) - len(todo), desc="drives", unit="drive", disable=not progress)
+    try:
+        if not todo:
+            return out
+        if scheduler is not None or client is not None:
+            from distributed import Client
+            from distributed import as_completed as dask_completed
+
+            own = client is None
+            cl = client or Client(scheduler)
+            try:
+                futs = [cl.submit(_run_task_keyed, t, str(cdir), pure=False) for t in todo]
+                for fut in dask_completed(futs):
+                    task, df = fut.result()
+                    out[(task.participant_id, task.condition)] = df
+                    bar.update(1)
+            finally:
+                if own:
+                    cl.close()
+        else:
+            n = max(1, min(int(workers or os.cpu_count() or 1), len(todo)))
+            with ProcessPoolExecutor(max_workers=n, mp_context=get_context("spawn")) as pool:
+                futs = [pool.submit(_run_task_keyed, t, str(cdir)) for t in todo]
+                for fut in as_completed(futs):
+                    task, df = fut.result()
+                    out[(task.participant_id, task.condition)] = df
+                    bar.update(1)
+    finally:
+        bar.close()
+    return out
+
+
+def cohort_tasks(participants: pd.DataFrame, base_seed: int = 0,
+                 conditions: tuple[str, ...] = ("baseline", "pedas")) -> list[DriveTask]:
+    """Tasks for a participants frame (participant_id, style): both conditions per person, same person seed and
+    traffic in both. A missing style is simulated as 'normal'."""
+    tasks = []
+    for row in participants.itertuples(index=False):
+        style = row.style if isinstance(row.style, str) and row.style else "normal"
+        seed = participant_seed(row.participant_id, base_seed)
+        for cond in conditions:
+            tasks.append(DriveTask(row.participant_id, seed, style, cond))
+    return tasks
