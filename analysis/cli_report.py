@@ -1,6 +1,44 @@
-"""CLI commands of this part (see `study.cli` for the registration contract)."""
+"""CLI command `report`: regenerate every table and figure (see `analysis.report`)."""
 from __future__ import annotations
+
+import os
+from pathlib import Path
+
+
+def _report(args) -> int:
+    from analysis.report import ReportConfig, run_report
+    from study.cli import db_path
+
+    lab_store = bool(args.db or os.environ.get("PEDAS_STUDY_DB"))
+    reference = args.reference or not lab_store
+    cfg = ReportConfig(out=Path(args.out), db=db_path(args), reference=reference,
+                       compare_paper=reference or args.compare_paper, participants=args.participants,
+                       workers=args.workers, scheduler=args.scheduler, seed=args.seed, n_boot=args.bootstrap,
+                       force=args.force)
+    res = run_report(cfg)
+    ran = sum(s.status == "ran" for s in res.steps)
+    print(f"report written to {res.out}/ ({len(res.files)} files; {ran} steps ran, "
+          f"{len(res.steps) - ran} up to date)")
+    if res.verdict:
+        counts = ", ".join(f"{k} {v}" for k, v in sorted(res.verdict["counts"].items()))
+        print(f"reproduction: {counts}")
+        if res.verdict["miss"]:
+            print(f"{res.verdict['miss']} published values missed: see {res.out}/reproduction.md")
+            return 3
+    return 0
 
 
 def register(cli) -> None:
-    """Add this module's commands to the `pedas-study` parser."""
+    p = cli.command("report", "regenerate every table and figure, the audit and the reproduction verdict", _report)
+    p.add_argument("--out", default="reports", help="output folder (default reports)")
+    p.add_argument("--reference", action="store_true",
+                   help="build the given --db from data/reference and simulate the reference cohort")
+    p.add_argument("--compare-paper", action="store_true",
+                   help="with a lab store: also audit the paper and compare with its published values")
+    p.add_argument("--participants", type=int, default=None,
+                   help="reference mode: only the first N participants (a quick, reduced cohort)")
+    p.add_argument("--workers", type=int, default=None, help="simulation worker processes (default: all cores)")
+    p.add_argument("--scheduler", default=None, help="Dask scheduler address for the simulation")
+    p.add_argument("--seed", type=int, default=0, help="base seed of the simulated cohort and the bootstrap")
+    p.add_argument("--bootstrap", type=int, default=2000, help="bootstrap resamples of the regressions")
+    p.add_argument("--force", action="store_true", help="rerun every step")

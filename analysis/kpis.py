@@ -1,9 +1,9 @@
 """Objective KPIs of drive logs, per drive and per segment (urban, highway, overall), in DuckDB SQL.
 
-One window pass over ``drive_samples`` (``PARTITION BY drive_id ORDER BY idx``) turns each sample into the interval
-to the next sample and flags the few change points (violation on/off, stop/moving, traffic-light change, red-light
-stand-still). The intervals are summed per drive and segment; the change points ride along as one ordered list per
-group and are resolved by small windows over that list. No Python loop per row.
+One window pass over ``drive_samples`` (neighbours of each sample in drive and idx order) turns each sample into the
+interval to the next sample and flags the few change points (violation on/off, stop/moving, traffic-light change,
+red-light stand-still). The intervals are summed per drive and segment; the change points are a filtered read of
+the same pass and are resolved by small windows over them. No Python loop per row.
 
 Definitions (units SI unless the column name says otherwise; see docs/kpis.md for the reasoning):
 
@@ -23,7 +23,7 @@ Definitions (units SI unless the column name says otherwise; see docs/kpis.md fo
 * stop: ``v`` drops below ``v_stop`` (0.5 m/s) after having been above ``v_moving`` (2 m/s) — hysteresis, so
   creeping in a queue is one stop.
 * ``rms_jerk`` = sqrt(time-weighted mean of ((a[i+1] - a[i]) / dt)^2) in m/s^3; ``mean_abs_a`` = time-weighted mean
-  of ``|a[i]|`` in m/s^2. Where ``a`` is not logged, :func:`fill_acceleration` (forward difference of ``v``)
+  of ``|a[i]|`` in m/s^2. Where ``a`` is not logged, :func:`fill_acceleration` (central differences of ``v``)
   fills it before the SQL runs.
 """
 from __future__ import annotations
@@ -41,7 +41,7 @@ SEGMENTS = ("urban", "highway", "overall")
 KPI_COLUMNS = ("drive_id", "idx", "t", "s", "v", "segment", "speed_limit", "a", "p_batt",
                "tl_id", "tl_state", "d_tl")
 
-#: Output columns of :func:`drive_kpis`, in order.
+#: Output columns of :func:`kpis_from_relation`, in order.
 KPI_FIELDS = ("drive_id", "segment", "n_intervals", "energy_wh", "distance_m", "trip_time_s", "mean_speed_mps",
               "wh_per_km", "violation_distance_m", "violation_share", "violation_events", "tl_crossed",
               "tl_crossed_green", "tl_crossed_yellow", "tl_crossed_red", "red_stops", "stops", "rms_jerk",
@@ -63,7 +63,7 @@ class KpiParams:
 
 
 # The KPI query. `p0` reads each sample with its neighbours; in "stream" mode the neighbours come from an
-# un-partitioned window over the relation's own order (checked first by `_in_drive_order`), in "sorted" mode from
+# un-partitioned window over the relation's own order (checked first by `in_drive_order`), in "sorted" mode from
 # PARTITION BY drive_id ORDER BY idx. Neighbours from another drive are masked in both modes. The change points
 # (a few % of the rows) are a second, filtered read of the same pass.
 _KPI_SQL = """

@@ -141,7 +141,11 @@ def drive(participant_seed: int, style: str, condition: str, *, traffic_seed: in
             if lead is not None and lead.gap > LEADER_LOOKAHEAD:
                 lead = None
             gap = lead.gap if lead is not None else None
-            guard.check(t, s, v, gap, tr.ego_collided())
+            try:
+                guard.check(t, s, v, gap, tr.ego_collided())
+            except SafetyViolation as exc:
+                raise SafetyViolation(f"{condition} drive of participant seed {participant_seed} ({style}): "
+                                      f"{exc}") from None
             while tl_i < len(lights) and lights[tl_i].s < s:
                 tl_i += 1
             tl = lights[tl_i] if tl_i < len(lights) else None

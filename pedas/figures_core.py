@@ -130,7 +130,7 @@ def plot_dp_profile(out_dir: Path, route: Route | None = None, result=None) -> l
         ax.axvline(tl.s / 1000, color="C1", ls=":", lw=0.8)
     ax.set_xlabel("distance (km)")
     ax.set_ylabel("speed (km/h)")
-    ax.set_ylim(0, max(140.0, float(np.nanmax(np.minimum(route.v_max, 60)) * 3.6)))
+    ax.set_ylim(0, max(140.0, float(np.max(np.minimum(route.v_max, 60.0))) * 3.6 + 10.0))
     ax.set_title(f"DP reference ({route.name}): {result.energy_wh:.0f} Wh, {result.time_s / 60:.1f} min, "
                  f"w_time={result.w_time:.0f} W, grid {result.ds:.0f} m x {result.dv} m/s")
     ax.grid(alpha=0.3)

@@ -16,7 +16,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from pedas.constants import STOP_DWELL
 from pedas.route import Route, TrafficLight
 
 SPAT_RANGE = 500.0  # m: SPaT of a light is used from this distance on (V2I range; not printed in the paper)
@@ -24,7 +23,7 @@ HORIZON = 120.0  # s: green windows considered ahead (about two signal cycles)
 V_FLOOR = 1.0  # m/s: in town (v_min = 0) a band below this is treated as "crawl" -> stop unavoidable
 MARGIN = 1.5  # s: arrive at least this long after green starts / before it ends (tracking error, reaction)
 
-__all__ = ["GreenWave", "green_wave_band", "green_wave_reference", "SPAT_RANGE", "HORIZON", "STOP_DWELL"]
+__all__ = ["GreenWave", "green_wave_band", "green_wave_reference", "SPAT_RANGE", "HORIZON", "MARGIN"]
 
 
 def green_wave_band(d_tl: float, t: float, light: TrafficLight, v_min: float, v_max: float,

@@ -19,6 +19,7 @@ import numpy as np
 from pedas.params import LEAF, VehicleParams
 from pedas.vehicle import V_RANGE_DEFAULT, forces_from_trace, split_braking, traction_envelope
 
+V_NEG_TOL = 0.1  # m/s: negative speeds down to this are standstill noise (clipped), below it bad input
 T_SMOOTH = 10.0  # Nm: speed-dependent inverter/iron losses ramp in over this torque so P is continuous at F=0
 
 
@@ -199,7 +200,7 @@ def _check_trace(t, v, grade):
         raise ValueError("trace: t and v must be finite numbers")
     if np.any(np.diff(t) <= 0):
         raise ValueError("trace: t must be strictly increasing")
-    if np.any(v < -1e-6):
+    if np.any(v < -V_NEG_TOL):  # logged speeds may dither slightly below zero at standstill: clipped to 0
         raise ValueError("trace: v must be >= 0 (m/s)")
     if grade is None:
         g = np.zeros_like(t)
@@ -237,8 +238,8 @@ def fill_drive_columns(df, p: VehicleParams = LEAF):
     if missing:
         raise ValueError(f"drive log lacks column(s) {', '.join(missing)}")
     out = df.copy()
-    t = out["t"].to_numpy(dtype=float)
-    v = out["v"].to_numpy(dtype=float)
+    t = out["t"].to_numpy(dtype=float, na_value=np.nan)
+    v = out["v"].to_numpy(dtype=float, na_value=np.nan)
     g = None
     if "grade" in out.columns:  # missing grade values are taken as a flat road
         g = np.nan_to_num(out["grade"].to_numpy(dtype=float, na_value=np.nan), nan=0.0)

@@ -122,7 +122,7 @@ class StopSign:
         object.__setattr__(self, "s", float(self.s))
 
 
-@dataclass
+@dataclass(eq=False)
 class Route:
     """A route sampled on an ascending distance grid `s` (m, from 0).
 
@@ -204,16 +204,6 @@ class Route:
     def at(self, s, field: str):
         """Linear interpolation of a numeric field ('z', 'grade', 'v_max', ...) at distance(s) s; 'segment' gives
         the segment of the grid interval containing s. Clamped to the route ends."""
-        if isinstance(s, (int, float)) and field != "segment":  # scalar fast path (called every control step)
-            values = getattr(self, field)
-            grid = self.s
-            if s <= grid[0]:
-                return float(values[0])
-            if s >= grid[-1]:
-                return float(values[-1])
-            i = int(np.searchsorted(grid, s, side="right")) - 1
-            w = (s - grid[i]) / (grid[i + 1] - grid[i])
-            return float(values[i] + w * (values[i + 1] - values[i]))
         s_arr = np.asarray(s, dtype=float)
         if field == "segment":
             idx = np.clip(np.searchsorted(self.s, s_arr, side="right") - 1, 0, self.s.size - 1)

@@ -368,49 +368,57 @@ def resolve(st, participant_id: str, item_id: str, raw: Any, note: str | None = 
 # ---------------------------------------------------------------------------------------------- final answers
 def _final_long(st, instrument: str) -> tuple[pd.DataFrame, pd.DataFrame]:
     """(final answers long: participant_id, item_id, value, text, basis; per-participant status)."""
+    key = ["participant_id", "item_id"]
     resp = st.df("SELECT participant_id, item_id, entry_round, value, text FROM responses WHERE instrument = ?",
                  [instrument])
-    subs = st.df("SELECT participant_id, entry_round, source, double_entry FROM survey_submissions "
-                 "WHERE instrument = ?", [instrument])
-    res = st.df("SELECT participant_id, item_id, value, text FROM survey_resolutions WHERE instrument = ?",
-                [instrument])
-    double_flag = {r.participant_id: bool(r.double_entry) for r in subs.itertuples() if r.entry_round == 1}
-    rows, status = [], []
-    for pid, g in resp.groupby("participant_id", sort=True):
-        r1 = g[g["entry_round"] == 1].set_index("item_id")
-        r2 = g[g["entry_round"] == 2].set_index("item_id")
-        double = double_flag.get(pid, False) or not r2.empty
-        pres = res[res["participant_id"] == pid].set_index("item_id")
-        n_disc = n_open = 0
-        final: list[tuple] = []
-        if not double:
-            final = [(pid, i, r.value, r.text, "single") for i, r in r1.iterrows()]
-        elif not r1.empty and not r2.empty:
-            for item in r1.index.union(r2.index):
-                a = r1.loc[item] if item in r1.index else None
-                b = r2.loc[item] if item in r2.index else None
-                same = (a is not None and b is not None and _same(a.value, b.value) and _same(a.text, b.text))
-                if not same:
-                    n_disc += 1
-                if item in pres.index:
-                    final.append((pid, item, pres.loc[item, "value"], pres.loc[item, "text"], "resolved"))
-                elif same:
-                    final.append((pid, item, a.value, a.text, "agreed"))
-                else:
-                    n_open += 1
-        state = ("single" if not double else "awaiting_second_entry" if r2.empty or r1.empty
-                 else "unresolved" if n_open else "double_entry_final")
-        status.append({"participant_id": pid, "basis": state, "discrepancies": n_disc, "unresolved": n_open,
-                       "final": state in ("single", "double_entry_final")})
-        if state in ("single", "double_entry_final"):
-            rows.extend(final)
-    long = pd.DataFrame(rows, columns=["participant_id", "item_id", "value", "text", "basis"])
-    return long, pd.DataFrame(status, columns=["participant_id", "basis", "discrepancies", "unresolved", "final"])
+    subs = st.df("SELECT participant_id, double_entry FROM survey_submissions WHERE instrument = ? "
+                 "AND entry_round = 1", [instrument])
+    res = st.df("SELECT participant_id, item_id, value AS value_r, text AS text_r, true AS has_res "
+                "FROM survey_resolutions WHERE instrument = ?", [instrument])
+    r1 = resp[resp["entry_round"] == 1].drop(columns="entry_round")
+    r2 = resp[resp["entry_round"] == 2].drop(columns="entry_round")
+    m = r1.merge(r2, on=key, how="outer", suffixes=("_1", "_2"), indicator="present")
+    m = m.merge(res, on=key, how="left")
+    m["has_res"] = m["has_res"].astype("boolean").fillna(False).astype(bool)
+    m["same"] = (m["present"] == "both") & _eq(m["value_1"], m["value_2"]) & _eq(m["text_1"], m["text_2"])
+    pids = sorted(set(resp["participant_id"]))
+    has1, has2 = set(r1["participant_id"]), set(r2["participant_id"])
+    flagged = set(subs.loc[subs["double_entry"].astype(bool), "participant_id"])
+    double = {p for p in pids if p in flagged or p in has2}
+    m["double"] = m["participant_id"].isin(double)
+    m["disc"] = m["double"] & ~m["same"]
+    m["open"] = m["disc"] & ~m["has_res"]
+    per = m.groupby("participant_id").agg(discrepancies=("disc", "sum"), unresolved=("open", "sum"))
+    status = []
+    for p in pids:
+        basis = ("single" if p not in double else "awaiting_second_entry" if p not in has1 or p not in has2
+                 else "unresolved" if per.loc[p, "unresolved"] else "double_entry_final")
+        status.append({"participant_id": p, "basis": basis,
+                       "discrepancies": int(per.loc[p, "discrepancies"]) if basis != "awaiting_second_entry" else 0,
+                       "unresolved": int(per.loc[p, "unresolved"]) if basis != "awaiting_second_entry" else 0,
+                       "final": basis in ("single", "double_entry_final")})
+    status = pd.DataFrame(status, columns=["participant_id", "basis", "discrepancies", "unresolved", "final"])
+    final_pids = set(status.loc[status["final"], "participant_id"])
+    f = m[m["participant_id"].isin(final_pids)].copy()
+    single = ~f["double"]
+    f = f[single | f["has_res"] | f["same"]]
+    use_res = f["has_res"] & f["double"]            # resolution wins over the entries (double entry only)
+    f["value"] = f["value_1"].where(~use_res, f["value_r"])
+    f["text"] = f["text_1"].where(~use_res, f["text_r"])
+    f["basis"] = "agreed"
+    f.loc[~f["double"], "basis"] = "single"
+    f.loc[use_res, "basis"] = "resolved"
+    long = f[["participant_id", "item_id", "value", "text", "basis"]].reset_index(drop=True)
+    return long, status
 
 
-def _same(a, b) -> bool:
-    na, nb = a is None or pd.isna(a), b is None or pd.isna(b)
-    return (na and nb) or (not na and not nb and a == b)
+def _eq(a: pd.Series, b: pd.Series) -> pd.Series:
+    """Element-wise equality where missing == missing."""
+    both_na = a.isna() & b.isna()
+    eq = (a == b)
+    if hasattr(eq, "fillna"):
+        eq = eq.astype("boolean").fillna(False).astype(bool)
+    return both_na | eq
 
 
 def final_responses(st, instrument: str = DEFAULT_INSTRUMENT) -> pd.DataFrame:
@@ -425,14 +433,17 @@ def final_responses(st, instrument: str = DEFAULT_INSTRUMENT) -> pd.DataFrame:
     ins = load_instrument(instrument)
     long, _ = _final_long(st, instrument)
     pids = sorted(long["participant_id"].unique())
+    values = long.pivot(index="participant_id", columns="item_id", values="value").reindex(
+        index=pids, columns=ins.scaled_items)
+    texts = long.pivot(index="participant_id", columns="item_id", values="text").reindex(
+        index=pids, columns=ins.text_items)
     out = pd.DataFrame({"participant_id": pd.Series(pids, dtype=object)})
     for item in ins.scaled_items:
-        sub = long[long["item_id"] == item].set_index("participant_id")["value"]
-        out[item] = pd.to_numeric(out["participant_id"].map(sub), errors="coerce").astype("float64")
+        out[item] = pd.to_numeric(values[item], errors="coerce").astype("float64").to_numpy()
     for item in ins.text_items:
-        sub = long[long["item_id"] == item].set_index("participant_id")["text"]
-        col = out["participant_id"].map(sub).astype(object)
-        out[item] = col.where(col.notna(), None)
+        col = texts[item].astype(object).to_numpy()
+        out[item] = pd.Series([None if (v is None or (isinstance(v, float) and v != v) or v is pd.NA) else str(v)
+                               for v in col], dtype=object)
     out.attrs["instrument"] = instrument
     return out
 

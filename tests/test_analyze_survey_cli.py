@@ -149,3 +149,19 @@ def test_cli_from_the_store_applies_subjective_exclusions(cli, tmp_db, data, tmp
     assert (desc["n"] == 39).all()
     expected = analyze_survey(data[data.participant_id != "P040"], n_boot=0)
     assert np.allclose(desc["mean"], expected.descriptives["mean"])
+
+
+def test_tables_are_rendered_from_the_frames(res):
+    from analysis.tables_survey import render_all
+    from analysis.validity import stars
+
+    out = render_all(res)
+    t3, t4, t5 = out["table3.md"], out["table4.md"], out["table5.md"]
+    pu = res.reliability.set_index("construct").loc["PU"]
+    assert f"**{pu.sqrt_ave:.3f}**" in t4 and f"{pu.alpha:.3f} | {pu.cr:.3f} | {pu.ave:.3f}" in t3
+    c = res.correlations.set_index(["a", "b"]).loc[("PU", "ATT")]
+    assert f"| ATT | {c.r:.3f}{stars(c.p)} |" in t4
+    ini = res.loadings[(res.loadings.stage == "initial")].set_index("item")
+    assert f"| ATT1 |" in t3 and f"{ini.loc['ATT1', 'loading']:.3f}*" in t3 and "| PEoU3† |" in t3
+    assert t5.count("Step ") == 8 and t5.count("Independent Variable - ") == 12
+    assert r"$\beta$" in out["table5.tex"] and r"\textbf{" in out["table4.tex"]

@@ -9,7 +9,6 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from pedas.params import LEAF
 from pedas.power import (PowerMap, battery_power, fill_drive_columns, fit_power_map, power_map, power_map_report,
                          trace_energy)
 
@@ -174,3 +173,17 @@ def test_power_map_figure(tmp_path):
     files = plot_power_map(tmp_path)
     assert {f.name for f in files} == {"power_map_fit.png", "power_map_fit.pdf"}
     assert all(f.stat().st_size > 1000 for f in files)
+
+
+def test_standstill_noise_is_tolerated_but_reversing_is_not():
+    t = np.arange(0.0, 4.0, 1.0)
+    assert trace_energy(t, np.array([0.0, -0.05, 0.0, 1.0])).distance_m == pytest.approx(0.5)  # clipped to 0
+    with pytest.raises(ValueError, match=">= 0"):
+        trace_energy(t, np.array([0.0, -0.5, 0.0, 1.0]))
+
+
+def test_fill_drive_columns_handles_nullable_columns():
+    df = pd.DataFrame({"t": pd.array([0.0, 0.2, 0.4], dtype="Float64"), "v": pd.array([1.0, 1.2, 1.4], dtype="Float64"),
+                       "grade": pd.array([0.0, None, 0.0], dtype="Float64")})
+    out = fill_drive_columns(df)
+    assert out["p_batt"].notna().all() and out["a"].to_numpy(dtype=float) == pytest.approx([1.0, 1.0, 1.0])

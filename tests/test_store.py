@@ -164,3 +164,22 @@ def test_timestamps_are_utc(tmp_db):
     with Store.open(tmp_db) as st:
         row = st.insert("participants", {"participant_id": "P001"})
     assert abs((row["created_at"] - utcnow()).total_seconds()) < 3600  # UTC, not a local-zone offset
+
+
+def test_store_held_by_another_process(tmp_db):
+    import subprocess
+    import sys
+
+    Store.open(tmp_db).close()
+    holder = subprocess.Popen(
+        [sys.executable, "-c", "import sys, time; from study.store import Store; s = Store.open(sys.argv[1]); "
+                               "print('ready', flush=True); sys.stdin.readline()", str(tmp_db)],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "ready"
+        with pytest.raises(UserError, match="in use by another process"):
+            Store.open(tmp_db, lock_timeout=0.3)
+    finally:
+        holder.communicate("\n", timeout=30)
+    with Store.open(tmp_db, lock_timeout=5) as st:  # released when the holder ends
+        assert st.schema_version == migrate.code_version()

@@ -256,7 +256,7 @@ ENTRY_ITEMS = ["PU1", "PEoU3", "ATT5", "Q2"]
 answer_st = hs.one_of(hs.none(), hs.integers(1, 5))
 
 
-@settings(max_examples=25, deadline=None)
+@settings(max_examples=12, deadline=None)
 @given(e1=hs.lists(answer_st, min_size=3, max_size=3), e2=hs.lists(answer_st, min_size=3, max_size=3),
        fix=hs.lists(hs.booleans(), min_size=3, max_size=3), resolved_to=hs.lists(answer_st, min_size=3, max_size=3))
 def test_final_rule_property(prop_store, e1, e2, fix, resolved_to):
