@@ -157,6 +157,10 @@ def _single_threaded_blas():
 
 def _analyze(responses, *, instrument, cfa_config, models, hypotheses, n_boot, seed, listwise, boot_method
              ) -> SurveyAnalysis:
+    if boot_method not in ("percentile", "bca"):
+        raise ValueError(f"unknown bootstrap CI method {boot_method!r} (percentile or bca)")
+    if int(n_boot) < 0:
+        raise ValueError(f"n_boot must be >= 0, not {n_boot}")
     inst = resolve_instrument(instrument)
     sample = score_responses(responses, inst, listwise=listwise)
     scored = sample.scored

@@ -5,6 +5,7 @@ from __future__ import annotations
 def register(cli) -> None:
     """Add this module's commands to the `pedas-study` parser."""
     _register_kpi(cli)
+    _register_bench(cli)
 
 
 # ------------------------------------------------------------------------------------------------- kpi energy
@@ -66,4 +67,32 @@ def _kpi_energy(args) -> int:
         w = max(len(k) for k, _ in rows)
         for k, val in rows:
             print(f"{k:<{w}}  {val}")
+    return 0
+
+
+# ------------------------------------------------------------------------------------------------- bench mpc
+def _register_bench(cli) -> None:
+    p = cli.subcommand("bench", "mpc", "controller-step time of the OSQP MPCs on a drive-like sequence vs cvxpy",
+                       _bench_mpc, group_help="benchmarks (medians and ratios against a peer in the same process)")
+    p.add_argument("--steps", type=int, default=5000, metavar="N", help="controller steps to time (default 5000)")
+    p.add_argument("--peer-steps", type=int, default=300, metavar="N",
+                   help="steps on which cvxpy rebuilds and solves the same QP (default 300)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the virtual driver and the leader (default 0)")
+    p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
+
+
+def _bench_mpc(args) -> int:
+    import json
+
+    from pedas.bench_mpc import result_dict, run_bench
+
+    if args.steps < 1:
+        raise ValueError(f"--steps must be >= 1, got {args.steps}")
+    if args.peer_steps < 0:
+        raise ValueError(f"--peer-steps must be >= 0, got {args.peer_steps}")
+    res = run_bench(steps=args.steps, peer_steps=min(args.peer_steps, args.steps), seed=args.seed)
+    if args.json:
+        print(json.dumps(result_dict(res)))
+    else:
+        print(res.to_text())
     return 0

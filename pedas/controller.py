@@ -109,6 +109,10 @@ class PedasController:
         self._stops = tuple(route.stops)
         self._d_sits = float(route.d_stopline)
         self._k = np.arange(1, n + 1)
+        self._frac8 = np.linspace(0.0, 1.0, 8)
+        self._vlin = np.empty(n)
+        self._ftlin = np.empty(n)
+        self._sgrade = np.empty(n)
         self.reset()
 
     def reset(self) -> None:
@@ -152,13 +156,19 @@ class PedasController:
         # linearisation / prediction trajectory: previous plan shifted by one sample
         prev = self._prev
         if prev is not None:
-            v_lin = np.r_[v, prev.v[2:]]                             # v_k ~ previous v_{k+1}, v_0 measured
-            ft_lin = np.r_[prev.ft[1:], prev.ft[-1]]
+            v_lin = self._vlin
+            v_lin[0] = v                                            # v_k ~ previous v_{k+1}, v_0 measured
+            v_lin[1:] = prev.v[2:]
+            ft_lin = self._ftlin
+            ft_lin[:-1] = prev.ft[1:]
+            ft_lin[-1] = prev.ft[-1]
         else:
             v_lin = np.full(N, v)
             ft_lin = np.zeros(N)
         s_pred = s + dt * np.cumsum(np.maximum(v_lin, 0.0))        # positions at k = 1..N
-        s_grade = np.r_[s, s_pred[:-1]]                             # positions at k = 0..N-1
+        s_grade = self._sgrade                                      # positions at k = 0..N-1
+        s_grade[0] = s
+        s_grade[1:] = s_pred[:-1]
         grade = np.interp(s_grade, self._s, self._grade)
         vmax = np.interp(s_pred, self._s, self._vmax)
         vmin = np.interp(s_pred, self._s, self._vmin)
@@ -207,7 +217,7 @@ class PedasController:
             if not go and mask.any():
                 stop_d, d_hard = d_tl, np.where(mask, 0.0, -INF)
             # eq. (1) with v_max the lowest limit up to the line and v_min >= GW_MIN_FRACTION x speed limit
-            v_hi_gw = float(np.min(np.interp(np.linspace(s, s + max(d_tl, 0.0), 8), self._s, self._vmax)))
+            v_hi_gw = float(np.interp(s + max(d_tl, 0.0) * self._frac8, self._s, self._vmax).min())
             v_lo_gw = max(float(np.interp(s, self._s, self._vmin)),
                           GW_MIN_FRACTION * float(np.interp(s, self._s, self._limit)))
             band = green_wave_band(d_tl, t, tl, min(v_lo_gw, v_hi_gw), v_hi_gw) if d_tl > 0 else None

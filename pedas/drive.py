@@ -155,7 +155,8 @@ def drive(participant_seed: int, style: str, condition: str, *, traffic_seed: in
                 adv = ctrl.step(t, s, v, (lead.gap, lead.v) if lead is not None else None)
             obs = Perception(t, gap, lead.v if lead is not None else None, tl_state,
                              tl.remaining(t) if tl is not None else None,
-                             adv.v_advice if adv is not None else None, bool(adv.warning) if adv is not None else False)
+                             adv.v_advice if adv is not None else None, bool(adv.warning) if adv is not None else False,
+                             s=s, leader_a=lead.a if lead is not None else 0.0)
             a = human.act(t, s, v, obs)
             v_next = max(v + a * DT, 0.0)
             a = (v_next - v) / DT
@@ -219,18 +220,23 @@ def _log_frame(cols: dict, route) -> pd.DataFrame:
     return df[list(LOG_COLUMNS)]
 
 
-def green_crossings(df: pd.DataFrame) -> pd.DataFrame:
-    """Per traffic light of a drive log: whether it was crossed in green (tidy: tl_id, state_at_crossing, stopped).
+def green_crossings(df: pd.DataFrame, stop_zone: float = 100.0) -> pd.DataFrame:
+    """Per traffic light passed in a drive log: tidy frame tl_id, state_at_crossing, stopped, green_pass.
 
-    The crossing is the first sample after which tl_id changes; `stopped` = the vehicle stood (v < 0.1 m/s)
-    while this light was the next one ahead.
+    The crossing is the last sample with this light ahead; `stopped` = the vehicle stood (v < 0.1 m/s) within
+    `stop_zone` m before its stop line; `green_pass` = crossed in green without having stopped for it (a stop
+    at red followed by a start in green is not a green crossing).
     """
     rows = []
-    ids = df["tl_id"].astype(object).where(df["tl_id"].notna(), None).tolist()
-    states = df["tl_state"].astype(object).tolist()
-    v = df["v"].to_numpy()
-    for i in range(len(ids) - 1):
-        if ids[i] is not None and ids[i + 1] != ids[i]:
-            sel = [j for j in range(len(ids)) if ids[j] == ids[i]]
-            rows.append((ids[i], states[i], bool(np.any(v[sel] < 0.1))))
-    return pd.DataFrame(rows, columns=["tl_id", "state_at_crossing", "stopped"])
+    ids = df["tl_id"].astype(object).where(df["tl_id"].notna(), None).to_numpy()
+    states = df["tl_state"].astype(object).to_numpy()
+    v = df["v"].to_numpy(float)
+    d = df["d_tl"].to_numpy(float)
+    change = np.flatnonzero(ids[:-1] != ids[1:])
+    for i in change:
+        if ids[i] is None:
+            continue
+        sel = (ids == ids[i]) & (d <= stop_zone)
+        stopped = bool(np.any(v[sel] < 0.1))
+        rows.append((ids[i], states[i], stopped, states[i] == "green" and not stopped))
+    return pd.DataFrame(rows, columns=["tl_id", "state_at_crossing", "stopped", "green_pass"])

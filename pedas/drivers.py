@@ -38,6 +38,7 @@ HIGHWAY_MARGIN = 5.0 * KMH  # m/s, drivers keep their wish a little above the in
 STOP_MARGIN = 0.5  # m, drivers aim to stand this far before the stop line
 HALT_SPEED = 0.05  # m/s, counts as standing still (full stop at a stop sign)
 HALT_BAND = 3.0  # m, the driver's halt at a stop sign is this close to the line (else it moves up and halts again)
+BRAKE_LIGHT = 1.0  # m/s^2, a leader decelerating harder than this is noticed as braking
 MAX_BRAKE = 8.0  # m/s^2, emergency braking the driver may apply (tyre/road limit ~ 8-9 m/s^2 dry)
 TRACK_TIME = 1.5  # s, time constant with which an assisted driver closes a speed gap outside the band
 TRACK_DONE = 0.3 * KMH  # m/s, an assisted driver accelerating towards the target stops pressing this close to it
@@ -188,6 +189,8 @@ class Perception:
     tl_remaining: float | None  # s left in that phase (the driver watches the light; estimate from the cycle)
     advice: float | None = None  # HUD v_advice (assisted)
     warning: bool = False
+    s: float = 0.0  # own position (m), to know how far the car moved since a delayed perception
+    leader_a: float = 0.0  # leader's acceleration (m/s^2), seen as brake lights / closing speed
 
 
 class HumanDriver:
@@ -268,10 +271,21 @@ class HumanDriver:
         a_int = math.inf  # IDM interaction term (most restrictive)
         a_hard = math.inf  # kinematic deceleration needed to stop before a line
 
-        # --- leader: delayed gap extrapolated over the lag with the delayed relative speed (HDM anticipation)
+        # --- leader: the delayed view extrapolated over the lag (HDM temporal anticipation): the leader keeps its
+        # seen acceleration (until it stands), the own car moved s - seen.s meanwhile
         if seen.leader_gap is not None:
-            gap = seen.leader_gap - lag * (v - seen.leader_v)
-            a_int = min(a_int, idm_interaction(v, gap, v - seen.leader_v, p))
+            a_l = min(seen.leader_a, 0.0) if seen.leader_v > 0.0 else 0.0
+            tt = lag if a_l >= 0.0 else min(lag, seen.leader_v / -a_l)
+            v_l = max(seen.leader_v + a_l * tt, 0.0)
+            gap = seen.leader_gap + seen.leader_v * tt + 0.5 * a_l * tt * tt - (s - seen.s)
+            a_int = min(a_int, idm_interaction(v, gap, v - v_l, p))
+            if a_l < -BRAKE_LIGHT:
+                # brake lights: make sure to stop behind the point where the leader stops at its deceleration
+                # (the safe-speed rule of Gipps 1981 with the observed instead of an assumed deceleration)
+                room = gap - STOP_MARGIN + v_l * v_l / (2.0 * -a_l)
+                need = v * v / (2.0 * max(room, 0.1))
+                if need > 0.8 * p.b_comf:
+                    a_hard = min(a_hard, -need)
 
         # --- traffic light ahead (the stop line is a fixed, known position; its state is seen late)
         while self._tl_i < len(self._lights) and self._lights[self._tl_i].s < s - 0.1:

@@ -34,7 +34,6 @@ import scipy.sparse as sp
 
 from pedas.constants import DT, N_HORIZON
 
-CCP_ALPHA = 0.3  # (m/s)/kN balance of the convex-concave split of a11 v F (0 = plain first-order linearisation)
 SHIFT_WARM_START = False  # warm start from the previous solution shifted by one sample (measured: no gain)
 KN = 1000.0  # N per kN: forces inside the QP are in kN
 LU = 1.0  # m per length unit of distances inside the QP (10 m and 0.1 m were tried: more iterations)
@@ -140,7 +139,7 @@ class SparseMpc:
     """
 
     def __init__(self, model: MpcModel, weights: MpcWeights, follow: bool, n: int = N_HORIZON, dt: float = DT,
-                 settings: dict | None = None, ccp_alpha: float | None = None) -> None:
+                 settings: dict | None = None) -> None:
         self.model, self.w, self.follow, self.n, self.dt = model, weights, follow, n, dt
         N = n
         # ---- variable layout -------------------------------------------------------------------------------
@@ -171,7 +170,6 @@ class SparseMpc:
         self.pa11 = mm.a11 * KN / KW
         self.pa20 = mm.a20 / KW
         self.pa02 = mm.a02 * KN * KN / KW
-        self.ccp_alpha = float(CCP_ALPHA if ccp_alpha is None else ccp_alpha)
         self.lin_v2 = (not self.power_convex) and self.pa20 < 0   # linearise a negative curvature, keep a positive one
         self.lin_f2 = (not self.power_convex) and self.pa02 < 0
 
@@ -189,12 +187,6 @@ class SparseMpc:
             add(self.ift, self.ift, 2.0 * self.pa02)
         if self.power_convex and self.pa11 != 0:
             add(self.iv[:N], self.ift, self.pa11)      # cross term stays exact when the map is convex
-        elif self.ccp_alpha > 0 and self.pa11 != 0:
-            # convex part of a11 v F = a11/4 [(al v + F/al)^2 - (al v - F/al)^2]: 1/2 x' (a11/2 [[al^2, 1], [1, al^-2]]) x
-            al = self.ccp_alpha
-            add(self.iv[:N], self.iv[:N], 0.5 * self.pa11 * al * al)
-            add(self.ift, self.ift, 0.5 * self.pa11 / (al * al))
-            add(self.iv[:N], self.ift, 0.5 * self.pa11)
         if not follow:
             add(self.iv[1:], self.iv[1:], 2.0 * w.zeta1)
         else:
@@ -268,6 +260,16 @@ class SparseMpc:
             block("comfort", sel(self.ir[1:]) + sel(self.iv[1:], -w.h_c / LU) + sel(self.ie3, -1.0))
         self.A = sp.vstack(A_rows, format="csc")
         self.m = nrow
+        # contiguous slices of the blocks (assignment through slices is much cheaper than fancy indexing)
+        self._rs = {k: slice(int(r[0]), int(r[-1]) + 1) for k, r in self.rows.items()}
+        sl = lambda idx: slice(int(idx[0]), int(idx[-1]) + 1)  # noqa: E731
+        self._sv, self._sv0, self._sv1 = sl(self.iv), sl(self.iv[:N]), sl(self.iv[1:])
+        self._sd, self._sft, self._sfb, self._se1, self._se2 = (sl(self.id), sl(self.ift), sl(self.ifb),
+                                                                 sl(self.ie1), sl(self.ie2))
+        self._sr = sl(self.ir) if follow else None
+        self._se3 = sl(self.ie3) if follow else None
+        self._ivN = int(self.iv[N])
+        self._c_grade = dt / model.m_eq * model.m_v * model.g
         # warm start shifted by one sample: element k of every horizon block takes the value of element k+1
         self._shift_x = np.arange(self.nx)
         for idx in [self.iv, self.id, self.ift, self.ifb, self.ie1, self.ie2] + (
@@ -302,6 +304,9 @@ class SparseMpc:
         self.solver = osqp.OSQP()
         self.solver.setup(P=self.P, q=self.q, A=self.A, l=np.maximum(self.l, -1e30), u=np.minimum(self.u, 1e30),
                           **self.settings)
+        core = getattr(self.solver, "_solver", None)
+        self._core = core if core is not None and hasattr(core, "update_data_vec") and hasattr(core, "solution") \
+            else None
         self.x_prev: np.ndarray | None = None
         self.y_prev: np.ndarray | None = None
         self._lo = np.empty(self.m)
@@ -319,61 +324,59 @@ class SparseMpc:
         """Write this step's data into q, l, u (in place). Arrays have N entries (k=0..N-1 for inputs/grade, and
         k=1..N for the state bounds v_lo, v_hi, d_hard_lo). ``d_hard_lo`` holds 0 where d_ITS >= 0 is enforced
         and -inf elsewhere. ``v_lin``/``ft_lin`` (N entries, SI) is the linearisation trajectory of the power term.
-        ``safe_margin`` (m, scalar or N values for k=1..N, car following) shifts the hard safe-distance row to d_rel - h_s v >= d_min + margin:
-        a positive back-off keeps solver-tolerance violations outside d_s, a negative value (psi < 0) relaxes it
-        to "no worse than now" while the speed correction eq. (11) acts."""
-        N, mm, R = self.n, self.model, self.rows
+        ``safe_margin`` (m, scalar or N values for k=1..N, car following) shifts the hard safe-distance row to
+        d_rel - h_s v >= d_min + margin: a positive back-off keeps solver-tolerance violations outside d_s, a
+        negative value (psi < 0) relaxes it while the speed correction eq. (11) acts."""
+        N, mm, R = self.n, self.model, self._rs
         l, u, q = self.l, self.u, self.q
-        l[R["init_v"]] = u[R["init_v"]] = v0
-        l[R["init_d"]] = u[R["init_d"]] = d_its0 / LU
+        i0 = R["init_v"].start
+        l[i0] = u[i0] = v0
+        i0 = R["init_d"].start
+        l[i0] = u[i0] = d_its0 / LU
         # eq. (3a) right-hand side with grade theta_k (rolling + gradient resistance)
-        c = self.c_const - self.dt / mm.m_eq * mm.m_v * mm.g * (mm.c_r * np.cos(grade) + np.sin(grade))
+        c = self.c_const - self._c_grade * (mm.c_r * np.cos(grade) + np.sin(grade))
         l[R["dyn_v"]] = c
         u[R["dyn_v"]] = c
         l[R["v_lim"]] = v_lo
         u[R["v_lim"]] = v_hi
+        j_up, j_dn = R["jerk_up"].start, R["jerk_dn"].start
         if ft_prev is None:
-            u[R["jerk_up"][0]] = INF
-            l[R["jerk_dn"][0]] = -INF
+            u[j_up] = INF
+            l[j_dn] = -INF
         else:
-            u[R["jerk_up"][0]] = self.dFt + ft_prev / KN
-            l[R["jerk_dn"][0]] = -self.dFt + ft_prev / KN
+            u[j_up] = self.dFt + ft_prev / KN
+            l[j_dn] = -self.dFt + ft_prev / KN
         l[R["d_hard"]] = -INF if d_hard_lo is None else d_hard_lo
         u[R["d_soft"]] = d_s_its / LU
         if self.follow:
-            l[R["init_r"]] = u[R["init_r"]] = d_rel0 / LU
+            i0 = R["init_r"].start
+            l[i0] = u[i0] = d_rel0 / LU
             l[R["dyn_r"]] = u[R["dyn_r"]] = self.dt * v_p / LU
             l[R["safe"]] = (self.w.d_min + safe_margin) / LU
-        # linear cost: power (eq. 5) and tracking
-        q[:] = 0.0
+        # linear cost: power (eq. 5) on k=0..N-1 and tracking on v_1..v_N; other entries of q stay 0
+        sv0, sv1, sft = self._sv0, self._sv1, self._sft
         const = N * self.pa00
-        q[self.iv[:N]] = self.pa10
-        q[self.ift] = self.pa01
+        q[sv0] = self.pa10
+        q[self._ivN] = 0.0
+        q[sft] = self.pa01
         if not self.power_convex:
             vb = np.full(N, v0) if v_lin is None else v_lin
             fb_ = np.zeros(N) if ft_lin is None else ft_lin / KN
-            if self.ccp_alpha > 0:
-                # concave part -a11/4 w^2, w = al v - F/al, linearised at the previous trajectory (majoriser)
-                al = self.ccp_alpha
-                wb = al * vb - fb_ / al
-                q[self.iv[:N]] -= 0.5 * self.pa11 * al * wb
-                q[self.ift] += 0.5 * self.pa11 / al * wb
-                const += 0.25 * self.pa11 * float(wb @ wb)
-            else:
-                q[self.iv[:N]] += self.pa11 * fb_
-                q[self.ift] += self.pa11 * vb
-                const -= self.pa11 * float(vb @ fb_)
+            # a11 v F ~ a11 (vbar F + Fbar v - vbar Fbar): first-order Taylor at the previous trajectory
+            q[sv0] += self.pa11 * fb_
+            q[sft] += self.pa11 * vb
+            const -= self.pa11 * float(vb @ fb_)
             if self.lin_v2:
-                q[self.iv[:N]] += 2.0 * self.pa20 * vb
+                q[sv0] += 2.0 * self.pa20 * vb
                 const -= self.pa20 * float(vb @ vb)
             if self.lin_f2:
-                q[self.ift] += 2.0 * self.pa02 * fb_
+                q[sft] += 2.0 * self.pa02 * fb_
                 const -= self.pa02 * float(fb_ @ fb_)
         if not self.follow:
-            q[self.iv[1:]] += -2.0 * self.w.zeta1 * v_ref
+            q[sv1] -= 2.0 * self.w.zeta1 * v_ref                       # zeta1 (v_{k+1} - v_ref,k)^2, eq. (9a)
             const += self.w.zeta1 * float(v_ref @ v_ref)
         elif self.w.zeta_v > 0:
-            q[self.iv[1:]] += -2.0 * self.w.zeta_v * v_p
+            q[sv1] -= 2.0 * self.w.zeta_v * v_p                         # zeta_v (v_{k+1} - v_p)^2
             const += self.w.zeta_v * N * v_p * v_p
         self.const = const
 
@@ -381,24 +384,34 @@ class SparseMpc:
         """Update OSQP's vectors, solve, check the status and the residual, and unpack the plan (SI)."""
         np.maximum(self.l, -1e30, out=self._lo)
         np.minimum(self.u, 1e30, out=self._hi)
-        self.solver.update(q=self.q, l=self._lo, u=self._hi)
         if self.shift_warm_start and self.x_prev is not None and self.y_prev is not None:
             self.solver.warm_start(x=self.x_prev[self._shift_x], y=self.y_prev[self._shift_y])
-        res = self.solver.solve(raise_error=False)
-        self.last_solve_time = float(res.info.run_time)   # s, OSQP's own timer (update excluded)
-        self.last_iter = int(res.info.iter)
-        status = res.info.status
-        x = res.x
-        ok = status in _STATUS_OK
-        if not ok and status in _STATUS_CHECK and x is not None and np.all(np.isfinite(x)):
+        if self._core is not None:
+            # the extension object behind OSQP.update/solve: same calls without the wrapper's per-call overhead
+            core = self._core
+            core.update_data_vec(q=self.q, l=self._lo, u=self._hi)
+            core.solve()
+            info = core.info
+            status, iters, run_time, obj = info.status, int(info.iter), float(info.run_time), info.obj_val
+            sol = core.solution
+            x, y = sol.x, sol.y
+        else:
+            self.solver.update(q=self.q, l=self._lo, u=self._hi)
+            res = self.solver.solve(raise_error=False)
+            status, iters, run_time, obj = res.info.status, int(res.info.iter), float(res.info.run_time), \
+                res.info.obj_val
+            x, y = res.x, res.y
+        self.last_solve_time = run_time   # s, OSQP's own timer
+        self.last_iter = iters
+        finite = x is not None and bool(np.isfinite(x).all())
+        ok = status in _STATUS_OK and finite
+        if not ok and status in _STATUS_CHECK and finite:
             ok = self.residual(x) <= 1e-2   # accept an inaccurate solution only if it actually satisfies Ax in [l, u]
-        if ok and (x is None or not np.all(np.isfinite(x))):
-            ok = False
         if not ok:
-            return MpcPlan(status, False, *([None] * 8), float("nan"), int(res.info.iter), None)
+            return MpcPlan(status, False, *([None] * 8), float("nan"), iters, None)
         self.x_prev = x
-        self.y_prev = res.y
-        return self.unpack(x, status, float(res.info.obj_val) + self.const, int(res.info.iter))
+        self.y_prev = y
+        return self.unpack(x, status, float(obj) + self.const, iters)
 
     def residual(self, x: np.ndarray) -> float:
         """Largest violation of l <= A x <= u (QP units)."""
@@ -407,9 +420,10 @@ class SparseMpc:
 
     def unpack(self, x: np.ndarray, status: str, obj: float, iters: int) -> MpcPlan:
         return MpcPlan(
-            status=status, ok=True, v=x[self.iv], ft=x[self.ift] * KN, fb=x[self.ifb] * KN, d_its=x[self.id] * LU,
-            d_rel=x[self.ir] * LU if self.follow else None, eps1=x[self.ie1] * LU, eps2=x[self.ie2] * KN,
-            eps3=x[self.ie3] * LU if self.follow else None, objective=obj, iterations=iters, x=x)
+            status=status, ok=True, v=x[self._sv], ft=x[self._sft] * KN, fb=x[self._sfb] * KN,
+            d_its=x[self._sd] * LU, d_rel=x[self._sr] * LU if self.follow else None, eps1=x[self._se1] * LU,
+            eps2=x[self._se2] * KN, eps3=x[self._se3] * LU if self.follow else None, objective=obj,
+            iterations=iters, x=x)
 
     def warm_start_from(self, v: np.ndarray, ft: np.ndarray, fb: np.ndarray) -> None:
         """Warm-start the primal variables from another controller's plan (SI), e.g. at a hand-over."""

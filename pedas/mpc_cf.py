@@ -12,7 +12,7 @@ from pedas.mpc import INF, MpcModel, MpcPlan, MpcWeights, SparseMpc
 
 # zeta1 here weighs e3 (kW/m^2); h_s, h_c s; d_min m (docs/controller.md)
 SAFE_BACKOFF = 1.0  # m, the planned gap keeps this margin above d_s (constraint tightening vs solver tolerance)
-CF_WEIGHTS = MpcWeights(zeta1=0.3, zeta2=0.5, zeta3=0.02, zeta4=5.0, h_s=1.0, h_c=2.5, d_min=3.0, zeta_v=1.0)
+CF_WEIGHTS = MpcWeights(zeta1=0.3, zeta2=0.5, zeta3=0.02, zeta4=5.0, h_s=1.0, h_c=2.5, d_min=3.0, zeta_v=5.0)
 
 
 class CarFollowingMpc(SparseMpc):

@@ -174,7 +174,10 @@ def _study_route(net_file: str, ds: float) -> Route:
     dh = np.gradient(heading, s)
     kappa = np.where(s >= vmin_start, _moving_average(dh, max(1, int(round(CURVATURE_WINDOW_HIGHWAY / ds)))),
                      _moving_average(dh, max(1, int(round(CURVATURE_WINDOW / ds)))))
-    grade = np.arctan(_moving_average(np.gradient(z, s), max(1, int(round(CURVATURE_WINDOW / ds)))))
+    # grade from the heights, smoothed like the curvature (netconvert's cuts leave small height steps at joints)
+    dz = np.gradient(z, s)
+    grade = np.arctan(np.where(s >= vmin_start, _moving_average(dz, max(1, int(round(CURVATURE_WINDOW_HIGHWAY / ds)))),
+                               _moving_average(dz, max(1, int(round(CURVATURE_WINDOW / ds))))))
 
     starts = np.array([pl.s0 for pl in path])
     idx = np.clip(np.searchsorted(starts, s, side="right") - 1, 0, len(path) - 1)

@@ -37,7 +37,7 @@ def load_demand(path: Path | None = None) -> dict:
 
 
 def departures(seed: int, demand: dict | None = None) -> pd.DataFrame:
-    """Seeded departures of the surrounding traffic: tidy frame veh_id, route, depart (s), depart_speed.
+    """Seeded departures of the surrounding traffic: tidy frame veh_id, route, type, depart (s), depart_speed.
 
     Per flow, headways are min_headway + Exp(mean 3600/rate - min_headway) so that the mean rate is `rate` veh/h
     and no two vehicles of a flow depart closer than min_headway.
@@ -51,20 +51,22 @@ def departures(seed: int, demand: dict | None = None) -> pd.DataFrame:
         t = float(f["start"]) + rng.uniform(0.0, mean)
         i = 0
         while t <= float(f["end"]):
-            rows.append((f"f{k}.{i}", f["route"], round(t, 1), str(f.get("depart_speed", "max"))))
+            rows.append((f"f{k}.{i}", f["route"], f.get("type", "car"), round(t, 1), str(f.get("depart_speed", "max"))))
             t += h_min + rng.exponential(max(mean - h_min, 0.1))
             i += 1
-    df = pd.DataFrame(rows, columns=["veh_id", "route", "depart", "depart_speed"])
+    df = pd.DataFrame(rows, columns=["veh_id", "route", "type", "depart", "depart_speed"])
     return df.sort_values(["depart", "veh_id"], kind="stable").reset_index(drop=True)
 
 
 @dataclass(frozen=True)
 class Leader:
-    """The vehicle ahead of the ego on its route: id, bumper-to-bumper gap (m) and speed (m/s)."""
+    """The vehicle ahead of the ego on its route: id, bumper-to-bumper gap (m), speed (m/s), acceleration
+    (m/s^2; what a driver reads from brake lights and closing speed)."""
 
     veh_id: str
     gap: float
     v: float
+    a: float = 0.0
 
 
 class Traffic:
@@ -82,6 +84,7 @@ class Traffic:
         self.step_length = float(step_length)
         self.ego_depart = float(self.demand["ego_depart"])
         self.ego_min_gap = 0.0
+        self._s_offset = 0.0
         self._ls = None
 
     # --- life cycle -------------------------------------------------------------------------------------------
@@ -104,7 +107,7 @@ class Traffic:
         _ACTIVE = self
         self._ls = libsumo
         for row in departures(self.seed, self.demand).itertuples(index=False):
-            libsumo.vehicle.add(row.veh_id, row.route, typeID="car", depart=f"{row.depart:.1f}",
+            libsumo.vehicle.add(row.veh_id, row.route, typeID=row.type, depart=f"{row.depart:.1f}",
                                 departLane="first", departPos="base", departSpeed=row.depart_speed)
         libsumo.vehicle.add(EGO_ID, EGO_ROUTE, typeID=EGO_TYPE, depart=f"{self.ego_depart:.1f}", departLane="first",
                             departPos="0", departSpeed="0")
@@ -148,6 +151,9 @@ class Traffic:
             self.step()
         ls.vehicle.setSpeedMode(EGO_ID, EGO_SPEED_MODE)
         ls.vehicle.setLaneChangeMode(EGO_ID, 0)  # no overtaking, no lane changes (Sec. 4.3)
+        # SUMO places the front bumper one vehicle length into the first lane; the route position s counts
+        # from the lane start, the odometer from the insertion point
+        self._s_offset = float(ls.vehicle.getLanePosition(EGO_ID)) - float(ls.vehicle.getDistance(EGO_ID))
         return self.time
 
     # --- ego state --------------------------------------------------------------------------------------------
@@ -156,9 +162,10 @@ class Traffic:
         return EGO_ID in self._ls.simulation.getArrivedIDList()
 
     def ego_state(self) -> tuple[float, float]:
-        """(s, v): distance driven along the route (odometer, m) and speed (m/s)."""
+        """(s, v): position of the front bumper along the route (m, = odometer + insertion position) and speed
+        (m/s)."""
         ls = self._ls
-        return float(ls.vehicle.getDistance(EGO_ID)), float(ls.vehicle.getSpeed(EGO_ID))
+        return float(ls.vehicle.getDistance(EGO_ID)) + self._s_offset, float(ls.vehicle.getSpeed(EGO_ID))
 
     def leader(self, lookahead: float = LEADER_LOOKAHEAD) -> Leader | None:
         """The vehicle ahead on the ego's route within `lookahead` m (``vehicle.getLeader``), else None.
@@ -170,7 +177,8 @@ class Traffic:
         if not res or not res[0]:
             return None
         vid, gap = res
-        return Leader(vid, float(gap) + self.ego_min_gap, float(ls.vehicle.getSpeed(vid)))
+        return Leader(vid, float(gap) + self.ego_min_gap, float(ls.vehicle.getSpeed(vid)),
+                      float(ls.vehicle.getAcceleration(vid)))
 
     def set_ego_speed(self, v: float) -> None:
         """Command the ego's speed (m/s) for the next step."""

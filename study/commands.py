@@ -43,7 +43,8 @@ def _init(args) -> None:
 
     existed = db_path(args).exists()
     with _open(args, must_exist=False) as st:
-        print(f"store {st.path} {'up to date' if existed else 'created'} (schema v{st.schema_version})")
+        what = "created" if not existed else "upgraded" if st.applied else "up to date"
+        print(f"store {st.path} {what} (schema v{st.schema_version})")
 
 
 # ---------------------------------------------------------------------------------------------- participants

@@ -12,6 +12,7 @@ integers like every other non-text item: numbers as given, choices as their code
 """
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -128,10 +129,11 @@ class Instrument:
             if s.casefold() in labels:
                 value = labels[s.casefold()]
             else:
-                try:
-                    value = int(s, 10)
-                except ValueError:
-                    raise ValueError(f"{item_id}: {s!r} is not an integer") from None
+                # "4.0"/"4.00" (how spreadsheets and SPSS write whole numbers) is the integer 4; "4.5" is refused
+                whole = re.fullmatch(r"([+-]?\d+)(?:\.0+)?", s)
+                if not whole:
+                    raise ValueError(f"{item_id}: {s!r} is not an integer")
+                value = int(whole.group(1))
         lo, hi = self.scale(item_id)
         if not lo <= value <= hi:
             raise ValueError(f"{item_id}: value {value} outside {lo}-{hi}")

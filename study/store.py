@@ -43,6 +43,7 @@ class Store:
         self._depth = 0           # transaction nesting: only the outermost level talks to DuckDB
         self._columns: dict[str, list[str]] = {}
         self._keys: dict[str, list[str]] = {}
+        self.applied: list[int] = []
 
     # ------------------------------------------------------------------ opening
     @classmethod
@@ -62,11 +63,11 @@ class Store:
         con = cls._connect(path, read_only, lock_timeout)
         try:
             con.execute("SET TimeZone = 'UTC'")
+            applied = [] if read_only else migrate.migrate(con)
             if read_only:
                 migrate.check_not_newer(con)
-            else:
-                migrate.migrate(con)
             st = cls(con, path, audit.resolve_actor(actor), read_only)
+            st.applied = [m.version for m in applied]  # migrations applied by this open (for `init`)
             if not read_only:
                 st._load_instruments()
         except BaseException:
@@ -126,6 +127,10 @@ class Store:
         try:
             self.con.commit()
         except duckdb.Error as exc:  # a constraint checked at commit
+            try:
+                self.con.rollback()
+            except duckdb.Error:
+                pass
             raise UserError(f"commit failed: {_one_line(exc)}") from exc
 
     @property

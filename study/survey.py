@@ -371,10 +371,15 @@ def _final_long(st, instrument: str) -> tuple[pd.DataFrame, pd.DataFrame]:
     key = ["participant_id", "item_id"]
     resp = st.df("SELECT participant_id, item_id, entry_round, value, text FROM responses WHERE instrument = ?",
                  [instrument])
-    subs = st.df("SELECT participant_id, double_entry FROM survey_submissions WHERE instrument = ? "
-                 "AND entry_round = 1", [instrument])
-    res = st.df("SELECT participant_id, item_id, value AS value_r, text AS text_r, true AS has_res "
-                "FROM survey_resolutions WHERE instrument = ?", [instrument])
+    if _has_table(st, "survey_submissions"):
+        subs = st.df("SELECT participant_id, double_entry FROM survey_submissions WHERE instrument = ? "
+                     "AND entry_round = 1", [instrument])
+        res = st.df("SELECT participant_id, item_id, value AS value_r, text AS text_r, true AS has_res "
+                    "FROM survey_resolutions WHERE instrument = ?", [instrument])
+    else:  # a store opened read-only before the survey migration: plain responses only
+        subs = pd.DataFrame({"participant_id": pd.Series(dtype=object), "double_entry": pd.Series(dtype=bool)})
+        res = pd.DataFrame({c: pd.Series(dtype=object) for c in ("participant_id", "item_id", "value_r", "text_r",
+                                                                  "has_res")})
     r1 = resp[resp["entry_round"] == 1].drop(columns="entry_round")
     r2 = resp[resp["entry_round"] == 2].drop(columns="entry_round")
     m = r1.merge(r2, on=key, how="outer", suffixes=("_1", "_2"), indicator="present")
@@ -410,6 +415,10 @@ def _final_long(st, instrument: str) -> tuple[pd.DataFrame, pd.DataFrame]:
     f.loc[use_res, "basis"] = "resolved"
     long = f[["participant_id", "item_id", "value", "text", "basis"]].reset_index(drop=True)
     return long, status
+
+
+def _has_table(st, name: str) -> bool:
+    return bool(st.one("SELECT count(*) FROM duckdb_tables() WHERE table_name = ?", [name]))
 
 
 def _eq(a: pd.Series, b: pd.Series) -> pd.Series:

@@ -99,8 +99,9 @@ def test_analyze_drives_writes_tables_figures_and_bands(cli, cohort_db, tmp_path
     assert len(bands) == 4 and set(bands["holds"]) <= {True, False}
     # keep one copy to look at
     OUTPUT.mkdir(exist_ok=True)
-    for stem in ("fig9a_savings", "fig10_tl_green", "fig11_driving_behaviour", "fig12_controller_switching",
-                 "fig9d_savings_overall_by_style"):
+    for stem in ("fig9a_savings", "fig9b_savings_urban_by_style", "fig9c_savings_highway_by_style",
+                 "fig9d_savings_overall_by_style", "fig10_tl_green", "fig11_driving_behaviour",
+                 "fig12_controller_switching"):
         (OUTPUT / f"drives_{stem}.png").write_bytes((out / "figures" / f"{stem}.png").read_bytes())
 
 

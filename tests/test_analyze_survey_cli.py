@@ -162,6 +162,6 @@ def test_tables_are_rendered_from_the_frames(res):
     c = res.correlations.set_index(["a", "b"]).loc[("PU", "ATT")]
     assert f"| ATT | {c.r:.3f}{stars(c.p)} |" in t4
     ini = res.loadings[(res.loadings.stage == "initial")].set_index("item")
-    assert f"| ATT1 |" in t3 and f"{ini.loc['ATT1', 'loading']:.3f}*" in t3 and "| PEoU3† |" in t3
-    assert t5.count("Step ") == 8 and t5.count("Independent Variable - ") == 12
+    assert "| ATT1 |" in t3 and f"{ini.loc['ATT1', 'loading']:.3f}*" in t3 and "| PEoU3† |" in t3
+    assert t5.count("Step ") == 8 and t5.count("Independent Variable - ") == 1 + 3 + 3 + 6
     assert r"$\beta$" in out["table5.tex"] and r"\textbf{" in out["table4.tex"]

@@ -20,9 +20,17 @@ def big_log(path: Path, n: int = N) -> None:
     t = np.arange(n) * 0.02
     v = 15.0 + 5.0 * np.sin(t / 30.0)
     s = np.concatenate([[0.0], np.cumsum(v[:-1] * 0.02)])
-    seg = np.where(np.arange(n) < n // 2, "urban", "highway")
-    pd.DataFrame({"t": t, "s": s, "v": v, "segment": seg, "speed_limit": np.where(seg == "urban", 13.89, 33.33),
-                  "controller": "rt"}).to_parquet(path)
+    highway = np.arange(n) >= n // 2
+    seg = pd.Categorical.from_codes(highway.astype(np.int8), categories=["urban", "highway"])
+    pd.DataFrame({"t": t, "s": s, "v": v, "segment": seg, "speed_limit": np.where(highway, 33.33, 13.89),
+                  "controller": pd.Categorical.from_codes(np.zeros(n, np.int8), categories=["rt"])}).to_parquet(path)
+
+
+@pytest.fixture(scope="module")
+def log(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("log") / "big.parquet"
+    big_log(path)
+    return path
 
 
 def kill_during(db: Path, log: Path, marker: str, delay: float) -> int:
@@ -57,9 +65,8 @@ def drive_state(db: Path) -> str:
 
 
 @pytest.fixture
-def setup(tmp_path):
-    db, log = tmp_path / "study.duckdb", tmp_path / "big.parquet"
-    big_log(log)
+def setup(tmp_path, log):
+    db = tmp_path / "study.duckdb"
     with Store.open(db) as st:
         st.insert("participants", {"participant_id": "P001"})
     return db, log

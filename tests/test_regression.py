@@ -4,6 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from analysis.regression import (ModelSpec, bootstrap_coefs, f_change, hierarchical_regression, run_models,
                                  validate_models)
@@ -135,3 +137,17 @@ def test_bad_input_errors():
         run_models(const, [ModelSpec(name="x", dv="Y", steps=(("C",),))], n_boot=0)
     with pytest.raises(ValueError, match="needs name, dv and steps"):
         ModelSpec.from_dict({"dv": "Y"})
+
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 10_000), n=st.integers(8, 60))
+def test_property_r2_never_drops_and_f_change_matches_formula(seed, n):
+    rng = np.random.default_rng(seed)
+    d = pd.DataFrame(rng.standard_normal((n, 4)), columns=["A", "B", "C", "Y"])
+    out = hierarchical_regression(d, ModelSpec(name="p", dv="Y", steps=(("A",), ("B",), ("C",))), n_boot=0)
+    steps = out.groupby("step").first()
+    assert (steps["delta_r2"] >= -1e-12).all() and (np.diff(steps["r2"]) >= -1e-12).all()
+    assert np.allclose(steps["f_change"], (steps["delta_r2"] / steps["df1"]) / ((1 - steps["r2"]) / steps["df2"]))
+    one = out[(out.step == 1) & (out.predictor == "A")].iloc[0]
+    assert one.beta == pytest.approx(d["A"].corr(d["Y"]), abs=1e-9)  # one predictor: beta = r

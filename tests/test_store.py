@@ -183,3 +183,16 @@ def test_store_held_by_another_process(tmp_db):
         holder.communicate("\n", timeout=30)
     with Store.open(tmp_db, lock_timeout=5) as st:  # released when the holder ends
         assert st.schema_version == migrate.code_version()
+
+
+def test_cli_init_reports_upgrade(cli, tmp_db, tmp_path):
+    d = tmp_path / "mig"
+    d.mkdir()
+    shutil.copy(migrate.MIGRATIONS_DIR / "0001_core.sql", d)
+    con = duckdb.connect(str(tmp_db))
+    migrate.migrate(con, d)
+    con.close()
+    r = cli("init")
+    expect = "upgraded" if migrate.code_version() > 1 else "up to date"
+    assert r.code == 0 and expect in r.out
+    assert "up to date" in cli("init").out

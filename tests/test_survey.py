@@ -88,6 +88,7 @@ def test_codebook_demographic_block():
 
 def test_parse_answers():
     assert INS.parse("PU1", "4") == Answer(value=4)
+    assert INS.parse("PU1", "4.0") == INS.parse("PU1", " 4.00 ") == Answer(value=4)   # spreadsheet whole numbers
     assert INS.parse("PU1", "") == Answer() and INS.parse("PU1", None) == Answer()
     assert INS.parse("GENDER", "male") == Answer(value=2)
     assert INS.parse("Q1", "  ok  ") == Answer(text="ok")

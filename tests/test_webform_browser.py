@@ -52,7 +52,10 @@ def served(tmp_db):
 
 def wait_saved(page) -> None:
     """Wait until every answer POST of the page has come back and was accepted."""
-    page.wait_for_function("document.getElementById('save-status').dataset.pending === '0'")
+    from playwright.sync_api import expect
+
+    # a selector wait, not wait_for_function: the app's Content-Security-Policy forbids eval
+    expect(page.locator("#save-status")).to_have_attribute("data-pending", "0", timeout=30_000)
     assert "Not saved" not in page.inner_text("#save-msg")
 
 

@@ -311,6 +311,47 @@ def check_alpha_vs_loadings(pub: pd.DataFrame) -> list[Check]:
     return out
 
 
+def check_two_item_alpha_lattice(pub: pd.DataFrame, n: int = 40) -> list[Check]:
+    """For 2-item scales: the α values N answers can reach given the items' printed mean and (truncated) SD.
+
+    Σx, Σx² of each item are fixed by its GRIMMER candidates; Σxy is an integer, so α = 4cov/(v1 + v2 + 2cov)
+    with cov = (Σxy - S1·S2/n)/(n - 1) can only take discrete values."""
+    t3, tc = P.table3(pub).set_index("item"), P.table3_constructs(pub).set_index("construct")
+    out = []
+    vals = np.arange(1, 6)
+    for c, g in retained(P.table3(pub)).items():
+        if len(g) != 2:
+            continue
+        i1, i2 = g["item"].tolist()
+        moments = []
+        for it in (i1, i2):
+            cands = grim.grimmer_candidates(t3.loc[it, "mean"], t3.loc[it, "sd"], n, MEAN_DECIMALS,
+                                            _decimals(pub, "table3", "sd", it), sd_mode="truncate")
+            moments.append({(int(cc @ vals), int(cc @ vals ** 2)) for cc in cands})
+        alpha = float(tc.loc[c, "alpha"])
+        reach = set()
+        for s1, q1 in moments[0]:
+            v1 = (q1 - s1 ** 2 / n) / (n - 1)
+            for s2, q2 in moments[1]:
+                v2 = (q2 - s2 ** 2 / n) / (n - 1)
+                cov0 = alpha * (v1 + v2) / (4 - 2 * alpha)
+                base = np.floor(cov0 * (n - 1) + s1 * s2 / n)
+                for sxy in (base - 1, base, base + 1, base + 2):
+                    cv = (sxy - s1 * s2 / n) / (n - 1)
+                    reach.add(round(4 * cv / (v1 + v2 + 2 * cv), 4))
+        near = sorted(reach, key=lambda a: abs(a - alpha))[:2]
+        ok = bool(any(grim.prints_as(a, alpha, 3) for a in reach))
+        line = _line(pub, "table3", "alpha", c)
+        out.append(Check(f"2-item Cα reachable with N = {n}", f"Table 3 {c} (line {line})", f"{alpha:g}",
+                         "nearest reachable: " + ", ".join(f"{a:.4f}" for a in sorted(near)),
+                         "ok" if ok else "inconsistent",
+                         "reachable" if ok else (f"{i1} and {i2} each have one possible variance at N = {n} "
+                                                 f"({len(moments[0])}x{len(moments[1])} (Σx, Σx²) pairs); Σxy is an "
+                                                 f"integer, so α jumps between the values shown"),
+                         "" if ok else "bi_alpha"))
+    return out
+
+
 def check_table4_vs_table5(pub: pd.DataFrame) -> list[Check]:
     """Table 4 correlations vs Table 5: r = β for one predictor; β = R_xx⁻¹ r_xy and R² = β'r_xy otherwise."""
     t4 = P.table4_matrix(pub)
@@ -536,6 +577,7 @@ def check_cohort(pub: pd.DataFrame) -> list[Check]:
 
 
 CHECKS = (check_sample_size, check_grim, check_grimmer, check_cr_ave, check_sqrt_ave, check_alpha_vs_loadings,
+          check_two_item_alpha_lattice,
           check_table4_vs_table5, check_adj_r2, check_b_beta, check_se_b, check_ci, check_stars, check_cohort)
 
 

@@ -74,7 +74,11 @@ def create_app(st, researcher_password: str, instrument: str = DEFAULT_INSTRUMEN
         """(Link, None) or (None, error response): nothing is read or stored for a bad token."""
         with store() as s:
             try:
-                return sv.resolve_token(s, token), None
+                link = sv.resolve_token(s, token)
+                if link.instrument != instrument:
+                    raise sv.LinkError(f"This link belongs to questionnaire {link.instrument}, which this server "
+                                       "does not show. Please ask the researcher.", 404)
+                return link, None
             except sv.LinkError as exc:
                 if as_json:
                     return None, (jsonify(error=str(exc)), exc.status)
@@ -107,6 +111,10 @@ def create_app(st, researcher_password: str, instrument: str = DEFAULT_INSTRUMEN
     @app.post("/s/<token>/answer")
     def save_answer(token: str):
         """One answer as it is given (JSON {item, value} or form fields item, value)."""
+        with lock:  # the link is checked and used under one lock: a revocation cannot slip in between
+            return _save_answer(token)
+
+    def _save_answer(token: str):
         link, err = link_or_error(token, as_json=True)
         if err:
             return err
@@ -125,6 +133,10 @@ def create_app(st, researcher_password: str, instrument: str = DEFAULT_INSTRUMEN
     @app.post("/s/<token>")
     def survey_post(token: str):
         """The whole form (works without JavaScript): save what is posted, then save only or submit."""
+        with lock:
+            return _survey_post(token)
+
+    def _survey_post(token: str):
         link, err = link_or_error(token)
         if err:
             return err

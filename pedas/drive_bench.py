@@ -1,0 +1,56 @@
+"""Benchmark of the drive simulation: real-time factor of single drives and the cohort's worker speed-up.
+
+A drive's wall time counts the drive loop only (SUMO start, traffic, driver, controller, invariants); the
+one-time setup per process (network build check, route, DP reference) is reported separately. The cohort
+speed-up runs the same small cohort on 1 and on 2 worker processes with empty caches.
+"""
+from __future__ import annotations
+
+import statistics
+import tempfile
+import time
+
+
+def bench_drive(repeats: int = 1, cohort: int = 3, seed: int = 1, style: str = "normal") -> dict:
+    """{'setup_s', 'baseline': {...}, 'pedas': {...}, 'pedas_over_baseline', 'cohort': {...}|None}."""
+    from pedas.drive import _setup, drive
+    from pedas.network import build_network
+
+    t0 = time.perf_counter()
+    net = str(build_network())
+    _setup(net)
+    setup = time.perf_counter() - t0
+    out: dict = {"setup_s": setup}
+    for cond in ("baseline", "pedas"):
+        walls, info = [], None
+        for _ in range(repeats):
+            df = drive(seed, style, cond, net_file=net)
+            info = df.attrs["drive"]
+            walls.append(info["wall_s"])
+        wall = statistics.median(walls)
+        out[cond] = {"sim_s": info["duration_s"], "wall_s_median": wall, "repeats": repeats,
+                     "rtf_median": info["duration_s"] / wall, "ms_per_step": 1000.0 * wall / info["steps"],
+                     "max_vehicles": info["max_vehicles"]}
+    out["pedas_over_baseline"] = out["pedas"]["wall_s_median"] / out["baseline"]["wall_s_median"]
+    out["cohort"] = _cohort_speedup(cohort, seed) if cohort > 0 else None
+    return out
+
+
+def _cohort_speedup(n: int, seed: int) -> dict:
+    import pandas as pd
+
+    from pedas.cohort import cohort_tasks, simulate_cohort
+
+    styles = ("cautious", "normal", "sporty")
+    people = pd.DataFrame({"participant_id": [f"B{i:03d}" for i in range(n)],
+                           "style": [styles[i % 3] for i in range(n)]})
+    tasks = cohort_tasks(people, base_seed=seed)
+    walls = {}
+    for workers in (1, 2):
+        with tempfile.TemporaryDirectory(prefix="bench-cohort-") as cache:
+            t0 = time.perf_counter()
+            simulate_cohort(tasks, workers=workers, cache_dir=cache, progress=False)
+            walls[workers] = time.perf_counter() - t0
+    per_drive_2 = walls[2] / len(tasks)
+    return {"drives": len(tasks), "wall_1": walls[1], "wall_2": walls[2], "speedup": walls[1] / walls[2],
+            "projected_68_on_2_s": per_drive_2 * 68}
