@@ -34,12 +34,12 @@ def synthetic_sql(n_rows: int, samples_per_drive: int = SAMPLES_PER_DRIVE, seed:
     seed = int(seed)
 
     def u(expr: str, salt: int) -> str:  # uniform in [0, 1) from the seeded hash
-        return f"((hash({expr}, {seed}, {salt}) % 1000003) / 1000003.0)"
+        return f"((hash({expr}, {seed}, {salt}) % 1000003)::DOUBLE / 1000003.0::DOUBLE)"
 
     return f"""
     WITH base AS (
         SELECT i // {n_per} AS drive_id, (i % {n_per})::INTEGER AS idx, i,
-               (i % {n_per}) * 0.1 AS t,
+               (i % {n_per})::DOUBLE * 0.1::DOUBLE AS t,
                6.0 + 6.0 * {u(f'i // {n_per}', 1)} AS amp,
                6.283185307 * {u(f'i // {n_per}', 2)} AS phi
         FROM range({int(n_rows)}) r(i)
@@ -50,15 +50,15 @@ def synthetic_sql(n_rows: int, samples_per_drive: int = SAMPLES_PER_DRIVE, seed:
                amp * 0.05 * cos(0.05 * t + phi) AS a
         FROM base
     )
-    SELECT drive_id, idx, t, s, v,
+    SELECT drive_id, idx, t::DOUBLE AS t, s::DOUBLE AS s, v::DOUBLE AS v,
            CASE WHEN idx < {n_per // 2} THEN 'urban' ELSE 'highway' END AS segment,
-           CASE WHEN idx < {n_per // 2} THEN 50 / 3.6 ELSE 100 / 3.6 END AS speed_limit,
-           a,
-           v * (1600.0 * a + 0.5 * 1.2 * 0.7 * v * v + 1600.0 * 9.81 * 0.01) + 300.0 AS p_batt,
+           (CASE WHEN idx < {n_per // 2} THEN 50 / 3.6 ELSE 100 / 3.6 END)::DOUBLE AS speed_limit,
+           a::DOUBLE AS a,
+           (v * (1600.0 * a + 0.5 * 1.2 * 0.7 * v * v + 1600.0 * 9.81 * 0.01) + 300.0)::DOUBLE AS p_batt,
            CASE WHEN idx % 500 < 400 THEN 'TL' || (idx // 500)::VARCHAR END AS tl_id,
            CASE WHEN (idx + drive_id * 37) % 900 < 400 THEN 'green'
                 WHEN (idx + drive_id * 37) % 900 < 430 THEN 'yellow' ELSE 'red' END AS tl_state,
-           CASE WHEN idx % 500 < 400 THEN (400 - idx % 500) * 0.5 END AS d_tl
+           (CASE WHEN idx % 500 < 400 THEN (400 - idx % 500) * 0.5 END)::DOUBLE AS d_tl
     FROM kin
     """
 

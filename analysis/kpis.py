@@ -98,7 +98,7 @@ groups AS (
            sum(ds)                                                  AS distance_m,
            sum(dt)                                                  AS trip_time_s,
            sum(ds) FILTER (WHERE viol)                              AS violation_distance_m,
-           sum(dt * ((a1 - a) / dt) ^ 2) FILTER (WHERE dt > 0)      AS jerk2_dt,
+           sum((a1 - a) * (a1 - a) / dt) FILTER (WHERE dt > 0)      AS jerk2_dt,   -- (da/dt)^2 dt
            sum(dt) FILTER (WHERE a1 IS NOT NULL AND a IS NOT NULL AND dt > 0) AS jerk_time,
            sum(abs(a) * dt)                                         AS abs_a_dt,
            sum(dt) FILTER (WHERE a IS NOT NULL)                     AS a_time,

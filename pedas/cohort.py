@@ -90,9 +90,9 @@ def _cache_paths(cache_dir: Path, key: str) -> tuple[Path, Path]:
     return cache_dir / f"{key}.parquet", cache_dir / f"{key}.json"
 
 
-def load_cached(task: DriveTask, cache_dir: Path | None = None) -> pd.DataFrame | None:
+def load_cached(task: DriveTask, cache_dir: Path | None = None, key: str | None = None) -> pd.DataFrame | None:
     """The cached drive log of `task`, or None."""
-    data, meta = _cache_paths(Path(cache_dir or default_cache_dir()), task_key(task))
+    data, meta = _cache_paths(Path(cache_dir or default_cache_dir()), key or task_key(task))
     if not (data.exists() and meta.exists()):
         return None
     df = pd.read_parquet(data)
@@ -100,9 +100,9 @@ def load_cached(task: DriveTask, cache_dir: Path | None = None) -> pd.DataFrame 
     return df
 
 
-def _store_cached(task: DriveTask, df: pd.DataFrame, cache_dir: Path) -> None:
+def _store_cached(key: str, df: pd.DataFrame, cache_dir: Path) -> None:
     cache_dir.mkdir(parents=True, exist_ok=True)
-    data, meta = _cache_paths(cache_dir, task_key(task))
+    data, meta = _cache_paths(cache_dir, key)
     info = dict(df.attrs.get("drive", {}))
     plain = df.copy()
     plain.attrs = {}
@@ -113,22 +113,25 @@ def _store_cached(task: DriveTask, df: pd.DataFrame, cache_dir: Path) -> None:
         os.replace(tmp, path)  # atomic: a concurrent reader sees a complete file or none
 
 
-def run_task(task: DriveTask, cache_dir: str | None = None) -> pd.DataFrame:
-    """Simulate one task (in the calling process) unless cached; store it in the cache. Worker entry point."""
+def run_task(task: DriveTask, cache_dir: str | None = None, key: str | None = None) -> pd.DataFrame:
+    """Simulate one task (in the calling process) unless cached; store it in the cache. Worker entry point.
+
+    `key`: the cache key computed by the caller (so that parent and worker agree on it)."""
     from pedas.drive import drive
 
     cdir = Path(cache_dir) if cache_dir else default_cache_dir()
-    hit = load_cached(task, cdir)
+    key = key or task_key(task)
+    hit = load_cached(task, cdir, key)
     if hit is not None:
         return hit
     with _SUMO_LOCK:
         df = drive(task.seed, task.style, task.condition, traffic_seed=task.traffic_seed)
-    _store_cached(task, df, cdir)
+    _store_cached(key, df, cdir)
     return df
 
 
-def _run_task_keyed(task: DriveTask, cache_dir: str | None) -> tuple[DriveTask, pd.DataFrame]:
-    return task, run_task(task, cache_dir)
+def _run_task_keyed(task: DriveTask, cache_dir: str | None, key: str) -> tuple[DriveTask, pd.DataFrame]:
+    return task, run_task(task, cache_dir, key)
 
 
 def simulate_cohort(tasks: list[DriveTask], workers: int | None = None, scheduler: str | None = None,
@@ -162,7 +165,7 @@ def simulate_cohort(tasks: list[DriveTask], workers: int | None = None, schedule
             own = client is None
             cl = client or Client(scheduler)
             try:
-                futs = [cl.submit(_run_task_keyed, t, str(cdir), pure=False) for t in todo]
+                futs = [cl.submit(_run_task_keyed, t, str(cdir), task_key(t), pure=False) for t in todo]
                 for fut in dask_completed(futs):
                     task, df = fut.result()
                     out[(task.participant_id, task.condition)] = df
@@ -173,7 +176,7 @@ def simulate_cohort(tasks: list[DriveTask], workers: int | None = None, schedule
         else:
             n = max(1, min(int(workers or os.cpu_count() or 1), len(todo)))
             with ProcessPoolExecutor(max_workers=n, mp_context=get_context("spawn")) as pool:
-                futs = [pool.submit(_run_task_keyed, t, str(cdir)) for t in todo]
+                futs = [pool.submit(_run_task_keyed, t, str(cdir), task_key(t)) for t in todo]
                 for fut in as_completed(futs):
                     task, df = fut.result()
                     out[(task.participant_id, task.condition)] = df

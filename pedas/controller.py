@@ -220,7 +220,8 @@ class PedasController:
             v_hi_gw = float(np.interp(s + max(d_tl, 0.0) * self._frac8, self._s, self._vmax).min())
             v_lo_gw = max(float(np.interp(s, self._s, self._vmin)),
                           GW_MIN_FRACTION * float(np.interp(s, self._s, self._limit)))
-            band = green_wave_band(d_tl, t, tl, min(v_lo_gw, v_hi_gw), v_hi_gw) if d_tl > 0 else None
+            gw_ok = d_tl > 0 and (ss is None or ss.s > tl.s)            # a stop sign before the light goes first
+            band = green_wave_band(d_tl, t, tl, min(v_lo_gw, v_hi_gw), v_hi_gw) if gw_ok else None
             v_gw = band[0] if band is not None else None                # v_ref,min
             tl_stop_expected = v_gw is None and not go              # eq. (1) empty: stopping is unavoidable
         if ss is not None and (stop_d is None or d_ss < stop_d):
@@ -228,15 +229,16 @@ class PedasController:
             stop_kind = "ss"
         else:
             stop_kind = "tl" if stop_d is not None else None
+        # the stop envelope of v_ref: at a stop sign, and at a light when eq. (1) has no band (stop unavoidable);
+        # with a green-wave band the hard d_ITS rows alone keep the plan out of the red phases
         envelope_d = None
         if stop_kind == "ss":
             envelope_d = d_ss
-        elif tl is not None and (stop_kind == "tl" or tl_stop_expected):
+        elif tl is not None and tl_stop_expected:
             envelope_d = d_tl
 
         # ---- reference and speed bounds ---------------------------------------------------------------
-        mode = "dp"
-        if v_gw is not None and envelope_d is None:
+        if v_gw is not None:
             v_ref = np.full(N, v_gw)
             mode = "green_wave"
         else:
@@ -244,17 +246,14 @@ class PedasController:
             j0, j1 = np.searchsorted(self._dp_s, [s, s + CRUISE_LOOK])
             cruise = float(self._dp_v[j0:max(j1, j0 + 1)].max()) if j0 < self._dp_v.size else float(self._dp_v[-1])
             v_ref = np.maximum(vdp, np.minimum(v + A_DEPART * dt * self._k, cruise))
+            mode = "dp"
         v_ref = np.minimum(v_ref, venv)
-        stop_env = None
         if envelope_d is not None:
-            d_target = envelope_d - 0.5 * self._d_sits - (s_pred - s)
+            d_target = envelope_d - 0.5 * self._d_sits - (s_pred - s)     # aim at the middle of the band
             stop_env = np.sqrt(2 * A_STOP * np.maximum(d_target, 0.0))
-            if stop_env[-1] < v_ref[-1] or d_hard is not None and np.any(d_hard == 0.0) and d_tl is not None \
-                    and stop_kind == "tl":
+            if stop_env[-1] < v_ref[-1] or (stop_kind == "tl" and tl_stop_expected):
                 mode = "stop"
             v_ref = np.minimum(v_ref, stop_env)
-        if stop_kind == "ss" and (d_ss is not None and d_ss < v * v / (2 * A_STOP) + 20.0):
-            mode = "stop"
         reach = v - A_REACH * dt * self._k
         v_hi = np.maximum(vmax, reach)
         if mode in ("green_wave", "dp") and leader is None:

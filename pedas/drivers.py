@@ -38,6 +38,7 @@ HIGHWAY_MARGIN = 5.0 * KMH  # m/s, drivers keep their wish a little above the in
 STOP_MARGIN = 0.5  # m, drivers aim to stand this far before the stop line
 HALT_SPEED = 0.05  # m/s, counts as standing still (full stop at a stop sign)
 HALT_BAND = 3.0  # m, the driver's halt at a stop sign is this close to the line (else it moves up and halts again)
+ANTICIPATION = 0.8  # drivers plan to slow for a curve / lower limit ahead at this share of b_comf
 BRAKE_LIGHT = 1.0  # m/s^2, a leader decelerating harder than this is noticed as braking
 MAX_BRAKE = 8.0  # m/s^2, emergency braking the driver may apply (tyre/road limit ~ 8-9 m/s^2 dry)
 TRACK_TIME = 1.5  # s, time constant with which an assisted driver closes a speed gap outside the band
@@ -140,16 +141,16 @@ def _anticipate(s: np.ndarray, v: np.ndarray, b: float) -> np.ndarray:
 
 
 def curve_speed_profile(route, drv: DriverParams) -> np.ndarray:
-    """The driver's own curve speed sqrt(a_lat / |kappa|) along the route grid, anticipated at b_comf (m/s)."""
+    """The driver's own curve speed sqrt(a_lat / |kappa|) along the route grid, anticipated (m/s)."""
     k = np.abs(np.asarray(route.curvature, float))
     with np.errstate(divide="ignore"):
         v_curve = np.where(k > 1e-9, np.sqrt(drv.a_lat / np.maximum(k, 1e-12)), 1e3)
-    return _anticipate(np.asarray(route.s, float), v_curve, drv.b_comf)
+    return _anticipate(np.asarray(route.s, float), v_curve, ANTICIPATION * drv.b_comf)
 
 
 def desired_speed_profile(route, drv: DriverParams) -> np.ndarray:
     """The driver's wish speed along the route grid (m/s), anticipated: at each point the highest speed from
-    which every later wish can be reached braking at b_comf (a backward pass over the route)."""
+    which every later wish can be reached braking at ANTICIPATION x b_comf (a backward pass over the route)."""
     limit = np.asarray(route.speed_limit, float)
     hw = np.asarray(route.segment) == "highway"
     v_wish = limit * np.where(hw, drv.speed_factor_hw, drv.speed_factor)
@@ -159,7 +160,7 @@ def desired_speed_profile(route, drv: DriverParams) -> np.ndarray:
     v_wish = np.minimum(v_wish, v_curve)
     on_main = np.asarray(route.v_min, float) > 0  # the instructed highway minimum applies here
     v_wish = np.where(on_main, np.maximum(v_wish, HIGHWAY_MIN_SPEED + HIGHWAY_MARGIN), v_wish)
-    return _anticipate(np.asarray(route.s, float), v_wish, drv.b_comf)
+    return _anticipate(np.asarray(route.s, float), v_wish, ANTICIPATION * drv.b_comf)
 
 
 def idm_free(v: float, v0: float, a: float) -> float:
@@ -331,6 +332,10 @@ class HumanDriver:
             a = min(self._track(v, s, v0, adv, warn), p.a_max + a_int)  # IDM with an unbounded wish speed
         else:
             a = idm_free(v, v0, p.a_max) + a_int
+            # the IDM alone lags behind a falling wish (curve, lower limit ahead): stay on the braking envelope
+            v0_next = self.v_wish(s + v * self.dt)
+            if v > v0_next:
+                a = min(a, (v0_next - v) / self.dt)
         a = min(a, a_hard)
         a_lo, a_hi = self._vehicle_limits(v, s)
         a = min(max(a, a_lo), a_hi)

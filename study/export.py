@@ -261,9 +261,22 @@ def to_spss_frame(table: str, df: pd.DataFrame, item_var: dict[str, str] | None 
     return out, var_labels, val_labels, measure
 
 
+def _sql_path(path: Path) -> str:
+    return str(path).replace("'", "''")
+
+
 def _write(fmt: str, table: str, df: pd.DataFrame, path: Path, item_var, item_val) -> None:
     if fmt == "csv":
-        df.to_csv(path, index=False)
+        # DuckDB's CSV writer is ~10x faster than pandas' on million-row drive logs
+        import duckdb
+
+        con = duckdb.connect()
+        try:
+            con.execute("SET TimeZone = 'UTC'")
+            con.register("frame", df)
+            con.execute(f"COPY frame TO '{_sql_path(path)}' (FORMAT csv, HEADER true)")
+        finally:
+            con.close()
     elif fmt == "parquet":
         df.to_parquet(path, index=False)
     else:

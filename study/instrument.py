@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cached_property, lru_cache
 from pathlib import Path
 
 import pandas as pd
@@ -107,9 +107,10 @@ class Instrument:
         Integer items take an integer within [scale_min, scale_max] (a choice item also takes its label,
         case-insensitive); anything else raises ValueError with a one-line reason.
         """
-        if item_id not in self.items.index:
+        meta = self._meta.get(item_id)
+        if meta is None:
             raise ValueError(f"unknown item {item_id!r} (not in instrument {self.name})")
-        kind = self.items.loc[item_id, "response_type"]
+        kind, lo, hi, labels = meta
         if raw is None or (isinstance(raw, float) and raw != raw):
             return Answer()
         if kind == "text":
@@ -125,7 +126,6 @@ class Instrument:
             s = str(raw).strip()
             if not s:
                 return Answer()
-            labels = {label.casefold(): code for code, label in self.choices(item_id).items()}
             if s.casefold() in labels:
                 value = labels[s.casefold()]
             else:
@@ -134,10 +134,20 @@ class Instrument:
                 if not whole:
                     raise ValueError(f"{item_id}: {s!r} is not an integer")
                 value = int(whole.group(1))
-        lo, hi = self.scale(item_id)
         if not lo <= value <= hi:
             raise ValueError(f"{item_id}: value {value} outside {lo}-{hi}")
         return Answer(value=value)
+
+    @cached_property
+    def _meta(self) -> dict[str, tuple[str, int | None, int | None, dict[str, int]]]:
+        """item -> (response_type, min, max, {casefolded choice label: code}) for fast validation."""
+        out = {}
+        for item, row in self.items.iterrows():
+            lo = None if pd.isna(row["scale_min"]) else int(row["scale_min"])
+            hi = None if pd.isna(row["scale_max"]) else int(row["scale_max"])
+            labels = {label.casefold(): code for code, label in self.choices(item).items()}
+            out[item] = (row["response_type"], lo, hi, labels)
+        return out
 
     def scale(self, item_id: str) -> tuple[int, int]:
         row = self.items.loc[item_id]

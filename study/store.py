@@ -107,7 +107,11 @@ class Store:
     # ------------------------------------------------------------------ transactions
     @contextmanager
     def transaction(self) -> Iterator["Store"]:
-        """BEGIN ... COMMIT; ROLLBACK on any exception. Nested uses join the outer transaction."""
+        """BEGIN ... COMMIT; ROLLBACK on any exception. Nested uses join the outer transaction.
+
+        A statement that fails inside a transaction (e.g. a constraint violation) aborts the whole DuckDB
+        transaction: let the exception propagate rather than catching it and writing on.
+        """
         if self._depth:
             self._depth += 1
             try:
@@ -303,21 +307,40 @@ class Store:
             raise UserError(f"store {self.path} is open read-only")
 
     def _load_instruments(self) -> None:
-        """Load every shipped survey codebook not yet in the store (reference data, not audited)."""
-        have = {r[0] for r in self.con.execute("SELECT instrument FROM instruments").fetchall()}
-        todo = [p for p in sorted(INSTRUMENT_DIR.glob("*.csv")) if p.stem not in have]
-        if not todo:
+        """Load the shipped survey codebooks into instruments/items (reference data, not audited).
+
+        A new codebook is inserted whole; items added to a known codebook are appended (existing item rows are
+        never rewritten: a changed wording is a new instrument version).
+        """
+        paths = sorted(INSTRUMENT_DIR.glob("*.csv"))
+        if not paths:
             return
+        have = dict(self.con.execute("SELECT i.instrument, count(t.item_id) FROM instruments i "
+                                     "LEFT JOIN items t USING (instrument) GROUP BY i.instrument").fetchall())
         from study.instrument import load_instrument
 
+        todo = []
+        for p in paths:
+            ins = load_instrument(p.stem)
+            if have.get(ins.name, -1) < len(ins.items):
+                todo.append(ins)
+        if not todo:
+            return
         with self.transaction():
-            for p in todo:
-                ins = load_instrument(p.stem)
+            for ins in todo:
                 items = ins.items.reset_index()
-                self.con.execute("INSERT INTO instruments (instrument, version, n_items, loaded_at) VALUES (?, ?, ?, ?)",
-                                 [ins.name, ins.version, len(items), audit.utcnow()])
+                if ins.name not in have:
+                    self.con.execute("INSERT INTO instruments (instrument, version, n_items, loaded_at) "
+                                     "VALUES (?, ?, ?, ?)", [ins.name, ins.version, len(items), audit.utcnow()])
+                else:
+                    self.con.execute("UPDATE instruments SET n_items = ? WHERE instrument = ?",
+                                     [len(items), ins.name])
+                known = {r[0] for r in self.con.execute("SELECT item_id FROM items WHERE instrument = ?",
+                                                        [ins.name]).fetchall()}
                 cols = [c for c in self.columns("items") if c in items.columns and c != "instrument"]
                 for pos, r in enumerate(items.to_dict("records"), start=1):
+                    if r["item_id"] in known:
+                        continue
                     vals = {c: _codebook_value(c, r[c]) for c in cols}
                     vals.update(instrument=ins.name, position=pos)
                     names = ", ".join(f'"{c}"' for c in vals)

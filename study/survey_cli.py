@@ -130,9 +130,13 @@ def _final(args):
 
     with _open(args, read_only=True) as st:
         df = sv.final_responses(st, args.instrument)
+    from study.instrument import load_instrument
+
+    for item in load_instrument(args.instrument).scaled_items:
+        df[item] = df[item].astype("Int64")  # whole numbers as ticked: "4", not "4.0"
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    df.to_csv(out, index=False)
+    df.to_csv(out, index=False, lineterminator="\n")
     print(f"wrote {len(df)} participants to {out}")
 
 

@@ -19,7 +19,7 @@ from pathlib import Path
 
 from study.errors import UserError
 from study.instrument import DEFAULT_INSTRUMENT, load_instrument
-from study.survey import _PID, DEMO, response_items, save_entry, submission
+from study.survey import PARTICIPANT_ID_RE, DEMO, response_items, save_entry, submission
 
 
 @dataclass(frozen=True)
@@ -80,7 +80,7 @@ def read_survey_csv(path: str | Path, instrument: str = DEFAULT_INSTRUMENT) -> l
             problems.append(f"line {line}: malformed CSV: {len(row)} fields, header has {len(header)}")
             continue
         pid = row[0].strip()
-        if not _PID.match(pid):
+        if not PARTICIPANT_ID_RE.match(pid):
             problems.append(f"line {line}: participant id {pid!r} is not of the form P001")
             continue
         if pid in seen:

@@ -1,5 +1,6 @@
 """Exclusion scopes and the one function analyses use."""
 import pandas as pd
+from hypothesis import HealthCheck, given, settings, strategies as st_
 import pytest
 
 from study.errors import UserError
@@ -69,3 +70,22 @@ def test_revoke_is_audited(st):
     assert log["action"].tolist() == ["insert", "delete"]
     with pytest.raises(UserError, match="no exclusion"):
         revoke(st, "P001", "objective")
+
+
+@settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st_.lists(st_.sets(st_.sampled_from(["all", "objective", "subjective"])), min_size=1, max_size=8))
+def test_scope_laws(tmp_path_factory, scopes_per_participant):
+    """included(all) = included(objective) ∩ included(subjective); `all` excludes from both."""
+    db = tmp_path_factory.mktemp("laws") / "s.duckdb"
+    with Store.open(db) as st:
+        with st.transaction():
+            for i, scopes in enumerate(scopes_per_participant, start=1):
+                add_participant(st, f"P{i:03d}")
+                for scope in sorted(scopes):
+                    exclude(st, f"P{i:03d}", scope, "other")
+        obj, sub, both = (set(included_participants(st, s)) for s in ("objective", "subjective", "all"))
+    assert both == obj & sub
+    for i, scopes in enumerate(scopes_per_participant, start=1):
+        pid = f"P{i:03d}"
+        assert (pid in obj) == (not scopes & {"all", "objective"})
+        assert (pid in sub) == (not scopes & {"all", "subjective"})

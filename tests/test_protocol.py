@@ -119,3 +119,8 @@ def test_every_step_is_audited(st):
     log = st.df("SELECT action, table_name FROM audit_log ORDER BY audit_id")[before:]
     assert log.values.tolist() == [["insert", "phase_events"], ["update", "phase_events"],
                                    ["insert", "phase_events"]]
+
+
+def test_time_with_offset_is_stored_as_utc(st):
+    advance(st, "P001", "familiarisation", at="2026-05-04T11:00+02:00")
+    assert str(status(st, "P001").loc[0, "started_at"]) == "2026-05-04 09:00:00"

@@ -196,3 +196,27 @@ def test_cli_init_reports_upgrade(cli, tmp_db, tmp_path):
     expect = "upgraded" if migrate.code_version() > 1 else "up to date"
     assert r.code == 0 and expect in r.out
     assert "up to date" in cli("init").out
+
+
+def test_codebook_items_added_later_are_loaded(tmp_db, tmp_path, monkeypatch):
+    from study.instrument import INSTRUMENT_DIR, load_instrument
+
+    src = (INSTRUMENT_DIR / "pedas_acceptance_v1.csv").read_text()
+    d = tmp_path / "instruments"
+    d.mkdir()
+    lines = src.splitlines()
+    (d / "lab_v1.csv").write_text("\n".join(lines[:5]) + "\n")
+    monkeypatch.setattr("study.store.INSTRUMENT_DIR", d)
+    monkeypatch.setattr("study.instrument.INSTRUMENT_DIR", d)
+    load_instrument.cache_clear()
+    try:
+        with Store.open(tmp_db) as st:
+            assert st.one("SELECT count(*) FROM items WHERE instrument = 'lab_v1'") == 4
+        (d / "lab_v1.csv").write_text("\n".join(lines[:8]) + "\n")
+        load_instrument.cache_clear()
+        with Store.open(tmp_db) as st:
+            assert st.one("SELECT count(*) FROM items WHERE instrument = 'lab_v1'") == 7
+            assert st.one("SELECT n_items FROM instruments WHERE instrument = 'lab_v1'") == 7
+            assert st.df("SELECT position FROM items ORDER BY position")["position"].tolist() == list(range(1, 8))
+    finally:
+        load_instrument.cache_clear()

@@ -408,3 +408,18 @@ def test_cli_import_error_is_one_line_and_changes_nothing(cli, tmp_db, tmp_path)
         assert s.counts() == before
     r = cli("survey", "import", tmp_path / "nope.csv")
     assert r.code == 2 and "not found" in r.err
+
+
+def test_cli_import_then_final_round_trips(cli, tmp_db, tmp_path):
+    make_store(tmp_db).close()
+    data = {"P001": full_answers(0), "P002": full_answers(4), "P003": full_answers(2)}
+    data["P003"]["SN2"] = ""
+    header, rows = csv_rows(data)
+    header, rows = header[:26], [[str(v) for v in r[:26]] for r in rows]     # scaled items only
+    src = tmp_path / "in.csv"
+    src.write_text("\n".join(",".join(r) for r in [header] + rows) + "\n")
+    assert cli("survey", "import", src).code == 0
+    out = tmp_path / "out.csv"
+    assert cli("survey", "final", "--out", out).code == 0
+    lines = out.read_text().splitlines()
+    assert [",".join(line.split(",")[:26]) for line in lines] == src.read_text().splitlines()

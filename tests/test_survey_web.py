@@ -8,7 +8,6 @@ import signal
 import socket
 import subprocess
 import sys
-import threading
 import urllib.error
 import urllib.parse
 import urllib.request
@@ -132,6 +131,8 @@ def test_submit_without_js_validates_then_is_read_only(store, client):
     assert r.status_code == 400 and "2 still open" in html and 'href="#q-PU2"' in html and 'href="#q-BI1"' in html
     assert store.one("SELECT count(*) FROM responses") == 0
     assert len(sv.draft(store, "P003")) == len(partial)            # what was given is kept
+    r = client.post(f"/s/{token}", data={"PU2": ans["PU2"], "action": "save"}, follow_redirects=True)
+    assert r.status_code == 200 and "Your answers are saved" in r.get_data(as_text=True)
     r = client.post(f"/s/{token}", data={"PU2": ans["PU2"], "BI1": ans["BI1"], "action": "submit"})
     assert r.status_code == 303
     got = store.df("SELECT item_id, value, text FROM responses WHERE participant_id = 'P003'").set_index("item_id")

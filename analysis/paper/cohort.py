@@ -153,6 +153,7 @@ def load_into_store(st, cohort: Cohort) -> None:
         for r in cohort.events.itertuples(index=False):
             if r.kind == "phase":
                 st.insert("phase_events", {"participant_id": r.participant_id, "phase": r.phase,
+                                           "seq": PHASES.index(r.phase) + 1,
                                            "started_at": r.started_at, "ended_at": r.ended_at or None,
                                            "outcome": r.outcome, "note": r.note or None})
             else:
