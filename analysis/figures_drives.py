@@ -19,7 +19,7 @@ from analysis.savings import STYLES
 
 BASE_COLOR, PEDAS_COLOR = "#7f7f7f", "#2ca02c"
 MODE_COLORS = {"rt": "#cfe2f3", "cf": "#fde2c4", "none": "#eeeeee"}
-KMH = 3.6
+MPS_TO_KMH = 3.6  # km/h per m/s, for the axes
 
 
 def _plt():
@@ -123,14 +123,14 @@ def fig11(st, participant: str, per: pd.DataFrame, out: Path) -> list[Path]:
     fig, axes = plt.subplots(3, 1, figsize=(9, 8), sharex=True)
     for d, label, color in ((base, "without pEDAS", BASE_COLOR), (ped, "with pEDAS", PEDAS_COLOR)):
         s_km = d["s"].to_numpy(float) / 1000.0
-        axes[0].plot(s_km, d["v"] * KMH, color=color, lw=1.0, label=label)
+        axes[0].plot(s_km, d["v"] * MPS_TO_KMH, color=color, lw=1.0, label=label)
         a = d["a"].astype(float)
         if a.isna().any():
             from analysis.kpis import fill_acceleration
             a = a.fillna(pd.Series(fill_acceleration(d["t"], d["v"]), index=d.index))
         axes[1].plot(s_km, a, color=color, lw=0.8, label=label)
         axes[2].plot(s_km, _cumulative_wh(d), color=color, lw=1.2, label=label)
-    axes[0].plot(base["s"] / 1000.0, base["speed_limit"] * KMH, color="red", lw=1.0, ls="--", label="$v_{max}$")
+    axes[0].plot(base["s"] / 1000.0, base["speed_limit"] * MPS_TO_KMH, color="red", lw=1.0, ls="--", label="$v_{max}$")
     axes[0].set_ylabel("Velocity (km/h)")
     axes[1].set_ylabel("Acceleration (m/s²)")
     axes[2].set_ylabel("Battery energy (Wh)")
@@ -193,9 +193,9 @@ def fig12(st, participant: str, out: Path, before_s: float = 60.0, after_s: floa
                        label=None if m in seen or ax is ax2 else {"rt": "reference-tracking MPC",
                                                                    "cf": "car-following MPC"}.get(m, m))
         seen.add(m)
-    ax1.plot(s, w["v"] * KMH, color="black", lw=1.2, label="$v_h$ (driver)")
-    ax1.plot(s, w["v_advice"] * KMH, color=PEDAS_COLOR, lw=1.2, ls="--", label="$v_{h,opt}$ (pEDAS advice)")
-    ax1.plot(s, w["speed_limit"] * KMH, color="red", lw=0.8, ls=":", label="$v_{max}$")
+    ax1.plot(s, w["v"] * MPS_TO_KMH, color="black", lw=1.2, label="$v_h$ (driver)")
+    ax1.plot(s, w["v_advice"] * MPS_TO_KMH, color=PEDAS_COLOR, lw=1.2, ls="--", label="$v_{h,opt}$ (pEDAS advice)")
+    ax1.plot(s, w["speed_limit"] * MPS_TO_KMH, color="red", lw=0.8, ls=":", label="$v_{max}$")
     ax1.set_ylabel("Velocity (km/h)")
     ax1.legend(fontsize=8, loc="lower left")
     ax2.plot(s, w["leader_gap"], color="tab:blue", lw=1.2, label="gap to preceding vehicle $d_{rel}$")

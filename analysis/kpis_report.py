@@ -32,7 +32,7 @@ class DrivesReport:
         for k, v in skipped.items():
             lines.append(f"{k} not drawn: {v}")
         lines.append(f"{len(self.files)} files in {self.out}")
-        return "\n".join(lines)
+        return "\n\n".join(lines)
 
 
 def analyze_drives(st, out_dir: str | Path, participant: str = "P006", params=None) -> DrivesReport:

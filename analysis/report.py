@@ -60,26 +60,42 @@ def _open_store(cfg: ReportConfig, read_only: bool = False):
     return Store.open(cfg.db, actor="report", read_only=read_only)
 
 
+def load_reference(st, ref_dir: Path = REFERENCE_DIR) -> None:
+    """Load the reference study inputs into an open store: participants and protocol events with exclusions
+    (`participants.csv`, `events.csv`) and the reconstructed survey (`survey.csv`), each import all or nothing."""
+    from analysis.paper.cohort import Cohort, load_into_store
+    from study.survey_import import import_survey
+
+    participants = pd.read_csv(ref_dir / "participants.csv", dtype={"participant_id": str})
+    events = pd.read_csv(ref_dir / "events.csv", dtype=str, keep_default_na=False)
+    load_into_store(st, Cohort(participants, events, seed=-1))
+    import_survey(st, ref_dir / "survey.csv")
+
+
 def build_reference_store(cfg: ReportConfig) -> None:
-    """Create the store from data/reference and the simulated drives (written to a temporary file, then moved)."""
+    """Create the store from data/reference and the simulated drives (written to a temporary file, then moved).
+
+    With `cfg.participants`, only the first N participants of the objective sample are driven (a reduced cohort
+    for quick runs); every participant and survey answer is loaded regardless.
+    """
     from pedas.cohort import cohort_tasks, simulate_cohort
     from study.drives import import_drive_frame
     from study.exclusions import included_participants
-    from study.reference import load_reference
     from study.store import Store
 
     tmp = cfg.db.with_name(cfg.db.name + ".building")
     for p in (tmp, tmp.with_name(tmp.name + ".wal")):
         p.unlink(missing_ok=True)
     with Store.open(tmp, actor="report") as st:
-        load_reference(st, REFERENCE_DIR, limit=cfg.participants)
-        included = included_participants(st, "objective")
+        load_reference(st)
+        drivers = sorted(included_participants(st, "objective"))[:cfg.participants]
         people = st.df("SELECT participant_id, style FROM participants ORDER BY participant_id")
-        people = people[people["participant_id"].isin(included)]
+        people = people[people["participant_id"].isin(drivers)]
         logs = simulate_cohort(cohort_tasks(people, base_seed=cfg.seed), workers=cfg.workers,
                                scheduler=cfg.scheduler, cache_dir=cfg.cache_dir / "drives")
-        for (pid, condition), df in sorted(logs.items()):
-            import_drive_frame(st, pid, condition, df, source="simulation", route="study_13k2")
+        with st.transaction():
+            for (pid, condition), df in sorted(logs.items()):
+                import_drive_frame(st, pid, condition, df, source="simulation", route="study_13k2")
     cfg.db.parent.mkdir(parents=True, exist_ok=True)
     for p in (cfg.db, cfg.db.with_name(cfg.db.name + ".wal")):
         p.unlink(missing_ok=True)

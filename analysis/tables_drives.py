@@ -94,9 +94,10 @@ def _participant_cells(t: pd.DataFrame) -> tuple[list[str], list[list[str]]]:
     return header, rows
 
 
-def to_markdown(header, rows, title: str, notes=()) -> str:
+def to_markdown(header, rows, title: str, notes=(), text_columns: int = 1) -> str:
+    """A Markdown table; the first ``text_columns`` columns left-aligned, the rest right-aligned."""
     out = [f"**{title}**", "", "| " + " | ".join(header) + " |",
-           "|" + "|".join("---" if i == 0 else "---:" for i in range(len(header))) + "|"]
+           "|" + "|".join("---" if i < text_columns else "---:" for i in range(len(header))) + "|"]
     out += ["| " + " | ".join(r) + " |" for r in rows]
     if notes:
         out += [""] + [f"_{n}_" for n in notes]
@@ -164,7 +165,7 @@ def write_tables(result, out_dir: str | Path) -> list[Path]:
 
 def bands_markdown(bands: pd.DataFrame) -> str:
     """The reproduction bands as a Markdown table."""
-    header = ["Band", "Paper", "Ours", "Holds", "Note"]
-    rows = [[b["band"], _fmt(b["paper_value"]), _fmt(b["our_value"]), "yes" if b["holds"] else "no", b["note"]]
+    header = ["Band", "Holds", "Note", "Paper", "Ours"]
+    rows = [[b["band"], "yes" if b["holds"] else "no", b["note"], _fmt(b["paper_value"]), _fmt(b["our_value"])]
             for _, b in bands.iterrows()]
-    return to_markdown(header, rows, "Reproduction bands")
+    return to_markdown(header, rows, "Reproduction bands", text_columns=3)

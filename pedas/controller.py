@@ -104,7 +104,9 @@ class PedasController:
         curvy = np.asarray(route.v_curve, float) < self._limit - 1e-9
         starts = np.flatnonzero(curvy & ~np.r_[False, curvy[:-1]])
         self._curve_s = self._s[starts]
-        self._curve_v = np.array([np.min(route.v_curve[i:i + np.argmax(~curvy[i:]) or None]) for i in starts])
+        ends = np.flatnonzero(curvy & ~np.r_[curvy[1:], False]) + 1
+        v_curve = np.asarray(route.v_curve, float)
+        self._curve_v = np.array([v_curve[i:j].min() for i, j in zip(starts, ends)])
         self._lights = tuple(route.lights)
         self._stops = tuple(route.stops)
         self._d_sits = float(route.d_stopline)
@@ -329,7 +331,9 @@ class PedasController:
         plan_v = (v_adv,) + tuple(plan.v[2:].tolist())
         hud = advisory(HudState(v=v, a=a_meas, slow_unfollowed=self._unfollowed), plan_v, ctx)
         self._last_arrow = hud.hud_arrow
-        return Advisory(v_advice=v_adv, controller=ctrl, mode=mode, ft=float(plan.ft[0]), fb=float(plan.fb[0]),
+        # forces within solver tolerance of 0 are reported as 0 (the QP bounds are F >= 0)
+        return Advisory(v_advice=v_adv, controller=ctrl, mode=mode, ft=max(float(plan.ft[0]), 0.0),
+                        fb=max(float(plan.fb[0]), 0.0),
                         hud_arrow=hud.hud_arrow, arrow_len=hud.arrow_len, hud_in_band=hud.hud_in_band,
                         warning=hud.warning, tl_countdown=hud.tl_countdown, icon=hud.icon, solve_status=status,
                         fallback=fallback, plan_v=plan_v)

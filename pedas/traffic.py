@@ -40,19 +40,21 @@ def departures(seed: int, demand: dict | None = None) -> pd.DataFrame:
     """Seeded departures of the surrounding traffic: tidy frame veh_id, route, type, depart (s), depart_speed.
 
     Per flow, headways are min_headway + Exp(mean 3600/rate - min_headway) so that the mean rate is `rate` veh/h
-    and no two vehicles of a flow depart closer than min_headway.
+    and no two vehicles of a flow depart closer than min_headway; a flow with `period` (s) runs to a timetable
+    with that headway and a seeded phase.
     """
     demand = demand or load_demand()
     rng = np.random.default_rng([int(seed), 0x7AFF1C])
     h_min = float(demand.get("min_headway", 2.0))
     rows = []
     for k, f in enumerate(demand["flows"]):
-        mean = 3600.0 / float(f["rate"])
+        period = f.get("period")  # a timetable (buses): fixed headway, seeded phase
+        mean = float(period) if period else 3600.0 / float(f["rate"])
         t = float(f["start"]) + rng.uniform(0.0, mean)
         i = 0
         while t <= float(f["end"]):
             rows.append((f"f{k}.{i}", f["route"], f.get("type", "car"), round(t, 1), str(f.get("depart_speed", "max"))))
-            t += h_min + rng.exponential(max(mean - h_min, 0.1))
+            t += mean if period else h_min + rng.exponential(max(mean - h_min, 0.1))
             i += 1
     df = pd.DataFrame(rows, columns=["veh_id", "route", "type", "depart", "depart_speed"])
     return df.sort_values(["depart", "veh_id"], kind="stable").reset_index(drop=True)

@@ -5,9 +5,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from pedas.constants import KMH
 from tests.conftest import OUTPUT
 
-KMH = 1 / 3.6
 DT = 0.2
 
 

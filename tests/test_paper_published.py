@@ -114,3 +114,12 @@ def test_accessors_shape(pub):
     co = P.table5_coefficients(pub)
     assert len(co) == 12 and co["stars"].sum() == 8
     assert len(P.table5_steps(pub)) == 7
+
+
+def test_kpi_and_cohort_accessors(pub):
+    k = P.kpis(pub)
+    overall = k[(k["quantity"] == "energy_saving_mean") & (k["segment"] == "overall") & (k["group"] == "all")]
+    assert overall["value"].tolist() == [9.82]
+    assert set(k[k["group"] == "participant 6"]["quantity"]) == {"energy_saving", "jerk_reduction"}
+    c = P.cohort(pub)
+    assert c[c["quantity"] == "style_share"]["key"].tolist() == ["cautious", "normal", "sporty"]

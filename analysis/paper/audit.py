@@ -39,6 +39,27 @@ FINDING_TITLES = {
 }
 
 
+# What each finding means, in words (the numbers are in the rows).
+FINDING_NOTES = {
+    "n_implied": "Item means, eco-familiarity shares, adjusted R² and SE B all fit 40 respondents; the text's 41 "
+                 "fits almost none of them.",
+    "grim_pbc2": "No 40 integer answers have this mean; the reconstruction uses the nearest possible mean.",
+    "sd_truncated": "Many printed SDs cannot be rounded values of any 1-5 distribution with the printed mean; "
+                    "every one fits when the digits are cut off instead of rounded.",
+    "peou_diagonal": "The Fornell-Larcker diagonal for PEoU was computed before PEoU3 was deleted.",
+    "loadings_vs_alpha": "Cα and the item SDs imply composite SDs that reproduce Table 5's B/β ratios; the printed "
+                         "λ imply higher inter-item correlations, higher Cα and composite SDs that miss B/β. CR and "
+                         "AVE agree with λ, so λ/CR/AVE and Cα/Table 5 cannot describe the same data.",
+    "bi_alpha": "For two items α is a function of their one correlation; the printed loadings fix that correlation "
+                "at a value whose α is far from the printed one, and at N = 40 the printed α is not reachable.",
+    "t4_t5": "Table 5's one-predictor steps fix r = β; for PEoU these differ from Table 4, while models 3 and 4 "
+             "agree with Table 4 exactly.",
+    "ci_not_t": "The other CIs are B ± t·SE; the PEoU-only ones are t-intervals of a different fit whose r equals "
+                "Table 4's PEoU correlation (4-item PEoU composite).",
+    "style_shares": "The printed percentages are not whole counts of the objective sample.",
+}
+
+
 @dataclass(frozen=True)
 class Check:
     """One audit row before numbering."""
@@ -640,7 +661,7 @@ def render_markdown(audit: pd.DataFrame) -> str:
         rows = audit[(audit["finding"] == r.finding) & (audit["status"] == "inconsistent")]
         out += [f"### Finding #{r.finding}: {r.title}", ""]
         first = rows.iloc[0]
-        out += [f"{_md_escape(first['explanation'])}", "",
+        out += [FINDING_NOTES.get(r.group, ""), "", f"First row: {_md_escape(first['explanation'])}", "",
                 f"{len(rows)} inconsistent check(s):", ""]
         out += _md_table(rows.head(15), ["id", "check", "where", "reported", "recomputed"])
         if len(rows) > 15:

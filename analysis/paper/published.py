@@ -129,3 +129,20 @@ def value(quantity: str, row: str, column: str = "", table: str | None = None,
     if len(hits) != 1:
         raise KeyError(f"published value {table or '*'}:{quantity}/{row}/{column}: {len(hits)} matches")
     return float(hits["value"].iloc[0])
+
+
+def kpis(published: pd.DataFrame | None = None) -> pd.DataFrame:
+    """Section 5.1 KPIs tidy: quantity (e.g. energy_saving_mean), segment, group (all | style | participant 6),
+    value (percent), printed, line."""
+    pub = published if published is not None else load_published()
+    k = pub[pub["table"] == "kpi"]
+    return pd.DataFrame({"quantity": k["quantity"].values, "segment": k["row"].values, "group": k["column"].values,
+                         "value": k["value"].values, "printed": k["printed"].values, "line": k["line"].values})
+
+
+def cohort(published: pd.DataFrame | None = None) -> pd.DataFrame:
+    """Section 4.2 cohort numbers tidy: quantity, key, value, unit, printed, line."""
+    pub = published if published is not None else load_published()
+    c = pub[pub["table"] == "cohort"]
+    return pd.DataFrame({"quantity": c["quantity"].values, "key": c["row"].values, "value": c["value"].values,
+                         "unit": c["unit"].values, "printed": c["printed"].values, "line": c["line"].values})
