@@ -110,21 +110,26 @@ def kpis_pandas(samples: pd.DataFrame, params: KpiParams | None = None) -> pd.Da
     stops = sc[(sc["st"] == "S") & (before == "M")].groupby(keys, sort=False).size().rename("stops")
     # crossings: tl_id changes away from a light; state and segment of the sample before
     cr_mask = tl_chg & tl_prev.notna()
+    appr = tl_chg.astype(int).groupby(df["drive_id"], sort=False).cumsum()   # approach number per sample
+    appr_before = appr.groupby(df["drive_id"], sort=False).shift(1)     # a crossing belongs to the approach it ends
     cr = pd.DataFrame({"drive_id": df["drive_id"][cr_mask], "segment": g["segment"].shift(1)[cr_mask],
-                       "state": g["tl_state"].shift(1)[cr_mask]})
+                       "state": g["tl_state"].shift(1)[cr_mask], "appr": appr_before[cr_mask].astype("int64")})
     cross = cr.groupby(keys, sort=False)["state"].agg(
         tl_crossed="size", tl_crossed_green=lambda x: (x == "green").sum(),
         tl_crossed_yellow=lambda x: (x == "yellow").sum(), tl_crossed_red=lambda x: (x == "red").sum())
     # red stops: once per approach (run of one tl_id)
-    appr = tl_chg.astype(int).groupby(df["drive_id"], sort=False).cumsum()
     rc = pd.DataFrame({"drive_id": df["drive_id"], "appr": appr, "segment": df["segment"]})[red_cand]
     red = rc.groupby(["drive_id", "appr"], sort=False)["segment"].first().reset_index()
     red_ev = red.groupby(keys, sort=False).size().rename("red_stops")
+    # green passes: crossings in green whose approach had no red stop
+    stopped = pd.MultiIndex.from_frame(red[["drive_id", "appr"]])
+    gp = cr[(cr["state"] == "green") & ~pd.MultiIndex.from_frame(cr[["drive_id", "appr"]]).isin(stopped)]
+    green_ev = gp.groupby(keys, sort=False).size().rename("tl_green_passes")
 
-    for part in (viol_ev, stops, cross, red_ev):
+    for part in (viol_ev, stops, cross, red_ev, green_ev):
         seg = seg.merge(part.reset_index(), on=keys, how="left")
     counts = ["violation_events", "stops", "tl_crossed", "tl_crossed_green", "tl_crossed_yellow",
-              "tl_crossed_red", "red_stops"]
+              "tl_crossed_red", "red_stops", "tl_green_passes"]
     seg[counts] = seg[counts].fillna(0).astype("int64")
     seg = seg[seg["segment"].isin(["urban", "highway"])]
     overall = seg.drop(columns="segment").groupby("drive_id", sort=False).sum(min_count=1).reset_index()

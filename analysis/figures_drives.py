@@ -2,7 +2,7 @@
 
 * Fig. 9a  box plot of energy savings: urban, highway, overall trip
 * Fig. 9b-d savings by self-reported driving style: urban, highway, overall
-* Fig. 10  traffic lights crossed in green without vs with pEDAS, per participant (grouped bars)
+* Fig. 10  traffic lights crossed in green (without a red stop) without vs with pEDAS, per participant
 * Fig. 11  one participant (default P006): velocity with the limit v_max, acceleration and cumulative battery
            energy over distance, baseline vs pEDAS drive
 * Fig. 12  switching between the reference-tracking (rt) and car-following (cf) controllers in one pEDAS drive:
@@ -88,15 +88,17 @@ def fig10(per: pd.DataFrame, out: Path) -> list[Path]:
     fig, ax = plt.subplots(figsize=(max(6.0, 0.32 * n + 2), 4))
     x = np.arange(n)
     w = 0.4
-    ax.bar(x - w / 2, per["tl_green_baseline"], w, label="without pEDAS", color=BASE_COLOR)
-    ax.bar(x + w / 2, per["tl_green_pedas"], w, label="with pEDAS", color=PEDAS_COLOR)
+    # a light counts when crossed in green without a red stop on its approach (analysis.kpis: tl_green_passes)
+    ax.bar(x - w / 2, per["tl_green_passes_baseline"], w, label="without pEDAS", color=BASE_COLOR)
+    ax.bar(x + w / 2, per["tl_green_passes_pedas"], w, label="with pEDAS", color=PEDAS_COLOR)
     if "tl_crossed_pedas" in per and n:
-        ax.plot(x, per["tl_crossed_pedas"], "_", color="black", ms=12, label="lights crossed")
+        ax.plot(x, per["tl_crossed_pedas"], "_", color="black", ms=12, label="lights on the route")
     ax.set_xticks(x, per["participant_id"], rotation=90, fontsize=7)
-    ax.set_ylabel("Traffic lights crossed in green")
+    ax.set_ylabel("Traffic lights crossed in green\n(without stopping at red)")
     ax.set_title("Comparison of traffic light signals crossed in green phase")
     ax.yaxis.get_major_locator().set_params(integer=True)
-    top = np.nanmax(np.r_[per["tl_green_baseline"], per["tl_green_pedas"], per.get("tl_crossed_pedas", 0), 1])
+    top = np.nanmax(np.r_[per["tl_green_passes_baseline"], per["tl_green_passes_pedas"],
+                          per.get("tl_crossed_pedas", 0), 1])
     ax.set_ylim(0, top * 1.3 + 0.5)
     ax.legend(fontsize=8, ncol=3, loc="upper center")
     ax.grid(axis="y", alpha=0.3)

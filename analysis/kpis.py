@@ -18,6 +18,8 @@ Definitions (units SI unless the column name says otherwise; see docs/kpis.md fo
   episode (entry sample to the first non-violating sample, or the drive's end) lasts at least ``min_event_s``.
 * TL crossing: ``tl_id`` changes from a light X to another value or NULL; its state is ``tl_state`` at the last
   sample before the change (``tl_crossed_green`` / ``_yellow`` / ``_red``), its segment that sample's segment.
+* ``tl_green_passes``: crossings in green on an approach without a red stop — the light passed on a green wave,
+  the count the paper's Fig. 10 shows ("empty entries: the driver stopped at all lights").
 * red stop: ``v < v_stop`` while ``tl_state = 'red'`` and ``d_tl < red_stop_dist`` — counted once per approach to a
   light (an approach = a run of samples with the same ``tl_id``).
 * stop: ``v`` drops below ``v_stop`` (0.5 m/s) after having been above ``v_moving`` (2 m/s) — hysteresis, so
@@ -44,8 +46,8 @@ KPI_COLUMNS = ("drive_id", "idx", "t", "s", "v", "segment", "speed_limit", "a", 
 #: Output columns of :func:`kpis_from_relation`, in order.
 KPI_FIELDS = ("drive_id", "segment", "n_intervals", "energy_wh", "distance_m", "trip_time_s", "mean_speed_mps",
               "wh_per_km", "violation_distance_m", "violation_share", "violation_events", "tl_crossed",
-              "tl_crossed_green", "tl_crossed_yellow", "tl_crossed_red", "red_stops", "stops", "rms_jerk",
-              "mean_abs_a")
+              "tl_crossed_green", "tl_crossed_yellow", "tl_crossed_red", "tl_green_passes", "red_stops", "stops",
+              "rms_jerk", "mean_abs_a")
 
 
 @dataclass(frozen=True)
@@ -147,7 +149,7 @@ cross_ev AS (
     FROM pts WHERE tl_cross GROUP BY ALL
 ),
 approach AS (  -- approach number = crossings before this sample (a light's stand-stills share one number)
-    SELECT drive_id, segment, idx, red_cand,
+    SELECT drive_id, segment, idx, red_cand, tl_cross, tl_state,
            coalesce(sum(tl_cross::INT) OVER (PARTITION BY drive_id ORDER BY idx
                                               ROWS BETWEEN UNBOUNDED PRECEDING AND 1 PRECEDING), 0) AS appr
     FROM pts WHERE tl_cross OR red_cand
@@ -158,12 +160,21 @@ red_ev AS (
           FROM approach WHERE red_cand GROUP BY drive_id, appr)
     GROUP BY ALL
 ),
+green_pass AS (  -- crossed in green on an approach without a red stop (the paper's Fig. 10)
+    SELECT a.drive_id, a.segment, count(*) AS tl_green_passes
+    FROM approach a
+    LEFT JOIN (SELECT DISTINCT drive_id, appr FROM approach WHERE red_cand) r
+           ON a.drive_id = r.drive_id AND a.appr = r.appr
+    WHERE a.tl_cross AND a.tl_state = 'green' AND r.appr IS NULL
+    GROUP BY ALL
+),
 seg AS (
     SELECT g.drive_id, g.segment, g.n_intervals, g.energy_wh, g.distance_m, g.trip_time_s,
            coalesce(g.violation_distance_m, 0) AS violation_distance_m,
            coalesce(v.violation_events, 0) AS violation_events,
            coalesce(c.tl_crossed, 0) AS tl_crossed, coalesce(c.tl_crossed_green, 0) AS tl_crossed_green,
            coalesce(c.tl_crossed_yellow, 0) AS tl_crossed_yellow, coalesce(c.tl_crossed_red, 0) AS tl_crossed_red,
+           coalesce(gp.tl_green_passes, 0) AS tl_green_passes,
            coalesce(r.red_stops, 0) AS red_stops, coalesce(s.stops, 0) AS stops,
            g.jerk2_dt, g.jerk_time, g.abs_a_dt, g.a_time
     FROM groups g
@@ -171,6 +182,7 @@ seg AS (
     LEFT JOIN cross_ev c USING (drive_id, segment)
     LEFT JOIN red_ev r USING (drive_id, segment)
     LEFT JOIN stop_ev s USING (drive_id, segment)
+    LEFT JOIN green_pass gp USING (drive_id, segment)
     WHERE g.segment IN ('urban', 'highway')
 ),
 rolled AS (
@@ -178,7 +190,8 @@ rolled AS (
     UNION ALL
     SELECT drive_id, 'overall', sum(n_intervals), sum(energy_wh), sum(distance_m), sum(trip_time_s),
            sum(violation_distance_m), sum(violation_events), sum(tl_crossed), sum(tl_crossed_green),
-           sum(tl_crossed_yellow), sum(tl_crossed_red), sum(red_stops), sum(stops), sum(jerk2_dt),
+           sum(tl_crossed_yellow), sum(tl_crossed_red), sum(tl_green_passes), sum(red_stops), sum(stops),
+           sum(jerk2_dt),
            sum(jerk_time), sum(abs_a_dt), sum(a_time)
     FROM seg GROUP BY drive_id
 )
@@ -189,7 +202,8 @@ SELECT drive_id, segment, n_intervals::BIGINT AS n_intervals, energy_wh, distanc
        violation_distance_m / nullif(distance_m, 0)               AS violation_share,
        violation_events::BIGINT AS violation_events, tl_crossed::BIGINT AS tl_crossed,
        tl_crossed_green::BIGINT AS tl_crossed_green, tl_crossed_yellow::BIGINT AS tl_crossed_yellow,
-       tl_crossed_red::BIGINT AS tl_crossed_red, red_stops::BIGINT AS red_stops, stops::BIGINT AS stops,
+       tl_crossed_red::BIGINT AS tl_crossed_red, tl_green_passes::BIGINT AS tl_green_passes,
+       red_stops::BIGINT AS red_stops, stops::BIGINT AS stops,
        sqrt(jerk2_dt / nullif(jerk_time, 0))                      AS rms_jerk,
        abs_a_dt / nullif(a_time, 0)                               AS mean_abs_a
 FROM rolled

@@ -84,7 +84,8 @@ def participant_effects(kpis: pd.DataFrame, styles: pd.Series | dict | None = No
         cols[f"energy_{seg}_baseline_wh"] = pick("baseline", seg, "energy_wh")
         cols[f"energy_{seg}_pedas_wh"] = pick("pedas", seg, "energy_wh")
     for col, name in (("violation_share", "violation_share"), ("violation_events", "violation_events"),
-                      ("red_stops", "red_stops"), ("tl_crossed_green", "tl_green"), ("tl_crossed", "tl_crossed"),
+                      ("red_stops", "red_stops"), ("tl_crossed_green", "tl_green"),
+                      ("tl_green_passes", "tl_green_passes"), ("tl_crossed", "tl_crossed"),
                       ("stops", "stops"), ("rms_jerk", "rms_jerk"), ("mean_abs_a", "mean_abs_a"),
                       ("mean_speed_mps", "mean_speed_mps"), ("trip_time_s", "trip_time_s")):
         cols[f"{name}_baseline"] = pick("baseline", "overall", col)

@@ -42,7 +42,7 @@ PARTICIPANT_COLUMNS = (
     ("violation_share_baseline", "Viol. share w/o"), ("violation_share_pedas", "Viol. share with"),
     ("violation_reduction_pct", "Viol. red. %"),
     ("red_stops_baseline", "Red stops w/o"), ("red_stops_pedas", "Red stops with"),
-    ("tl_green_baseline", "TL green w/o"), ("tl_green_pedas", "TL green with"),
+    ("tl_green_passes_baseline", "TL green pass w/o"), ("tl_green_passes_pedas", "TL green pass with"),
     ("jerk_reduction_pct", "Jerk red. %"),
 )
 

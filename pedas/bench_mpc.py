@@ -33,11 +33,14 @@ class BenchResult:
     peer_median_ms: float
     ratio: float
     obj_rel_max: float
+    obj_rel_over_1e3: dict
     iter_median: float
     iter_p95: float
     fallbacks: int
     corrections: int
     switches: int
+    power_hessian_eigs: list = field(default_factory=list)
+    qp_hessian_min_eig: float = 0.0
     controller_share: dict = field(default_factory=dict)
     statuses: dict = field(default_factory=dict)
     osqp_settings: dict = field(default_factory=dict)
@@ -50,10 +53,13 @@ class BenchResult:
             f"{self.iter_median:.0f}, p95 {self.iter_p95:.0f})",
             f"cvxpy + Clarabel, same QP rebuilt per step, {self.peer_steps} steps: median {self.peer_median_ms:.3f} ms",
             f"ratio (cvxpy median / controller median): {self.ratio:.1f}x",
-            f"objective agreement on the peer steps: max relative gap {self.obj_rel_max:.1e}",
+            f"objective agreement on the peer steps: max relative gap {self.obj_rel_max:.1e}; steps above 1e-3 by "
+            f"OSQP status: {self.obj_rel_over_1e3 or 'none'}",
             f"controller share {self.controller_share}; fallbacks {self.fallbacks}, speed corrections "
             f"{self.corrections}, switches {self.switches}",
             f"solve status {self.statuses}",
+            f"convexity: eq. (5) Hessian eigenvalues {self.power_hessian_eigs[0]:.3g}, {self.power_hessian_eigs[1]:.3g} "
+            f"(indefinite -> a11 v F linearised); QP Hessian min eigenvalue {self.qp_hessian_min_eig:.2g}",
             "OSQP settings " + ", ".join(f"{k}={v}" for k, v in self.osqp_settings.items() if k != "verbose"),
         ]
         return "\n".join(lines)
@@ -73,7 +79,7 @@ def run_bench(steps: int = 5000, peer_steps: int = 300, seed: int = 0, osqp_sett
     """Run the drive-like sequence for `steps` controller steps (restarting the route when it ends)."""
     from pedas.controller import PedasController
     from pedas.dp import dp_reference
-    from pedas.mpc import solve_qp_cvxpy
+    from pedas.mpc import power_hessian_eigs, solve_qp_cvxpy
 
     if steps < 1 or peer_steps < 0:
         raise ValueError("steps must be >= 1 and peer steps >= 0")
@@ -86,6 +92,7 @@ def run_bench(steps: int = 5000, peer_steps: int = 300, seed: int = 0, osqp_sett
     statuses: dict[str, int] = {}
     peer_every = max(1, steps // max(peer_steps, 1)) if peer_steps else 0
     peer_t, rels = [], []
+    over: dict[str, int] = {}   # peer steps with a relative objective gap > 1e-3, by OSQP status
     t, s, v = 0.0, 0.0, 0.0
     lead_s, lead_v, lead_on = None, 0.0, False
     next_event = 20.0
@@ -114,6 +121,8 @@ def run_bench(steps: int = 5000, peer_steps: int = 300, seed: int = 0, osqp_sett
             if not adv.fallback and x_osqp is not None and status == "optimal":
                 f_osqp = 0.5 * float(x_osqp @ (P @ x_osqp + P.T @ x_osqp - P.diagonal() * x_osqp)) + float(q @ x_osqp)
                 rels.append(abs(f_osqp - obj) / max(1.0, abs(obj)))
+                if rels[-1] > 1e-3:
+                    over[adv.solve_status] = over.get(adv.solve_status, 0) + 1
         # virtual driver: first-order lag towards the advice, plant = the advised speed trajectory
         v_new = max(0.0, v + DT / DRIVER_LAG * (adv.v_advice - v) + rng.normal(0.0, 0.05))
         s += DT * 0.5 * (v + v_new)
@@ -142,10 +151,18 @@ def run_bench(steps: int = 5000, peer_steps: int = 300, seed: int = 0, osqp_sett
         steps=steps, median_ms=med, p95_ms=float(np.percentile(ms, 95)), p99_ms=float(np.percentile(ms, 99)),
         max_ms=float(ms.max()), solve_median_ms=float(np.median(solve_t)) * 1e3, peer_steps=len(peer_t), peer_median_ms=peer_med,
         ratio=peer_med / med if peer_t else float("nan"), obj_rel_max=float(max(rels)) if rels else float("nan"),
+        obj_rel_over_1e3=over,
         iter_median=float(np.median(iters)), iter_p95=float(np.percentile(iters, 95)),
         fallbacks=_count_prefix(statuses, "fallback"), corrections=int(statuses.get("speed_correction", 0)),
         switches=counts["switches"], controller_share={"rt": counts["rt"], "cf": counts["cf"]},
-        statuses=statuses, osqp_settings=dict(ctrl.rt.settings))
+        statuses=statuses, osqp_settings=dict(ctrl.rt.settings),
+        power_hessian_eigs=[float(e) for e in power_hessian_eigs(ctrl.model)],
+        qp_hessian_min_eig=min(_min_eig(ctrl.rt.P), _min_eig(ctrl.cf.P)))
+
+
+def _min_eig(P) -> float:
+    P = P.toarray()
+    return float(np.linalg.eigvalsh(P + P.T - np.diag(np.diag(P))).min())
 
 
 def _count_prefix(statuses: dict, prefix: str) -> int:

@@ -264,8 +264,10 @@ class PedasController:
             v_lo = np.zeros(N)
         v_lo = np.minimum(v_lo, v_hi)
         d_sits = self._d_sits if mode == "stop" else INF
-        if d_hard is None:
-            d_its0 = 0.0       # no stop object: the d_ITS rows are unbounded, keep the state small
+        if d_hard is None or stop_d > float(v_hi.max()) * N * dt + 5.0:
+            # no stop object within reach of the horizon: the d_ITS rows cannot bind; unbounding them and keeping the
+            # state at 0 also keeps OSQP's relative tolerance from scaling with a distance of several hundred m
+            d_hard, d_its0, d_sits = None, 0.0, INF
         else:
             d_its0 = stop_d
 

@@ -92,6 +92,7 @@ def test_analyze_drives_writes_tables_figures_and_bands(cli, cohort_db, tmp_path
     assert (per["saving_overall_pct"] > 0).all()
     assert (per["red_stops_baseline"] == 1).all() and (per["red_stops_pedas"] == 0).all()
     assert per["red_stop_reduction_pct"].to_numpy() == pytest.approx(100.0)
+    assert (per["tl_green_passes_baseline"] == 0).all() and (per["tl_green_passes_pedas"] == 1).all()
     assert per["violation_reduction_pct"].to_numpy() == pytest.approx(100.0)
     tex = (out / "style_table.tex").read_text()
     assert r"\toprule" in tex and r"\bottomrule" in tex

@@ -151,4 +151,5 @@ def test_curve_is_taken_at_its_safe_speed_with_early_advice():
     rows = drive(PedasController(route), s=0.0, v=13.0)
     in_curve = [r["v"] for r in rows if 500.0 <= r["s"] <= 590.0]
     assert max(in_curve) <= np.sqrt(2.0 * 40.0) + 0.05
-    assert any(r["adv"].icon == "curve" and r["adv"].hud_arrow == -1 for r in rows if r["s"] < 500.0)
+    slowing = [r for r in rows if r["s"] < 500.0 and r["adv"].icon == "curve" and r["adv"].v_advice < r["v"] - 0.1]
+    assert slowing and min(r["s"] for r in slowing) < 470.0       # slow-down advice well before the curve

@@ -181,6 +181,7 @@ def test_stops_at_two_of_three_reds():
     assert r["tl_crossed"] == 3
     assert r["tl_crossed_green"] == 3 and r["tl_crossed_red"] == 0 and r["tl_crossed_yellow"] == 0
     assert r["red_stops"] == 2
+    assert r["tl_green_passes"] == 1  # only TL2 was passed in green without stopping
     assert r["stops"] == 3            # TL1 (the creep below 2 m/s does not count again), TL3, stop sign
 
 
@@ -242,6 +243,7 @@ def test_sql_equals_pandas_peer_in_both_window_modes(seed):
     logs = random_logs(seed)
     want = kpis_pandas(logs)
     assert want["stops"].sum() > 0 and want["violation_events"].sum() > 0 and want["red_stops"].sum() > 0
+    assert 0 < want["tl_green_passes"].sum() <= want["tl_crossed_green"].sum()
     with duckdb.connect() as con:
         con.register("logs_df", logs)
         con.execute("CREATE TABLE ordered AS SELECT * FROM logs_df ORDER BY drive_id, idx")

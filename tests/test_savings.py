@@ -13,7 +13,8 @@ from analysis.tables_drives import style_table
 def kpi_rows(pid, cond, energy, urban, viol_share=0.1, red=2, green=3, jerk=1.0):
     """KPI rows (as store_kpis returns them) of one drive: overall energy + urban part."""
     base = {"participant_id": pid, "condition": cond, "drive_id": f"{pid}-{cond}", "violation_share": viol_share,
-            "violation_events": 1, "red_stops": red, "tl_crossed_green": green, "tl_crossed": 5, "stops": red + 1,
+            "violation_events": 1, "red_stops": red, "tl_crossed_green": green, "tl_green_passes": green - 1,
+            "tl_crossed": 5, "stops": red + 1,
             "rms_jerk": jerk, "mean_abs_a": 0.3, "mean_speed_mps": 12.0, "trip_time_s": 900.0}
     return [{**base, "segment": "urban", "energy_wh": urban},
             {**base, "segment": "highway", "energy_wh": energy - urban},

@@ -388,7 +388,7 @@ def _sweeps(X: np.ndarray, obj: _Objective, rng: np.random.Generator, max_sweeps
 # subset of 150 swaps per column keeps the Table 5 term affordable.
 PHASES = (
     dict(w_r=1.0e5, w_sd=1.0e5, w_within=W_ITEM_WITHIN, w_across=W_ITEM_ACROSS, sweeps=300, temp0=3.0),
-    dict(w_r=1.0e4, w_sd=1.0e4, w_within=0.3, w_across=0.05, w_t5=1.0, sweeps=150, temp0=0.1, max_pairs=150),
+    dict(w_r=1.0e4, w_sd=1.0e5, w_within=0.3, w_across=0.05, w_t5=1.0, sweeps=150, temp0=0.1, max_pairs=150),
 )
 
 
