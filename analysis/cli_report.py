@@ -8,13 +8,16 @@ from pathlib import Path
 def _report(args) -> int:
     from analysis.report import ReportConfig, run_report
     from study.cli import db_path
+    from study.errors import UserError
 
     lab_store = bool(args.db or os.environ.get("PEDAS_STUDY_DB"))
     reference = args.reference or not lab_store
+    if not reference and not db_path(args).exists():
+        raise UserError(f"no store at {db_path(args)} (run `pedas-study init`, or use --reference)")
     cfg = ReportConfig(out=Path(args.out), db=db_path(args), reference=reference,
                        compare_paper=reference or args.compare_paper, participants=args.participants,
                        workers=args.workers, scheduler=args.scheduler, seed=args.seed, n_boot=args.bootstrap,
-                       force=args.force)
+                       force=args.force, **({"cache_dir": Path(args.cache_dir)} if args.cache_dir else {}))
     res = run_report(cfg)
     ran = sum(s.status == "ran" for s in res.steps)
     print(f"report written to {res.out}/ ({len(res.files)} files; {ran} steps ran, "
@@ -42,3 +45,4 @@ def register(cli) -> None:
     p.add_argument("--seed", type=int, default=0, help="base seed of the simulated cohort and the bootstrap")
     p.add_argument("--bootstrap", type=int, default=2000, help="bootstrap resamples of the regressions")
     p.add_argument("--force", action="store_true", help="rerun every step")
+    p.add_argument("--cache-dir", default=None, help="step and drive cache (default .report-cache in the checkout)")

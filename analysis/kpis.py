@@ -240,6 +240,8 @@ def kpi_sql(src: str = "drive_samples", mode: str = "sorted") -> str:
 
 def in_drive_order(con, src: str) -> bool:
     """Whether ``src`` scans in drive order: each drive's rows contiguous and idx strictly ascending."""
+    if not con.execute("SELECT current_setting('preserve_insertion_order')").fetchone()[0]:
+        return False  # scans may reorder rows: un-partitioned windows would see an arbitrary order
     backwards, runs, drives = con.execute(_ORDER_CHECK_SQL.format(src=_check_name(src))).fetchone()
     return backwards == 0 and runs == drives
 

@@ -91,7 +91,6 @@ class Pipeline:
                 dt = time.perf_counter() - t0
                 state.unlink(missing_ok=True)
                 results.append(StepResult(step.name, "failed", dt, str(exc)))
-                self.log(f"[{i}/{total}] {step.name}: FAILED after {dt:.1f} s: {exc}")
                 raise StepFailed(step.name, exc) from exc
             dt = time.perf_counter() - t0
             state.write_text(json.dumps({"digest": digest, "seconds": round(dt, 3)}))

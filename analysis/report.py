@@ -43,6 +43,7 @@ class ReportConfig:
     n_boot: int = 2000
     force: bool = False
     cache_dir: Path = field(default_factory=lambda: REPO_ROOT / ".report-cache")
+    reference_dir: Path = REFERENCE_DIR
 
 
 @dataclass
@@ -87,7 +88,7 @@ def build_reference_store(cfg: ReportConfig) -> None:
     for p in (tmp, tmp.with_name(tmp.name + ".wal")):
         p.unlink(missing_ok=True)
     with Store.open(tmp, actor="report") as st:
-        load_reference(st)
+        load_reference(st, cfg.reference_dir)
         drivers = sorted(included_participants(st, "objective"))[:cfg.participants]
         people = st.df("SELECT participant_id, style FROM participants ORDER BY participant_id")
         people = people[people["participant_id"].isin(drivers)]
@@ -274,7 +275,7 @@ def build_pipeline(cfg: ReportConfig) -> Pipeline:
         pipe.add(Step("network", lambda: build_network(), inputs=[NETWORK_DIR / f for f in
                                                                   sorted(p.name for p in NETWORK_DIR.glob("*.*"))]))
         pipe.add(Step("store", lambda: build_reference_store(cfg), after=["network"], outputs=[cfg.db],
-                      inputs=[REFERENCE_DIR, CODE["study"], CODE["pedas"], params]))
+                      inputs=[cfg.reference_dir, CODE["study"], CODE["pedas"], params]))
         store_inputs = []
     after_store = ["store"] if cfg.reference else []
     pipe.add(Step("survey", lambda: survey_step(cfg), outputs=[cfg.out / "survey"], after=after_store,

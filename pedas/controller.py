@@ -30,7 +30,8 @@ from pedas.mpc_rt import RT_WEIGHTS, ReferenceTrackingMpc
 from pedas.params import LEAF, VehicleParams
 from pedas.speed_correction import corrected_speed
 
-A_STOP = 1.5  # m/s^2, comfortable deceleration of the stop / curve approach envelope of v_ref
+A_STOP = 1.0  # m/s^2, deceleration of the stop / curve approach envelope of v_ref (early and gentle)
+STOP_AIM = 0.9  # the stop envelope ends 0.9 d_s,ITS before the stop line: a lagging driver still stops in the band
 A_DEPART = 1.0  # m/s^2, acceleration of the departure ramp of v_ref (matches the DP's a_max)
 A_REACH = 3.0  # m/s^2, a speed limit below the current speed is imposed no faster than this (keeps the QP feasible)
 CRUISE_LOOK = 100.0  # m, v_DP is floored by its maximum over this look-ahead (forced DP zeros at served stops)
@@ -251,7 +252,7 @@ class PedasController:
             mode = "dp"
         v_ref = np.minimum(v_ref, venv)
         if envelope_d is not None:
-            d_target = envelope_d - 0.5 * self._d_sits - (s_pred - s)     # aim at the middle of the band
+            d_target = envelope_d - STOP_AIM * self._d_sits - (s_pred - s)   # aim inside the stop-line band
             stop_env = np.sqrt(2 * A_STOP * np.maximum(d_target, 0.0))
             if stop_env[-1] < v_ref[-1] or (stop_kind == "tl" and tl_stop_expected):
                 mode = "stop"

@@ -5,7 +5,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pedas.cohort import (DriveTask, cohort_tasks, load_cached, participant_seed, simulate_cohort, task_key)
+from pedas.cohort import DriveTask, cohort_tasks, load_cached, participant_seed, simulate_cohort, task_key
 from pedas.drive import green_crossings
 
 pytestmark = pytest.mark.sumo
@@ -30,8 +30,14 @@ def test_task_keys_and_seeds_are_stable():
     assert tasks[0].seed == tasks[1].seed  # the same person drives both conditions
 
 
+# the baseline drives of the CLI test's participants (P001 sporty, P002 cautious, cohort seed 0): simulated here
+# once, then reused from the cache by the other tests
+POOL_TASKS = [DriveTask("P001", participant_seed("P001", 0), "sporty", "baseline"),
+              DriveTask("P002", participant_seed("P002", 0), "cautious", "baseline")]
+
+
 def test_process_pool_then_cached_rerun_starts_no_worker(cache, monkeypatch):
-    tasks = [DriveTask("P001", 41, "sporty", "baseline"), DriveTask("P002", 42, "cautious", "baseline")]
+    tasks = POOL_TASKS
     first = simulate_cohort(tasks, workers=2, cache_dir=cache, progress=False)
     assert set(first) == {("P001", "baseline"), ("P002", "baseline")}
     assert all(load_cached(t, cache) is not None for t in tasks)
@@ -50,7 +56,7 @@ def test_process_pool_then_cached_rerun_starts_no_worker(cache, monkeypatch):
 def test_dask_local_cluster_gives_the_same_drives(cache, tmp_path):
     from distributed import Client, LocalCluster
 
-    tasks = [DriveTask("P001", 41, "sporty", "baseline"), DriveTask("P002", 42, "cautious", "baseline")]
+    tasks = POOL_TASKS
     pooled = simulate_cohort(tasks, workers=2, cache_dir=cache, progress=False)  # cached by the test above
     with LocalCluster(n_workers=2, threads_per_worker=2, processes=True, dashboard_address=None) as lc, \
             Client(lc) as client:

@@ -264,6 +264,8 @@ def test_stream_mode_is_refused_for_out_of_order_rows():
         con.execute("CREATE TABLE ok AS SELECT * FROM logs_df ORDER BY drive_id, idx")
         con.execute("CREATE TABLE bad AS SELECT * FROM logs_df ORDER BY idx, drive_id")   # drives interleaved
         assert in_drive_order(con, "ok") and not in_drive_order(con, "bad")
+        con.execute("SET preserve_insertion_order = false")       # scan order no longer guaranteed
+        assert not in_drive_order(con, "ok")
 
 
 def test_params_change_the_definitions():

@@ -1,0 +1,173 @@
+"""The report: the incremental pipeline, and an end-to-end run on a reduced reference cohort."""
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from analysis.pipeline import Pipeline, Step, StepFailed, hash_inputs
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+# ---------------------------------------------------------------------------------------------- pipeline
+def test_hash_changes_with_file_content_and_strings(tmp_path):
+    f = tmp_path / "a.txt"
+    f.write_text("1")
+    h1 = hash_inputs([f, "x"])
+    assert hash_inputs([f, "x"]) == h1
+    assert hash_inputs([f, "y"]) != h1
+    f.write_text("2")
+    assert hash_inputs([f, "x"]) != h1
+
+
+def test_pipeline_skips_unchanged_steps_and_reruns_dependants(tmp_path):
+    data = tmp_path / "data.txt"
+    data.write_text("1")
+    calls = []
+
+    def make():
+        pipe = Pipeline(tmp_path / "cache", log=lambda m: None)
+        pipe.add(Step("a", lambda: calls.append("a"), inputs=[data]))
+        pipe.add(Step("b", lambda: calls.append("b"), inputs=["const"]))
+        pipe.add(Step("c", lambda: calls.append("c"), after=["a"]))
+        return pipe
+
+    assert [r.status for r in make().run()] == ["ran", "ran", "ran"]
+    assert [r.status for r in make().run()] == ["cached", "cached", "cached"]
+    data.write_text("2")
+    assert [r.status for r in make().run()] == ["ran", "cached", "ran"]
+    assert calls == ["a", "b", "c", "a", "c"]
+
+
+def test_missing_output_reruns_step(tmp_path):
+    out = tmp_path / "out.txt"
+    pipe = Pipeline(tmp_path / "cache", log=lambda m: None)
+    pipe.add(Step("w", lambda: out.write_text("x"), outputs=[out]))
+    pipe.run()
+    out.unlink()
+    assert pipe.run()[0].status == "ran" and out.exists()
+
+
+def test_failure_names_the_step_and_keeps_earlier_outputs(tmp_path):
+    first = tmp_path / "first.txt"
+
+    def boom():
+        raise ValueError("bad data in row 3")
+
+    pipe = Pipeline(tmp_path / "cache", log=lambda m: None)
+    pipe.add(Step("first", lambda: first.write_text("ok"), outputs=[first]))
+    pipe.add(Step("second", boom))
+    with pytest.raises(StepFailed, match="report step 'second' failed: bad data in row 3"):
+        pipe.run()
+    assert first.read_text() == "ok"
+    # the failed step is not recorded as done: it runs again next time, the first one does not
+    pipe2 = Pipeline(tmp_path / "cache", log=lambda m: None)
+    pipe2.add(Step("first", lambda: first.write_text("again"), outputs=[first]))
+    pipe2.add(Step("second", lambda: None))
+    assert [r.status for r in pipe2.run()] == ["cached", "ran"]
+    assert first.read_text() == "ok"
+
+
+# ---------------------------------------------------------------------------------------------- end to end
+EXPECTED_FIGURES = ["fig9a", "fig9b", "fig9c", "fig9d", "fig10", "fig11", "fig12", "participant_flow",
+                    "likert_items"]
+EXPECTED_TABLES = ["survey_table3", "survey_table4", "survey_table5", "survey_hypotheses", "survey_fit",
+                   "survey_htmt", "participant_flow"]
+
+
+def _check_tables_parse(tables: Path) -> None:
+    for csv in tables.glob("*.csv"):
+        pd.read_csv(csv)
+    for md in tables.glob("*.md"):
+        lines = [ln for ln in md.read_text().splitlines() if ln.startswith("|")]
+        assert len(lines) >= 2, md
+        widths = {ln.count("|") for ln in lines}
+        assert len(widths) == 1, f"ragged markdown table {md.name}"
+    for tex in tables.glob("*.tex"):
+        t = tex.read_text()
+        assert t.count(r"\begin{tabular}") == t.count(r"\end{tabular}") >= 1, tex
+        assert r"\toprule" in t and r"\bottomrule" in t, tex
+
+
+@pytest.mark.slow
+@pytest.mark.sumo
+def test_report_on_reduced_reference_cohort(tmp_path):
+    from analysis.report import ReportConfig, run_report
+
+    ref = tmp_path / "reference"
+    shutil.copytree(REPO / "data" / "reference", ref)
+    cfg = ReportConfig(out=tmp_path / "reports", db=tmp_path / "study.duckdb", participants=4, workers=2,
+                       n_boot=200, cache_dir=tmp_path / "cache", reference_dir=ref)
+    res = run_report(cfg)
+    out = cfg.out
+    assert {s.status for s in res.steps} == {"ran"}
+    for name in ("index.html", "reproduction.md", "reproduction.csv", "paper/audit.md", "survey/loadings.csv",
+                 "drives/objective.md"):
+        assert (out / name).exists(), name
+    for stem in EXPECTED_FIGURES:
+        assert (out / "figures" / f"{stem}.png").exists(), stem
+        assert (out / "figures" / f"{stem}.pdf").exists(), stem
+    for stem in EXPECTED_TABLES:
+        for ext in (".csv", ".md", ".tex"):
+            assert (out / "tables" / f"{stem}{ext}").exists() or ext == ".csv", stem + ext
+    _check_tables_parse(out / "tables")
+    rep = pd.read_csv(out / "reproduction.csv")
+    assert len(rep) > 100 and not (rep["status"] == "miss").any()
+    html = (out / "index.html").read_text()
+    assert "figures/fig9a.png" in html and "reproduction.md" in html
+
+    # warm: nothing changed -> every step but the always-run collection is cached
+    res = run_report(cfg)
+    assert {s.name for s in res.steps if s.status == "ran"} == {"collect"}
+
+    # one survey answer changes -> the store and the analyses rerun, the drives come from the drive cache
+    drive_cache = sorted((cfg.cache_dir / "drives").rglob("*"))
+    stamps = {p: p.stat().st_mtime_ns for p in drive_cache}
+    survey = pd.read_csv(ref / "survey.csv")
+    survey.loc[0, "PU1"] = 1 if survey.loc[0, "PU1"] != 1 else 2
+    survey.to_csv(ref / "survey.csv", index=False)
+    res = run_report(cfg)
+    ran = {s.name for s in res.steps if s.status == "ran"}
+    assert {"store", "survey"} <= ran and "network" not in ran
+    assert sorted((cfg.cache_dir / "drives").rglob("*")) == drive_cache
+    assert {p: p.stat().st_mtime_ns for p in drive_cache} == stamps
+
+
+def test_report_on_a_lab_store_without_paper_comparison(cli, tmp_path):
+    """A lab's own store: its survey is analysed, no paper audit or reproduction unless asked."""
+    from analysis.report import load_reference
+    from study.store import Store
+
+    db = tmp_path / "lab.duckdb"
+    with Store.open(db, actor="lab") as st:
+        load_reference(st)
+    out = tmp_path / "lab-reports"
+    r = cli("report", "--out", out, "--bootstrap", "50", "--cache-dir", tmp_path / "cache", db=db)
+    assert r.code == 0, r.err
+    assert (out / "survey" / "table3.md").exists()
+    assert (out / "figures" / "participant_flow.png").exists()
+    assert not (out / "reproduction.md").exists() and not (out / "paper").exists()
+    assert (out / "drives" / "objective.md").read_text().count("no drives") == 1
+    _check_tables_parse(out / "tables")
+
+
+def test_report_on_missing_store_is_one_line_error(cli, tmp_path):
+    r = cli("report", "--out", tmp_path / "r", "--cache-dir", tmp_path / "c", db=tmp_path / "none.duckdb")
+    assert r.code == 2
+    assert r.err.strip().splitlines() == [f"pedas-study: error: no store at {tmp_path / 'none.duckdb'} "
+                                          "(run `pedas-study init`, or use --reference)"]
+    assert not (tmp_path / "none.duckdb").exists()
+
+
+def test_failing_step_is_named_and_exits_non_zero(cli, tmp_path):
+    """A store without survey answers: the survey step fails, names itself, and the run stops."""
+    from study.store import Store
+
+    db = tmp_path / "empty.duckdb"
+    Store.open(db).close()
+    r = cli("report", "--out", tmp_path / "r", "--cache-dir", tmp_path / "c", db=db)
+    assert r.code != 0
+    assert r.err.strip().splitlines()[-1].startswith("pedas-study: error: report step 'survey' failed: ")
