@@ -3,7 +3,7 @@
 The QP keeps the speed ``v_k``, the distance to the next stop sign / traffic light ``d_ITS,k`` and (car following)
 the gap ``d_rel,k`` as explicit states tied together by equality rows (eq. 3a-3c), so that the sparsity pattern
 *and* the values of ``P`` and ``A`` never change. Each control step only rewrites the vectors ``q``, ``l`` and
-``u`` in place and calls ``OSQP.update(q=, l=, u=)`` — no re-setup.
+``u`` in place and updates OSQP's vectors (``OSQP.update(q=, l=, u=)``) — no re-setup.
 
 Decision vector (forces in kN and power in kW inside the QP so that all entries are O(1..100), which keeps
 ADMM well conditioned; the public plan is returned in SI units)::
@@ -12,7 +12,8 @@ ADMM well conditioned; the public plan is returned in SI units)::
 
 Cost (eq. 9a / 10a), ``k = 0..N-1``::
 
-    P(v_k, Ft_k) + zeta1 (v_{k+1} - v_ref,k)^2      [rt]   or   zeta1 e3_k^2   [cf]
+    P(v_k, Ft_k) + zeta1 (v_{k+1} - v_ref,k)^2      [rt]
+                 or zeta1 e3_k^2 + zeta_v (v_{k+1} - v_p)^2   [cf; zeta_v is a regulariser beyond eq. (10)]
                  + zeta2 Fb_k^2 + zeta3 e1_k^2 + zeta4 e2_k^2
 
 The tracking term uses ``v_{k+1}`` (``v_0`` is measured, so penalising it would only add a constant).
@@ -39,6 +40,7 @@ KN = 1000.0  # N per kN: forces inside the QP are in kN
 LU = 1.0  # m per length unit of distances inside the QP (10 m and 0.1 m were tried: more iterations)
 KW = 1000.0  # W per kW: the power cost inside the QP is in kW
 INF = np.inf
+BIG = 1e30  # OSQP's infinity: the bound vectors hold +-BIG for unbounded rows, so no per-step clipping
 
 # OSQP settings used by both MPCs (tuned with `pedas-study bench mpc`; see docs/controller.md)
 OSQP_SETTINGS = dict(
@@ -53,6 +55,7 @@ OSQP_SETTINGS = dict(
     check_termination=10,
     adaptive_rho=True,
     adaptive_rho_interval=25,  # fixed interval: the default (0) adapts on wall-clock time, i.e. not reproducibly
+    adaptive_rho_tolerance=2.0,  # adapt rho on a factor-2 change (default 5): ~10 fewer iterations per step
     scaling=10,
 )
 
@@ -283,8 +286,8 @@ class SparseMpc:
 
         # ---- vectors, updated in place each step ---------------------------------------------------------
         self.q = np.zeros(self.nx)
-        self.l = np.full(self.m, -INF)
-        self.u = np.full(self.m, INF)
+        self.l = np.full(self.m, -BIG)
+        self.u = np.full(self.m, BIG)
         R = self.rows
         self.l[R["ft"]] = 0.0
         self.l[R["fb"]] = 0.0
@@ -303,15 +306,12 @@ class SparseMpc:
         self.settings = {**OSQP_SETTINGS, **(settings or {})}
         self.shift_warm_start = bool(self.settings.pop("shift_warm_start", SHIFT_WARM_START))
         self.solver = osqp.OSQP()
-        self.solver.setup(P=self.P, q=self.q, A=self.A, l=np.maximum(self.l, -1e30), u=np.minimum(self.u, 1e30),
-                          **self.settings)
+        self.solver.setup(P=self.P, q=self.q, A=self.A, l=self.l, u=self.u, **self.settings)
         core = getattr(self.solver, "_solver", None)
         self._core = core if core is not None and hasattr(core, "update_data_vec") and hasattr(core, "solution") \
             else None
         self.x_prev: np.ndarray | None = None
         self.y_prev: np.ndarray | None = None
-        self._lo = np.empty(self.m)
-        self._hi = np.empty(self.m)
         self.last_solve_time = 0.0
         self.last_iter = 0
         self.const = 0.0  # objective constant of the current step (power offsets), for reporting the true cost
@@ -338,17 +338,20 @@ class SparseMpc:
         c = self.c_const - self._c_grade * (mm.c_r * np.cos(grade) + np.sin(grade))
         l[R["dyn_v"]] = c
         u[R["dyn_v"]] = c
-        l[R["v_lim"]] = v_lo
-        u[R["v_lim"]] = v_hi
+        np.maximum(v_lo, -BIG, out=l[R["v_lim"]])
+        np.minimum(v_hi, BIG, out=u[R["v_lim"]])
         j_up, j_dn = R["jerk_up"].start, R["jerk_dn"].start
         if ft_prev is None:
-            u[j_up] = INF
-            l[j_dn] = -INF
+            u[j_up] = BIG
+            l[j_dn] = -BIG
         else:
             u[j_up] = self.dFt + ft_prev / KN
             l[j_dn] = -self.dFt + ft_prev / KN
-        l[R["d_hard"]] = -INF if d_hard_lo is None else d_hard_lo
-        u[R["d_soft"]] = d_s_its / LU
+        if d_hard_lo is None:
+            l[R["d_hard"]] = -BIG
+        else:
+            np.maximum(d_hard_lo, -BIG, out=l[R["d_hard"]])
+        u[R["d_soft"]] = min(d_s_its / LU, BIG)
         if self.follow:
             i0 = R["init_r"].start
             l[i0] = u[i0] = d_rel0 / LU
@@ -383,21 +386,19 @@ class SparseMpc:
 
     def solve(self) -> MpcPlan:
         """Update OSQP's vectors, solve, check the status and the residual, and unpack the plan (SI)."""
-        np.maximum(self.l, -1e30, out=self._lo)
-        np.minimum(self.u, 1e30, out=self._hi)
         if self.shift_warm_start and self.x_prev is not None and self.y_prev is not None:
             self.solver.warm_start(x=self.x_prev[self._shift_x], y=self.y_prev[self._shift_y])
         if self._core is not None:
             # the extension object behind OSQP.update/solve: same calls without the wrapper's per-call overhead
             core = self._core
-            core.update_data_vec(q=self.q, l=self._lo, u=self._hi)
+            core.update_data_vec(q=self.q, l=self.l, u=self.u)
             core.solve()
             info = core.info
             status, iters, run_time, obj = info.status, int(info.iter), float(info.run_time), info.obj_val
             sol = core.solution
             x, y = sol.x, sol.y
         else:
-            self.solver.update(q=self.q, l=self._lo, u=self._hi)
+            self.solver.update(q=self.q, l=self.l, u=self.u)
             res = self.solver.solve(raise_error=False)
             status, iters, run_time, obj = res.info.status, int(res.info.iter), float(res.info.run_time), \
                 res.info.obj_val
@@ -436,7 +437,9 @@ class SparseMpc:
 
     def qp_data(self) -> tuple[sp.csc_matrix, np.ndarray, sp.csc_matrix, np.ndarray, np.ndarray, float]:
         """(P upper triangle, q, A, l, u, constant) of the current step — the exact QP OSQP solves, for peers."""
-        return self.P, self.q.copy(), self.A, self.l.copy(), self.u.copy(), self.const
+        l = np.where(self.l <= -BIG, -np.inf, self.l)
+        u = np.where(self.u >= BIG, np.inf, self.u)
+        return self.P, self.q.copy(), self.A, l, u, self.const
 
 
 def vehicle_model(params=None) -> MpcModel:
