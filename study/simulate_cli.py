@@ -90,7 +90,8 @@ def _simulate_cohort(args) -> None:
     for task, df, r in stored:
         print(_summary_line(task, df, r))
     changed = sum(1 for _, _, r in stored if r.status != "unchanged")
-    print(f"{len(stored)} drives of {len(ids)} participants ({changed} stored, {len(stored) - changed} unchanged)")
+    people_word = "participant" if len(ids) == 1 else "participants"
+    print(f"{len(stored)} drives of {len(ids)} {people_word} ({changed} stored, {len(stored) - changed} unchanged)")
 
 
 def register(cli) -> None:

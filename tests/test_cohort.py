@@ -125,3 +125,23 @@ def test_cli_simulate_cohort_without_participants(cli, cache):
     assert cli("init").code == 0
     r = cli("simulate", "cohort", "--cache-dir", str(cache))
     assert r.code == 2 and "no participants" in r.err
+
+
+def test_cli_simulate_cohort_on_a_dask_scheduler(cli, tmp_db, tmp_path, cache):
+    """`simulate cohort --scheduler ADDRESS` runs the drives on the cluster; the stored drives equal the pool's."""
+    from distributed import LocalCluster
+
+    assert cli("init").code == 0
+    assert cli("participant", "add", "P002", "--style", "cautious").code == 0
+    with LocalCluster(n_workers=1, threads_per_worker=2, processes=True, dashboard_address=None) as lc:
+        r = cli("simulate", "cohort", "--scheduler", lc.scheduler_address, "--no-progress",
+                "--cache-dir", str(tmp_path / "fresh"))
+    assert r.code == 0, r.err
+    assert "2 drives of 1 participant (2 stored, 0 unchanged)" in r.out
+    pooled = load_cached(POOL_TASKS[1], cache)  # P002's baseline drive from the process-pool test
+    if pooled is not None:
+        from study.store import Store
+
+        with Store.open(tmp_db, read_only=True) as st:
+            n = st.df("SELECT n_samples FROM drives WHERE participant_id = 'P002' AND condition = 'baseline'")
+        assert n["n_samples"][0] == len(pooled)

@@ -111,3 +111,16 @@ def test_objective_results_respect_exclusions(tmp_db):
     assert set(res.kpis["participant_id"]) == {"P001", "P003"}
     assert (res.per_participant["saving_overall_pct"] > 0).all()
     assert (res.per_participant["violation_reduction_pct"] == 100.0).all()   # 16 m/s > 14 + 3 km/h; 13 is not
+
+
+def test_reproduction_bands_without_published_values(monkeypatch, tmp_path):
+    import analysis.paper.published as published
+
+    monkeypatch.setattr(published, "PAPER_DIR", tmp_path)          # no published.csv there
+    per = pd.DataFrame({"participant_id": ["P001"], "style": ["normal"], "saving_overall_pct": [20.0],
+                        "saving_urban_pct": [5.0], "saving_highway_pct": [3.0], "violation_reduction_pct": [45.0],
+                        "red_stop_reduction_pct": [np.nan], "jerk_reduction_pct": [0.0],
+                        "red_stops_baseline": [0], "red_stops_pedas": [0]})
+    b = reproduction_bands(summarise(per))
+    assert b["paper_value"].isna().all()
+    assert list(b["holds"]) == [False, False, True, False]         # 20 % > 15 %; highway < urban; no red stops
