@@ -46,7 +46,6 @@ TRACK_DONE = 0.3 * KMH  # m/s, an assisted driver accelerating towards the targe
 COAST_EXCESS = 6.0 * KMH  # m/s, above the target by less than this the assisted driver coasts instead of braking
 WARN_BRAKE = 3.5  # m/s^2, firm braking on the warning tone (a slow-down advice that was not followed)
 WARN_MEMORY = 5.0  # s, after a warning tone the driver follows the advice fully for this long
-WARN_LEARN = 0.5  # each new warning tone closes this share of the gap between the driver's compliance and 1
 
 
 @dataclass(frozen=True)
@@ -69,19 +68,22 @@ PARAM_DISTRIBUTIONS: dict[str, dict[str, Dist]] = {
         a_max=Dist(1.0, 0.15, 0.7, 1.4), b_comf=Dist(1.6, 0.2, 1.2, 2.2), a_lat=Dist(1.6, 0.2, 1.2, 2.2),
         headway=Dist(1.8, 0.2, 1.4, 2.4), s0=Dist(2.5, 0.3, 2.0, 3.5), reaction=Dist(1.1, 0.15, 0.7, 1.5),
         yellow_decel=Dist(3.5, 0.3, 2.8, 4.2), stop_dwell=Dist(2.5, 0.5, 1.5, 4.0),
-        compliance=Dist(0.85, 0.08, 0.6, 1.0), hud_glance=Dist(0.4, 0.1, 0.2, 0.7)),
+        compliance=Dist(0.85, 0.08, 0.6, 1.0), hud_glance=Dist(0.4, 0.1, 0.2, 0.7),
+        warn_learning=Dist(0.25, 0.15, 0.0, 0.6)),
     "normal": dict(
         speed_factor=Dist(1.04, 0.04, 0.95, 1.15), speed_factor_hw=Dist(1.00, 0.04, 0.90, 1.10),
         a_max=Dist(1.4, 0.2, 1.0, 2.0), b_comf=Dist(2.0, 0.25, 1.5, 2.8), a_lat=Dist(2.2, 0.3, 1.6, 3.0),
         headway=Dist(1.4, 0.2, 1.0, 1.9), s0=Dist(2.0, 0.3, 1.5, 3.0), reaction=Dist(1.0, 0.15, 0.7, 1.5),
         yellow_decel=Dist(3.0, 0.3, 2.4, 3.8), stop_dwell=Dist(1.8, 0.5, 1.0, 3.0),
-        compliance=Dist(0.75, 0.1, 0.45, 1.0), hud_glance=Dist(0.4, 0.1, 0.2, 0.7)),
+        compliance=Dist(0.75, 0.1, 0.45, 1.0), hud_glance=Dist(0.4, 0.1, 0.2, 0.7),
+        warn_learning=Dist(0.25, 0.15, 0.0, 0.6)),
     "sporty": dict(
         speed_factor=Dist(1.12, 0.05, 1.00, 1.25), speed_factor_hw=Dist(1.08, 0.05, 0.95, 1.20),
         a_max=Dist(2.0, 0.3, 1.4, 2.8), b_comf=Dist(2.7, 0.3, 2.0, 3.5), a_lat=Dist(3.0, 0.4, 2.2, 4.0),
         headway=Dist(1.1, 0.15, 0.8, 1.5), s0=Dist(1.8, 0.3, 1.2, 2.5), reaction=Dist(0.9, 0.15, 0.7, 1.3),
         yellow_decel=Dist(2.6, 0.3, 2.0, 3.4), stop_dwell=Dist(1.2, 0.3, 0.8, 2.0),
-        compliance=Dist(0.65, 0.12, 0.35, 0.95), hud_glance=Dist(0.4, 0.1, 0.2, 0.7)),
+        compliance=Dist(0.65, 0.12, 0.35, 0.95), hud_glance=Dist(0.4, 0.1, 0.2, 0.7),
+        warn_learning=Dist(0.25, 0.15, 0.0, 0.6)),
 }
 _STYLE_CODE = {"cautious": 1, "normal": 2, "sporty": 3}
 
@@ -94,7 +96,8 @@ class DriverParams:
     comfortable acceleration and deceleration; a_lat (m/s^2): preferred lateral acceleration in curves; headway
     (s) and s0 (m): IDM desired time gap and standstill gap; reaction (s): perception-reaction time;
     yellow_decel (m/s^2): deceleration up to which the driver stops at yellow; stop_dwell (s): halt at stop signs;
-    compliance (0..1) and hud_delay (s): tracking of the HUD advisory (assisted drives).
+    compliance (0..1) and hud_delay (s): tracking of the HUD advisory (assisted drives); warn_learning (0..1):
+    share of the gap between compliance and 1 that each new warning tone closes (how much the person adapts).
     """
 
     style: str
@@ -111,6 +114,7 @@ class DriverParams:
     stop_dwell: float
     compliance: float
     hud_delay: float
+    warn_learning: float
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -218,7 +222,7 @@ class HumanDriver:
         self._p_max = vp.P_max * vp.eta_gear
         self._tracking = False  # assisted: closing a gap to the target (pedal hysteresis)
         self._warned_until = -math.inf  # assisted: follows the advice fully until then (after a warning tone)
-        self.compliance = params.compliance  # grows with every warning tone (WARN_LEARN)
+        self.compliance = params.compliance  # grows with every warning tone (params.warn_learning)
         self._v_min = np.asarray(route.v_min, float)
         self._t = 0.0
         self._lights = tuple(route.lights)
@@ -369,7 +373,7 @@ class HumanDriver:
         p = self.p
         if warn and adv < v:
             if self._t >= self._warned_until:  # a new warning: the driver learns to comply more
-                self.compliance += (1.0 - self.compliance) * WARN_LEARN
+                self.compliance += (1.0 - self.compliance) * self.p.warn_learning
             self._warned_until = self._t + WARN_MEMORY
         c = 1.0 if self._t < self._warned_until else self.compliance
         target = adv + (1.0 - c) * (v_own - adv)

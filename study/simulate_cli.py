@@ -52,8 +52,8 @@ def _summary_line(task, df, r) -> str:
     g = green_crossings(df)
     e_wh = float((df["p_batt"] * df["t"].diff().fillna(0.0)).sum()) / 3600.0
     return (f"{task.participant_id} {task.condition:<8} {task.style:<8} {r.status:<9} {r.n_samples:>5} samples "
-            f"{df['t'].iloc[-1]:7.1f} s {e_wh:7.1f} Wh  green {int((g['state_at_crossing'] == 'green').sum())}"
-            f"/{len(g)}")
+            f"{df['t'].iloc[-1]:7.1f} s {e_wh:7.1f} Wh  lights passed in green without a stop "
+            f"{int(g['green_pass'].sum())}/{len(g)}")
 
 
 def _drive_simulate(args) -> None:

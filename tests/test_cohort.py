@@ -1,7 +1,6 @@
 """Cohort simulation: worker processes, Dask distributed, the input-hash cache, and the CLI commands."""
 from __future__ import annotations
 
-import numpy as np
 import pandas as pd
 import pytest
 
