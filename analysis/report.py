@@ -190,6 +190,9 @@ def study_figures_step(cfg: ReportConfig) -> None:
         plot_likert(pd.read_csv(responses), load_instrument(), figs)
 
 
+_RAW_DATA = {"responses", "reproduction_tables", "composites"}  # data files, not tables to render
+
+
 def collect_step(cfg: ReportConfig) -> None:
     """Every table into tables/ (csv, md, tex) and every figure into figures/."""
     tables, figs = cfg.out / "tables", cfg.out / "figures"
@@ -199,11 +202,18 @@ def collect_step(cfg: ReportConfig) -> None:
         d = cfg.out / sub
         if not d.exists():
             continue
-        for f in sorted(d.glob("*")):
-            if f.suffix in (".md", ".tex") and f.stem.startswith("table"):
-                shutil.copy2(f, tables / f"{sub}_{f.name}")
-            elif f.suffix == ".csv":
+        for f in sorted(d.glob("*.csv")):
+            if f.stem in _RAW_DATA:
+                continue
+            # a part's own rendering (paper-shaped tables) wins over the generic one
+            shaped = [f.with_suffix(ext) for ext in (".md", ".tex") if f.with_suffix(ext).exists()]
+            if len(shaped) == 2:
+                for g in [f, *shaped]:
+                    shutil.copy2(g, tables / f"{sub}_{g.name}")
+            else:
                 write_table(pd.read_csv(f), tables, f"{sub}_{f.stem}", f"{sub}: {f.stem}")
+        for f in sorted(d.glob("table*.md")) + sorted(d.glob("table*.tex")):
+            shutil.copy2(f, tables / f"{sub}_{f.name}")
         for f in sorted((d / "figures").glob("*")) if (d / "figures").exists() else []:
             shutil.copy2(f, figs / f.name)
 
@@ -288,7 +298,7 @@ def build_pipeline(cfg: ReportConfig) -> Pipeline:
         pipe.add(Step("reproduction", lambda: reproduction_step(cfg), after=["survey", "drives", "audit"],
                       outputs=[cfg.out / "reproduction.md", cfg.out / "reproduction.csv"],
                       inputs=[CODE["analysis"], params]))
-    pipe.add(Step("core figures", lambda: core_figures_step(cfg), outputs=[cfg.out / "figures" / "power_map.png"],
+    pipe.add(Step("core figures", lambda: core_figures_step(cfg), outputs=[cfg.out / "figures" / "aero_linearisation.png"],
                   inputs=[CODE["pedas"], params]))
     pipe.add(Step("study figures", lambda: study_figures_step(cfg), after=["survey", *after_store],
                   outputs=[cfg.out / "figures" / "participant_flow.png"],

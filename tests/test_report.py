@@ -72,10 +72,13 @@ def test_failure_names_the_step_and_keeps_earlier_outputs(tmp_path):
 
 
 # ---------------------------------------------------------------------------------------------- end to end
-EXPECTED_FIGURES = ["fig9a", "fig9b", "fig9c", "fig9d", "fig10", "fig11", "fig12", "participant_flow",
-                    "likert_items"]
+EXPECTED_FIGURES = ["fig9a_savings", "fig9b_savings_urban_by_style", "fig9c_savings_highway_by_style",
+                    "fig9d_savings_overall_by_style", "fig10_tl_green", "fig11_driving_behaviour",
+                    "fig12_controller_switching", "participant_flow", "likert_items", "aero_linearisation",
+                    "speed_correction", "power_map_fit", "dp_profile", "green_wave_space_time"]
 EXPECTED_TABLES = ["survey_table3", "survey_table4", "survey_table5", "survey_hypotheses", "survey_fit",
-                   "survey_htmt", "participant_flow"]
+                   "survey_htmt", "participant_flow", "drives_style_table", "drives_participant_table",
+                   "paper_audit"]
 
 
 def _check_tables_parse(tables: Path) -> None:
@@ -117,7 +120,7 @@ def test_report_on_reduced_reference_cohort(tmp_path):
     rep = pd.read_csv(out / "reproduction.csv")
     assert len(rep) > 100 and not (rep["status"] == "miss").any()
     html = (out / "index.html").read_text()
-    assert "figures/fig9a.png" in html and "reproduction.md" in html
+    assert "figures/fig9a_savings.png" in html and "reproduction.md" in html
 
     # warm: nothing changed -> every step but the always-run collection is cached
     res = run_report(cfg)
