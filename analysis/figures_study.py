@@ -57,29 +57,32 @@ def _fmt(reasons: pd.Series) -> str:
 
 
 def plot_participant_flow(flow: ParticipantFlow, out_dir: Path, stem: str = "participant_flow") -> list[Path]:
-    """CONSORT-style flow: enrolled -> excluded from all -> survey sample and (after objective exclusions) drive sample."""
-    fig, ax = plt.subplots(figsize=(7.5, 4.6))
+    """CONSORT-style flow: enrolled -> (excluded from all) -> took part -> survey and drive branches, each with its
+    own exclusions beside the arrow."""
+    took_part = flow.enrolled - int(flow.excluded_all.sum())
+    fig, ax = plt.subplots(figsize=(8.5, 5.2))
     ax.set_axis_off()
     box = dict(boxstyle="round,pad=0.5", fc="#eef3f8", ec="#2b5d8a")
     side = dict(boxstyle="round,pad=0.4", fc="#fbeeee", ec="#a33")
-    ax.text(0.5, 0.92, f"Enrolled\nN = {flow.enrolled}", ha="center", va="center", bbox=box, fontsize=11)
-    ax.text(0.86, 0.68, f"Excluded from all analyses\n{_fmt(flow.excluded_all)}", ha="center", va="center",
-            bbox=side, fontsize=9)
-    ax.text(0.26, 0.30, f"Survey (subjective) sample\nN = {flow.subjective_sample}"
-            + (f"\nexcluded: {_fmt(flow.excluded_subjective)}" if len(flow.excluded_subjective) else ""),
-            ha="center", va="center", bbox=box, fontsize=10)
-    ax.text(0.74, 0.30, f"Drive (objective) sample\nN = {flow.objective_sample}", ha="center", va="center",
-            bbox=box, fontsize=10)
-    ax.text(0.74, 0.05, f"Excluded from drive analyses\n{_fmt(flow.excluded_objective)}", ha="center",
-            va="center", bbox=side, fontsize=9)
     arrow = dict(arrowstyle="->", color="#444")
-    ax.annotate("", xy=(0.5, 0.55), xytext=(0.5, 0.85), arrowprops=arrow)
-    ax.annotate("", xy=(0.72, 0.68), xytext=(0.5, 0.68), arrowprops=arrow)
-    ax.annotate("", xy=(0.28, 0.38), xytext=(0.5, 0.55), arrowprops=arrow)
-    ax.annotate("", xy=(0.72, 0.38), xytext=(0.5, 0.55), arrowprops=arrow)
-    ax.annotate("", xy=(0.74, 0.12), xytext=(0.74, 0.22), arrowprops=arrow)
-    ax.set_xlim(0, 1)
-    ax.set_ylim(-0.05, 1.0)
+    line = dict(arrowstyle="-", color="#444")
+    ax.text(0.5, 0.94, f"Enrolled\nN = {flow.enrolled}", ha="center", va="center", bbox=box, fontsize=11)
+    ax.annotate("", xy=(0.5, 0.64), xytext=(0.5, 0.88), arrowprops=arrow)
+    ax.annotate("", xy=(0.68, 0.77), xytext=(0.5, 0.77), arrowprops=arrow)
+    ax.text(0.84, 0.77, f"Excluded from all analyses\n{_fmt(flow.excluded_all)}", ha="center", va="center",
+            bbox=side, fontsize=9)
+    ax.text(0.5, 0.58, f"Took part\nN = {took_part}", ha="center", va="center", bbox=box, fontsize=11)
+    for x, sx, label, reasons, n in ((0.3, 0.1, "Survey (subjective) sample", flow.excluded_subjective,
+                                      flow.subjective_sample),
+                                     (0.7, 0.9, "Drive (objective) sample", flow.excluded_objective,
+                                      flow.objective_sample)):
+        ax.annotate("", xy=(x, 0.45), xytext=(0.5, 0.52), arrowprops=line)
+        ax.annotate("", xy=(x, 0.14), xytext=(x, 0.45), arrowprops=arrow)
+        ax.annotate("", xy=(sx + (0.08 if sx < x else -0.08), 0.31), xytext=(x, 0.31), arrowprops=arrow)
+        ax.text(sx, 0.31, f"Excluded\n{_fmt(reasons)}", ha="center", va="center", bbox=side, fontsize=8.5)
+        ax.text(x, 0.08, f"{label}\nN = {n}", ha="center", va="center", bbox=box, fontsize=10)
+    ax.set_xlim(-0.05, 1.05)
+    ax.set_ylim(0.0, 1.0)
     ax.set_title("Participant flow", fontsize=12)
     return save(fig, out_dir, stem)
 
