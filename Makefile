@@ -27,6 +27,8 @@ bench: $(STAMP)
 	$(BIN)/pedas-study bench mpc
 	$(BIN)/pedas-study bench drive
 	$(BIN)/pedas-study bench kpi
+	$(BIN)/pedas-study bench import
+	$(BIN)/pedas-study bench survey
 
 serve: $(STAMP)
 	$(BIN)/pedas-study survey serve
