@@ -15,29 +15,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from analysis.render import pyplot, save_figure
 from analysis.savings import STYLES
+from pedas.constants import SENSOR_RANGE
 
 BASE_COLOR, PEDAS_COLOR = "#7f7f7f", "#2ca02c"
 MODE_COLORS = {"rt": "#cfe2f3", "cf": "#fde2c4", "none": "#eeeeee"}
 MPS_TO_KMH = 3.6  # km/h per m/s, for the axes
-
-
-def _plt():
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt
-
-
-def _save(fig, out: Path, name: str) -> list[Path]:
-    paths = []
-    for ext in ("png", "pdf"):
-        p = out / f"{name}.{ext}"
-        fig.savefig(p, dpi=150 if ext == "png" else None, bbox_inches="tight",
-                    metadata={"CreationDate": None} if ext == "pdf" else None)
-        paths.append(p)
-    _plt().close(fig)
-    return paths
 
 
 def _points(ax, groups, positions):
@@ -66,24 +50,24 @@ def _box(ax, groups, labels, title):
 
 
 def fig9a(per: pd.DataFrame, out: Path) -> list[Path]:
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(5.5, 4))
     _box(ax, [per["saving_urban_pct"], per["saving_highway_pct"], per["saving_overall_pct"]],
          ["Urban", "Highway", "Overall"], "Energy savings in the driven route")
-    return _save(fig, out, "fig9a_savings")
+    return save_figure(fig, out, "fig9a_savings")
 
 
 def fig9_style(per: pd.DataFrame, out: Path, segment: str, letter: str) -> list[Path]:
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(5.5, 4))
     col = f"saving_{segment}_pct"
     _box(ax, [per.loc[per["style"] == s, col] for s in STYLES], [s.capitalize() for s in STYLES],
          f"Energy savings according to driving styles: {segment} trip")
-    return _save(fig, out, f"fig9{letter}_savings_{segment}_by_style")
+    return save_figure(fig, out, f"fig9{letter}_savings_{segment}_by_style")
 
 
 def fig10(per: pd.DataFrame, out: Path) -> list[Path]:
-    plt = _plt()
+    plt = pyplot()
     n = len(per)
     fig, ax = plt.subplots(figsize=(max(6.0, 0.32 * n + 2), 4))
     x = np.arange(n)
@@ -102,7 +86,7 @@ def fig10(per: pd.DataFrame, out: Path) -> list[Path]:
     ax.set_ylim(0, top * 1.3 + 0.5)
     ax.legend(fontsize=8, ncol=3, loc="upper center")
     ax.grid(axis="y", alpha=0.3)
-    return _save(fig, out, "fig10_tl_green")
+    return save_figure(fig, out, "fig10_tl_green")
 
 
 def _cumulative_wh(d: pd.DataFrame) -> np.ndarray:
@@ -119,7 +103,7 @@ def _cumulative_wh(d: pd.DataFrame) -> np.ndarray:
 def fig11(st, participant: str, per: pd.DataFrame, out: Path) -> list[Path]:
     from study.drives import drive_samples
 
-    plt = _plt()
+    plt = pyplot()
     base = drive_samples(st, participant, "baseline")
     ped = drive_samples(st, participant, "pedas")
     fig, axes = plt.subplots(3, 1, figsize=(9, 8), sharex=True)
@@ -147,7 +131,7 @@ def fig11(st, participant: str, per: pd.DataFrame, out: Path) -> list[Path]:
         sub = (f" — savings overall {r['saving_overall_pct']:.1f} %, urban {r['saving_urban_pct']:.1f} %, "
                f"highway {r['saving_highway_pct']:.1f} %")
     fig.suptitle(f"Driving behaviour of {participant} before and after pEDAS{sub}", fontsize=10)
-    return _save(fig, out, "fig11_driving_behaviour")
+    return save_figure(fig, out, "fig11_driving_behaviour")
 
 
 def find_switch(st, participant: str | None = None) -> tuple[str, float] | None:
@@ -180,7 +164,7 @@ def fig12(st, participant: str, out: Path, before_s: float = 60.0, after_s: floa
     who, t_sw = hit
     d = drive_samples(st, who, "pedas")
     w = d[(d["t"] >= t_sw - before_s) & (d["t"] <= t_sw + after_s)].reset_index(drop=True)
-    plt = _plt()
+    plt = pyplot()
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
     s = w["s"].to_numpy(float)
     # shade contiguous runs of one controller mode
@@ -201,11 +185,7 @@ def fig12(st, participant: str, out: Path, before_s: float = 60.0, after_s: floa
     ax1.set_ylabel("Velocity (km/h)")
     ax1.legend(fontsize=8, loc="lower left")
     ax2.plot(s, w["leader_gap"], color="tab:blue", lw=1.2, label="gap to preceding vehicle $d_{rel}$")
-    try:
-        from pedas.constants import SENSOR_RANGE
-        ax2.axhline(SENSOR_RANGE, color="grey", ls="--", lw=0.8, label=f"sensor range {SENSOR_RANGE:g} m")
-    except ImportError:  # pragma: no cover
-        pass
+    ax2.axhline(SENSOR_RANGE, color="grey", ls="--", lw=0.8, label=f"sensor range {SENSOR_RANGE:g} m")
     ax2.set_ylabel("Leader gap (m)")
     ax2.set_xlabel("Distance along the route (m)")
     ax2.legend(fontsize=8, loc="upper right")
@@ -213,7 +193,7 @@ def fig12(st, participant: str, out: Path, before_s: float = 60.0, after_s: floa
         ax.grid(alpha=0.3)
     note = "" if who == participant else f" (no switch in {participant}'s drive)"
     fig.suptitle(f"Switching between reference-tracking and car-following controllers, {who}{note}", fontsize=10)
-    return _save(fig, out, "fig12_controller_switching")
+    return save_figure(fig, out, "fig12_controller_switching")
 
 
 def write_figures(st, result, out_dir: str | Path, participant: str = "P006") -> dict[str, list[Path] | str]:

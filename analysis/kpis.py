@@ -349,6 +349,8 @@ def _fill_missing(con, drive_ids) -> None:
     """``a`` and ``p_batt`` for the drives whose log lacks them, into TEMP TABLE kpi_fill(drive_id, idx, a,
     p_batt): a by :func:`fill_acceleration`, p_batt by the vehicle power model (``pedas.power.fill_drive_columns``
     on t, v, grade and a — the model of ``kpi energy``). Vectorised per drive, not per row."""
+    from pedas.power import fill_drive_columns
+
     frames = []
     for drive_id in drive_ids:
         d = con.execute("SELECT idx, t, v, a, grade, p_batt FROM kpi_src_raw WHERE drive_id = $d ORDER BY idx",
@@ -356,7 +358,7 @@ def _fill_missing(con, drive_ids) -> None:
         a = d["a"].astype(float).fillna(pd.Series(fill_acceleration(d["t"], d["v"]), index=d.index))
         p = d["p_batt"].astype(float)
         if p.isna().any():
-            model = _power_model(drive_ids)(d[["t", "v", "grade"]].assign(a=a.to_numpy()))
+            model = fill_drive_columns(d[["t", "v", "grade"]].assign(a=a.to_numpy()))
             p = p.fillna(pd.Series(model["p_batt"].to_numpy(float), index=d.index))
         frames.append(pd.DataFrame({"drive_id": drive_id, "idx": d["idx"].to_numpy(), "a": a.to_numpy(),
                                     "p_batt": p.to_numpy()}))
@@ -365,11 +367,3 @@ def _fill_missing(con, drive_ids) -> None:
     con.execute("CREATE OR REPLACE TEMP TABLE kpi_fill AS SELECT * FROM kpi_fill_df")
     con.unregister("kpi_fill_df")
 
-
-def _power_model(drive_ids):
-    try:
-        from pedas.power import fill_drive_columns
-    except ImportError as exc:  # the power model is part of the simulation core
-        raise ValueError(f"drives {', '.join(map(str, drive_ids))} have no p_batt and the vehicle power model "
-                         f"(pedas.power) is unavailable: {exc}") from exc
-    return fill_drive_columns

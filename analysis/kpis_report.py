@@ -9,7 +9,7 @@ import pandas as pd
 
 from analysis.figures_drives import write_figures
 from analysis.savings import ObjectiveResult, objective_results, reproduction_bands
-from analysis.tables_drives import _style_cells, bands_markdown, style_table, to_markdown, write_tables
+from analysis.tables_drives import bands_markdown, kpi_markdown, style_cells, style_table, write_tables
 
 
 @dataclass
@@ -25,8 +25,8 @@ class DrivesReport:
         r = self.result
         lines = [f"objective analysis: {r.n} participants with both drives "
                  f"({len(r.excluded)} excluded, {len(r.incomplete)} without a complete pair)"]
-        h, rows = _style_cells(style_table(r.summary))
-        lines.append(to_markdown(h, rows, "By driving style, mean (median) %").rstrip())
+        h, rows = style_cells(style_table(r.summary))
+        lines.append(kpi_markdown(h, rows, "By driving style, mean (median) %").rstrip())
         lines.append(bands_markdown(self.bands).rstrip())
         skipped = {k: v for k, v in self.figures.items() if isinstance(v, str)}
         for k, v in skipped.items():

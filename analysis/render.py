@@ -1,14 +1,33 @@
-"""Rendering shared by every analysis output: tables as Markdown / LaTeX booktabs, figures as PNG + PDF."""
+"""Rendering shared by every analysis output: tables as Markdown / LaTeX booktabs, figures as PNG + PDF.
+
+One Markdown table writer (:func:`markdown_table`), one booktabs writer (:func:`latex_table`), one LaTeX escape
+(:func:`tex_escape`) and one cell formatter (:func:`fmt_cell`). Table modules build header and string cells in
+their own (paper-shaped) layout and hand them to these writers.
+"""
 from __future__ import annotations
 
+import math
+import re
+from numbers import Integral, Real
 from pathlib import Path
 from typing import Sequence
 
+import numpy as np
 import pandas as pd
 
 # PDF metadata without a creation date keeps an unchanged figure byte-identical between runs
 PDF_METADATA = {"Creator": "pedas-study", "Producer": None, "CreationDate": None}
 PNG_METADATA = {"Software": None}
+
+
+def pyplot():
+    """`matplotlib.pyplot` on the non-interactive Agg backend, imported on first use (keeps CLI start-up light)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
 
 
 def save_figure(fig, out_dir: str | Path, stem: str, dpi: int = 150) -> list[Path]:
@@ -24,29 +43,90 @@ def save_figure(fig, out_dir: str | Path, stem: str, dpi: int = 150) -> list[Pat
     return paths
 
 
-def tex_escape(s: str) -> str:
-    """Escape LaTeX special characters of a plain-text cell."""
-    for a, b in (("\\", r"\textbackslash{}"), ("&", r"\&"), ("%", r"\%"), ("$", r"\$"), ("#", r"\#"),
-                 ("_", r"\_"), ("{", r"\{"), ("}", r"\}"), ("~", r"\textasciitilde{}"), ("^", r"\^{}")):
-        s = s.replace(a, b)
-    return s
+# ---------------------------------------------------------------------------------------------- cells
+def fmt_cell(x, digits: int = 3, missing: str = "") -> str:
+    """One table cell as text: floats to `digits` decimals, integers as integers, booleans as yes/no,
+    None / NaN / infinite as `missing`, anything else as `str(x)`."""
+    if x is None or x is pd.NA or x is pd.NaT:
+        return missing
+    if isinstance(x, str):
+        return x
+    if isinstance(x, (bool, np.bool_)):
+        return "yes" if x else "no"
+    if isinstance(x, Integral):
+        return str(int(x))
+    if isinstance(x, Real):
+        return f"{x:.{digits}f}" if math.isfinite(x) else missing
+    return str(x)
+
+
+def frame_cells(df: pd.DataFrame, digits: int = 3) -> tuple[list[str], list[list[str]]]:
+    """Header and string cells of a tidy frame (floats to `digits` decimals, missing as empty)."""
+    return [str(c) for c in df.columns], [[fmt_cell(x, digits) for x in row] for row in df.itertuples(index=False)]
+
+
+# ---------------------------------------------------------------------------------------------- Markdown
+_MD_ALIGN = {"l": "---", "r": "---:", "c": ":---:"}
+
+
+def md_cell(x) -> str:
+    """A Markdown table cell: `|` escaped and line breaks flattened, so that a cell never splits the row."""
+    return str(x).replace("|", r"\|").replace("\r", " ").replace("\n", " ")
 
 
 def markdown_table(header: Sequence[str], rows: Sequence[Sequence[str]], title: str = "",
-                   notes: Sequence[str] = ()) -> str:
-    """A GitHub-flavoured Markdown table with an optional `### title` and notes below."""
-    out = [f"### {title}", ""] if title else []
-    out.append("| " + " | ".join(header) + " |")
-    out.append("|" + "|".join("---" for _ in header) + "|")
-    out += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
+                   notes: Sequence[str] = (), align: str | None = None, title_style: str = "heading",
+                   notes_style: str = "italic") -> str:
+    """A GitHub-flavoured Markdown table with an optional title above and notes below.
+
+    `align`: one letter l/r/c per column (as in LaTeX), default unaligned. `title_style`: "heading" (`### title`)
+    or "bold" (`**title**`, the paper-table look). `notes_style`: "italic" (one `_note_` line each) or "plain"
+    (verbatim, hard line breaks between notes; for notes that contain `*` marks)."""
+    if align is not None and len(align) != len(header):
+        raise ValueError(f"align {align!r} has {len(align)} letters for {len(header)} columns")
+    out = []
+    if title:
+        out += [f"**{title}**" if title_style == "bold" else f"### {title}", ""]
+    out.append("| " + " | ".join(md_cell(h) for h in header) + " |")
+    out.append("|" + "|".join(_MD_ALIGN[a] for a in align or "l" * len(header)) + "|")
+    out += ["| " + " | ".join(md_cell(c) for c in r) + " |" for r in rows]
     if notes:
-        out += [""] + [f"_{n}_" for n in notes]
+        if notes_style == "plain":
+            out += [""] + [f"{n}  " for n in notes[:-1]] + [notes[-1]]
+        else:
+            out += [""] + [f"_{n}_" for n in notes]
     return "\n".join(out) + "\n"
+
+
+# ---------------------------------------------------------------------------------------------- LaTeX
+_TEX_SPECIALS = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_",
+                 "{": r"\{", "}": r"\}", "~": r"\textasciitilde{}", "^": r"\^{}"}
+_TEX_SPECIALS_RE = re.compile("|".join(re.escape(k) for k in _TEX_SPECIALS))
+# symbols the tables print, as LaTeX that compiles without a Unicode font set-up
+TEX_SYMBOLS = {"λ": r"$\lambda$", "α": r"$\alpha$", "β": r"$\beta$", "Δ": r"$\Delta$", "²": r"$^2$",
+               "†": r"$^\dagger$", "–": "--", "->": r"$\rightarrow$"}
+
+
+def tex_escape(s: str) -> str:
+    """Plain text -> LaTeX: special characters escaped (in one pass), then the symbols of :data:`TEX_SYMBOLS`."""
+    s = _TEX_SPECIALS_RE.sub(lambda m: _TEX_SPECIALS[m.group(0)], str(s))
+    for k, v in TEX_SYMBOLS.items():
+        s = s.replace(k, v)
+    return s
+
+
+def tex_cell(c) -> str:
+    """A cell for LaTeX: Markdown `**bold**` -> `\\textbf{...}`, everything else escaped by :func:`tex_escape`."""
+    c = str(c)
+    if len(c) > 4 and c.startswith("**") and c.endswith("**"):
+        return rf"\textbf{{{tex_escape(c[2:-2])}}}"
+    return tex_escape(c)
 
 
 def latex_table(header: Sequence[str], rows: Sequence[Sequence[str]], title: str = "", notes: Sequence[str] = (),
                 label: str = "", align: str | None = None) -> str:
-    """A booktabs `table` environment (caption, label, toprule/midrule/bottomrule, notes as a footnote line)."""
+    """A booktabs `table` environment: caption, label, toprule/midrule/bottomrule, the notes in one footnote-size
+    paragraph below (one line each). `align` defaults to a left text column and right-aligned numbers."""
     align = align or "l" + "r" * (len(header) - 1)
     out = [r"\begin{table}[t]", r"\centering"]
     if title:
@@ -54,29 +134,13 @@ def latex_table(header: Sequence[str], rows: Sequence[Sequence[str]], title: str
     if label:
         out.append(rf"\label{{{label}}}")
     out += [rf"\begin{{tabular}}{{{align}}}", r"\toprule",
-            " & ".join(tex_escape(str(h)) for h in header) + r" \\", r"\midrule"]
-    out += [" & ".join(tex_escape(str(c)) for c in r) + r" \\" for r in rows]
-    out.append(r"\bottomrule")
-    out.append(r"\end{tabular}")
-    for n in notes:
-        out.append(rf"\par\footnotesize {tex_escape(n)}")
+            " & ".join(tex_cell(h) for h in header) + r" \\", r"\midrule"]
+    out += [" & ".join(tex_cell(c) for c in r) + r" \\" for r in rows]
+    out += [r"\bottomrule", r"\end{tabular}"]
+    if notes:
+        out.append(r"\par\smallskip\footnotesize " + r" \\ ".join(tex_escape(n) for n in notes))
     out.append(r"\end{table}")
     return "\n".join(out) + "\n"
-
-
-def _cell(x, digits: int) -> str:
-    if x is None or (isinstance(x, float) and pd.isna(x)):
-        return ""
-    if isinstance(x, bool):
-        return "yes" if x else "no"
-    if isinstance(x, float):
-        return f"{x:.{digits}f}"
-    return str(x)
-
-
-def frame_cells(df: pd.DataFrame, digits: int = 3) -> tuple[list[str], list[list[str]]]:
-    """Header and string cells of a tidy frame (floats to `digits` decimals, missing as empty)."""
-    return [str(c) for c in df.columns], [[_cell(x, digits) for x in row] for row in df.itertuples(index=False)]
 
 
 def write_table(df: pd.DataFrame, out_dir: str | Path, stem: str, title: str = "", notes: Sequence[str] = (),

@@ -146,11 +146,8 @@ def analyze_survey(responses: pd.DataFrame, *, instrument=None, cfa_config=None,
 def _single_threaded_blas():
     """Run with one BLAS thread: every matrix here is tiny (<= 25 x 25, stacks of 4 x 4), where BLAS threads only
     add contention -- on a loaded 2-core machine they made a run ~8x slower in wall time. Results are unchanged."""
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:  # optional: without it the analysis simply runs with the default threads
-        yield
-        return
+    from threadpoolctl import threadpool_limits
+
     with threadpool_limits(limits=1, user_api="blas"):
         yield
 
@@ -233,33 +230,14 @@ def _analyze(responses, *, instrument, cfa_config, models, hypotheses, n_boot, s
 
 
 def responses_from_store(st, *, instrument=None) -> pd.DataFrame:
-    """The wide survey frame of the included participants (exclusions scope 'subjective') from a store.
+    """The wide survey frame of the included participants (exclusions scope 'subjective') from a store: the final
+    answers as ``study.survey.final_responses`` resolves double entry."""
+    from study.exclusions import included_participants
+    from study.survey import final_responses
 
-    Uses ``study.survey.final_responses`` when the survey part provides it; otherwise the latest entry round of
-    each (participant, item) answer in the ``responses`` table.
-    """
     inst = resolve_instrument(instrument)
-    try:
-        from study.survey import final_responses  # the survey part's resolution of double entry
-    except ImportError:
-        final_responses = None
-    if final_responses is not None:
-        wide = final_responses(st, inst.name)
-    else:
-        long = st.df("""
-            SELECT participant_id, item_id, value FROM (
-              SELECT participant_id, item_id, value,
-                     row_number() OVER (PARTITION BY participant_id, item_id
-                                        ORDER BY entry_round DESC, entered_at DESC) AS rk
-              FROM responses) WHERE rk = 1""")
-        wide = (long.pivot(index="participant_id", columns="item_id", values="value")
-                .reindex(columns=inst.scaled_items).reset_index())
-    try:
-        from study.exclusions import included_participants
-    except ImportError:
-        included_participants = None
-    if included_participants is not None:
-        keep = {str(p) for p in included_participants(st, "subjective")}
-        wide = wide[wide["participant_id"].astype(str).isin(keep)]
+    wide = final_responses(st, inst.name)
+    keep = {str(p) for p in included_participants(st, "subjective")}
+    wide = wide[wide["participant_id"].astype(str).isin(keep)]
     cols = ["participant_id"] + [c for c in inst.scaled_items if c in wide.columns]
     return wide[cols].reset_index(drop=True)

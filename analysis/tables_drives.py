@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from analysis.render import fmt_cell, latex_table, markdown_table
 from analysis.savings import STYLES
 
 # (metric, column label) of the per-style table, in the paper's order
@@ -55,16 +56,13 @@ def participant_table(per_participant: pd.DataFrame) -> pd.DataFrame:
 
 # ------------------------------------------------------------------------------------------ rendering
 def _fmt(x, nd=2) -> str:
-    if x is None or (isinstance(x, float) and not np.isfinite(x)) or (not isinstance(x, str) and pd.isna(x)):
-        return "–"
-    if isinstance(x, (int, np.integer)):
-        return str(int(x))
-    if isinstance(x, (float, np.floating)):
-        return f"{x:.{nd}f}"
-    return str(x)
+    """A KPI cell: `nd` decimals, integers as integers, missing as an en dash."""
+    return fmt_cell(x, nd, missing="–")
 
 
-def _style_cells(t: pd.DataFrame) -> tuple[list[str], list[list[str]]]:
+def style_cells(t: pd.DataFrame) -> tuple[list[str], list[list[str]]]:
+    """Header and cells of the per-style table (:func:`style_table`): "mean (median)" per metric, with [n=k]
+    when a metric has fewer participants than the style."""
     header = ["Style", "n"] + [label + " mean (median)" for _, label in STYLE_TABLE_METRICS]
     rows = []
     for _, r in t.iterrows():
@@ -94,36 +92,10 @@ def _participant_cells(t: pd.DataFrame) -> tuple[list[str], list[list[str]]]:
     return header, rows
 
 
-def to_markdown(header, rows, title: str, notes=(), text_columns: int = 1) -> str:
-    """A Markdown table; the first ``text_columns`` columns left-aligned, the rest right-aligned."""
-    out = [f"**{title}**", "", "| " + " | ".join(header) + " |",
-           "|" + "|".join("---" if i < text_columns else "---:" for i in range(len(header))) + "|"]
-    out += ["| " + " | ".join(r) + " |" for r in rows]
-    if notes:
-        out += [""] + [f"_{n}_" for n in notes]
-    return "\n".join(out) + "\n"
-
-
-def _tex(s: str) -> str:
-    for a, b in (("\\", r"\textbackslash{}"), ("%", r"\%"), ("&", r"\&"), ("_", r"\_"), ("#", r"\#"),
-                 ("–", "--")):
-        s = s.replace(a, b)
-    return s
-
-
-def to_latex(header, rows, title: str, notes=(), label: str = "") -> str:
-    align = "l" + "r" * (len(header) - 1)
-    out = [r"\begin{table}[t]", r"\centering", rf"\caption{{{_tex(title)}}}"]
-    if label:
-        out.append(rf"\label{{{label}}}")
-    out += [rf"\begin{{tabular}}{{{align}}}", r"\toprule", " & ".join(_tex(h) for h in header) + r" \\",
-            r"\midrule"]
-    out += [" & ".join(_tex(c) for c in r) + r" \\" for r in rows]
-    out += [r"\bottomrule", r"\end{tabular}"]
-    if notes:
-        out += [r"\par\smallskip", r"\footnotesize " + " ".join(_tex(n) for n in notes)]
-    out.append(r"\end{table}")
-    return "\n".join(out) + "\n"
+def kpi_markdown(header, rows, title: str, notes=(), text_columns: int = 1) -> str:
+    """A KPI table in Markdown: bold title, the first ``text_columns`` columns left-aligned, the rest right."""
+    align = "l" * text_columns + "r" * (len(header) - text_columns)
+    return markdown_table(header, rows, title, notes, align=align, title_style="bold")
 
 
 STYLE_NOTES = ("Savings = (baseline - pEDAS) / baseline of battery energy; reductions likewise. "
@@ -142,24 +114,22 @@ def write_tables(result, out_dir: str | Path) -> list[Path]:
         p.write_text(text, encoding="utf-8")
         written.append(p)
 
+    def table(stem, frame, cells, title, label, notes=()):
+        """<stem>.csv from the frame, .md and .tex from its cells."""
+        frame.to_csv(out / f"{stem}.csv", index=False)
+        written.append(out / f"{stem}.csv")
+        h, r = cells(frame)
+        put(f"{stem}.md", kpi_markdown(h, r, title, notes))
+        put(f"{stem}.tex", latex_table(h, r, title, notes, label))
+
     for name, df in (("kpis.csv", result.kpis), ("per_participant.csv", result.per_participant),
                      ("summary.csv", result.summary)):
         df.to_csv(out / name, index=False)
         written.append(out / name)
-    st = style_table(result.summary)
-    st.to_csv(out / "style_table.csv", index=False)
-    written.append(out / "style_table.csv")
-    h, r = _style_cells(st)
-    title = f"Objective KPIs by driving style, mean (median) in % (N = {result.n})"
-    put("style_table.md", to_markdown(h, r, title, STYLE_NOTES))
-    put("style_table.tex", to_latex(h, r, title, STYLE_NOTES, "tab:kpi_styles"))
-    pt = participant_table(result.per_participant)
-    pt.to_csv(out / "participant_table.csv", index=False)
-    written.append(out / "participant_table.csv")
-    h, r = _participant_cells(pt)
-    title = "Objective KPIs per participant (w/o = baseline drive, with = pEDAS drive)"
-    put("participant_table.md", to_markdown(h, r, title))
-    put("participant_table.tex", to_latex(h, r, title, (), "tab:kpi_participants"))
+    table("style_table", style_table(result.summary), style_cells,
+          f"Objective KPIs by driving style, mean (median) in % (N = {result.n})", "tab:kpi_styles", STYLE_NOTES)
+    table("participant_table", participant_table(result.per_participant), _participant_cells,
+          "Objective KPIs per participant (w/o = baseline drive, with = pEDAS drive)", "tab:kpi_participants")
     return written
 
 
@@ -168,4 +138,4 @@ def bands_markdown(bands: pd.DataFrame) -> str:
     header = ["Band", "Holds", "Note", "Paper", "Ours"]
     rows = [[b["band"], "yes" if b["holds"] else "no", b["note"], _fmt(b["paper_value"]), _fmt(b["our_value"])]
             for _, b in bands.iterrows()]
-    return to_markdown(header, rows, "Reproduction bands", text_columns=3)
+    return kpi_markdown(header, rows, "Reproduction bands", text_columns=3)

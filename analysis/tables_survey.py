@@ -9,55 +9,12 @@ paper's Table 5 note); the CI column is the 95 % t-interval of B, the bootstrap 
 """
 from __future__ import annotations
 
-import numpy as np
-
+from analysis.render import fmt_cell, latex_table, markdown_table
 from analysis.validity import stars
 
 NAMES = {"PU": "Perceived Usefulness (PU)", "PEoU": "Perceived Ease of Use (PEoU)",
          "ATT": "Attitude toward Behaviour (ATT)", "PBC": "Perceived Behavioural Control (PBC)",
          "SN": "Subjective Norms (SN)", "BI": "Behavioural Intention (BI)"}
-
-
-def _f(x, nd: int = 3) -> str:
-    return "" if x is None or (isinstance(x, float) and not np.isfinite(x)) else f"{x:.{nd}f}"
-
-
-def _md(header: list[str], rows: list[list[str]], title: str, notes: list[str]) -> str:
-    out = [f"**{title}**", "", "| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
-    out += ["| " + " | ".join(r) + " |" for r in rows]
-    out += [""] + [f"{n}  " for n in notes]
-    return "\n".join(out).rstrip() + "\n"
-
-
-_TEX_SYMBOLS = {"λ": r"$\lambda$", "α": r"$\alpha$", "β": r"$\beta$", "Δ": r"$\Delta$", "²": r"$^2$",
-                "†": r"$^\dagger$", "–": "--", "->": r"$\rightarrow$"}
-
-
-def _tex_escape(s: str) -> str:
-    s = (s.replace("\\", r"\textbackslash{}").replace("&", r"\&").replace("%", r"\%").replace("_", r"\_")
-         .replace("#", r"\#"))
-    for k, v in _TEX_SYMBOLS.items():
-        s = s.replace(k, v)
-    return s
-
-
-def _tex_cell(c: str) -> str:
-    """Markdown **bold** -> \\textbf{...}; everything else escaped."""
-    if len(c) > 4 and c.startswith("**") and c.endswith("**"):
-        return rf"\textbf{{{_tex_escape(c[2:-2])}}}"
-    return _tex_escape(c)
-
-
-def _tex(header: list[str], rows: list[list[str]], title: str, notes: list[str], align: str) -> str:
-    out = [r"\begin{table}[t]", r"\centering", rf"\caption{{{_tex_escape(title)}}}", rf"\begin{{tabular}}{{{align}}}",
-           r"\toprule", " & ".join(_tex_escape(h) for h in header) + r" \\", r"\midrule"]
-    for r in rows:
-        out.append(" & ".join(_tex_cell(c) for c in r) + r" \\")
-    out += [r"\bottomrule", r"\end{tabular}"]
-    if notes:
-        out += [r"\par\smallskip\footnotesize " + r" \\ ".join(_tex_escape(n) for n in notes)]
-    out += [r"\end{table}"]
-    return "\n".join(out) + "\n"
 
 
 def table3_rows(res) -> tuple[list[str], list[list[str]], list[str]]:
@@ -70,12 +27,12 @@ def table3_rows(res) -> tuple[list[str], list[list[str]], list[str]]:
     rows = []
     for c in ini["construct"].unique():
         r = rel.loc[c] if c in rel.index else None
-        rows.append([f"**{NAMES.get(c, c)}**", "", "", "", _f(r["alpha"]) if r is not None else "",
-                     _f(r["cr"]) if r is not None else "", _f(r["ave"]) if r is not None else ""])
+        rows.append([f"**{NAMES.get(c, c)}**", "", "", "", fmt_cell(r["alpha"]) if r is not None else "",
+                     fmt_cell(r["cr"]) if r is not None else "", fmt_cell(r["ave"]) if r is not None else ""])
         for item in ini.index[ini["construct"] == c]:
             name = item + ("†" if bool(desc.loc[item, "reversed"]) else "")
-            lam = _f(fin.loc[item, "loading"]) if item in fin.index else _f(ini.loc[item, "loading"]) + "*"
-            rows.append([name, _f(desc.loc[item, "mean"]), _f(desc.loc[item, "sd"]), lam, "", "", ""])
+            lam = fmt_cell(fin.loc[item, "loading"]) if item in fin.index else fmt_cell(ini.loc[item, "loading"]) + "*"
+            rows.append([name, fmt_cell(desc.loc[item, "mean"]), fmt_cell(desc.loc[item, "sd"]), lam, "", "", ""])
     notes = [f"N = {res.n}. λ = standardized factor loading (final CFA; * initial CFA, item omitted from the "
              "analysis), "
              "Cα = Cronbach's alpha, CR = composite reliability, AVE = average variance extracted (final items).",
@@ -94,9 +51,9 @@ def table4_rows(res) -> tuple[list[str], list[list[str]], list[str]]:
         for j, b in enumerate(cons):
             if j < i:
                 r = corr.get((b, a)) or corr.get((a, b))
-                row.append(f"{_f(r.r)}{stars(r.p)}" if r is not None else "")
+                row.append(f"{fmt_cell(r.r)}{stars(r.p)}" if r is not None else "")
             elif j == i:
-                row.append(f"**{_f(sq[a])}**")
+                row.append(f"**{fmt_cell(sq[a])}**")
             else:
                 row.append("")
         rows.append(row)
@@ -114,13 +71,14 @@ def table5_rows(res) -> tuple[list[str], list[list[str]], list[str]]:
         rows.append([f"**{name}. {label}**", "", "", "", "", "", "", "", ""])
         for step, s in m.groupby("step", sort=True):
             top = s.iloc[0]
-            rows.append([f"Step {step}: Dependent Variable - {top['dv']}", _f(top["r2"]), _f(top["adj_r2"]),
-                         _f(top["delta_r2"]) + ("*" if top["p_change"] < 0.05 else ""), "", "", "", "", ""])
+            rows.append([f"Step {step}: Dependent Variable - {top['dv']}", fmt_cell(top["r2"]),
+                         fmt_cell(top["adj_r2"]), fmt_cell(top["delta_r2"]) + ("*" if top["p_change"] < 0.05 else ""),
+                         "", "", "", "", ""])
             for _, r in s[s["predictor"] != "(Constant)"].iterrows():
-                mark = "**" if r["p"] < 0.001 else "*" if r["p"] < 0.05 else ""
-                rows.append([f"Independent Variable - {r['predictor']}", "", "", "", _f(r["b"]), _f(r["se_b"]),
-                             _f(r["beta"]) + mark, f"{_f(r['ci_low'])} – {_f(r['ci_high'])}",
-                             f"{_f(r['boot_ci_low'])} – {_f(r['boot_ci_high'])}"])
+                rows.append([f"Independent Variable - {r['predictor']}", "", "", "", fmt_cell(r["b"]),
+                             fmt_cell(r["se_b"]), fmt_cell(r["beta"]) + stars(r["p"], (0.05, 0.001)),
+                             f"{fmt_cell(r['ci_low'])} – {fmt_cell(r['ci_high'])}",
+                             f"{fmt_cell(r['boot_ci_low'])} – {fmt_cell(r['boot_ci_high'])}"])
     boot = res.settings.get("n_boot", 0)
     notes = [f"N = {res.n}. β: ** p < 0.001, * p < 0.05 (2-tailed); ΔR²* : F change significant at 0.05.",
              f"95% CI: t-interval of B; bootstrap: {res.settings.get('boot_method', 'percentile')} CI of B, "
@@ -134,8 +92,9 @@ def item_flags_rows(res) -> tuple[list[str], list[list[str]], list[str]]:
     rules = res.settings.get("rules", {})
     header = ["Item", "Construct", "λ (initial)", "item-rest r", "strongest other construct", "r", "rules fired",
               "retained"]
-    rows = [[r["item"], r["construct"], _f(r["loading"]), _f(r["own_r"]), str(r["cross_construct"]), _f(r["cross_r"]),
-             r["rule"] or "-", "yes" if r["retained"] else "no (config)"] for _, r in ini.iterrows()]
+    rows = [[r["item"], r["construct"], fmt_cell(r["loading"]), fmt_cell(r["own_r"]), str(r["cross_construct"]),
+             fmt_cell(r["cross_r"]), r["rule"] or "-", "yes" if r["retained"] else "no (config)"]
+            for _, r in ini.iterrows()]
     notes = [f"Rules: λ < {rules.get('min_loading', 0.7)}; negative λ; cross-construct: |r| with another construct's "
              f"composite >= item-rest r of its own construct (margin {rules.get('cross_margin', 0.0)}). "
              "The rules inform; the deletion itself is the declared configuration."]
@@ -155,7 +114,8 @@ def render_all(res) -> dict[str, str]:
     for name, fn in (("table3", table3_rows), ("table4", table4_rows), ("table5", table5_rows),
                      ("item_flags", item_flags_rows)):
         header, rows, notes = fn(res)
-        out[f"{name}.md"] = _md(header, rows, TITLES[name], notes)
-        align = "l" + "c" * (len(header) - 1)
-        out[f"{name}.tex"] = _tex(header, rows, TITLES[name], notes, align)
+        # bold title and verbatim notes (they carry the * significance marks) as the paper prints them
+        out[f"{name}.md"] = markdown_table(header, rows, TITLES[name], notes, title_style="bold",
+                                           notes_style="plain")
+        out[f"{name}.tex"] = latex_table(header, rows, TITLES[name], notes, align="l" + "c" * (len(header) - 1))
     return out

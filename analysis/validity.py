@@ -20,11 +20,12 @@ from scipy import stats
 HTMT_STRICT, HTMT_LIBERAL = 0.85, 0.90
 
 
-def stars(p: float) -> str:
-    """The paper's significance marks: '**' p < .01, '*' p < .05, '' otherwise."""
+def stars(p: float, levels: tuple[float, float] = (0.05, 0.01)) -> str:
+    """The paper's significance marks: '**' p < levels[1], '*' p < levels[0], '' otherwise (also for a missing p).
+    Table 4 uses the default (.05, .01); Table 5 marks beta at (.05, .001)."""
     if not np.isfinite(p):
         return ""
-    return "**" if p < 0.01 else "*" if p < 0.05 else ""
+    return "**" if p < levels[1] else "*" if p < levels[0] else ""
 
 
 def pearson_p(r: float, n: int) -> float:

@@ -51,13 +51,40 @@ def departures(seed: int, demand: dict | None = None) -> pd.DataFrame:
         period = f.get("period")  # a timetable (buses): fixed headway, seeded phase
         mean = float(period) if period else 3600.0 / float(f["rate"])
         t = float(f["start"]) + rng.uniform(0.0, mean)
-        i = 0
+        times = []
         while t <= float(f["end"]):
-            rows.append((f"f{k}.{i}", f["route"], f.get("type", "car"), round(t, 1), str(f.get("depart_speed", "max"))))
+            times.append(t)
             t += mean if period else h_min + rng.exponential(max(mean - h_min, 0.1))
-            i += 1
+        types = _vehicle_types(f, len(times), np.random.default_rng([int(seed), 0x7AFF1C, k]))
+        for i, (t, vtype) in enumerate(zip(times, types)):
+            rows.append((f"f{k}.{i}", f["route"], vtype, round(t, 1), str(f.get("depart_speed", "max"))))
     df = pd.DataFrame(rows, columns=["veh_id", "route", "type", "depart", "depart_speed"])
     return df.sort_values(["depart", "veh_id"], kind="stable").reset_index(drop=True)
+
+
+def _vehicle_types(flow: dict, n: int, rng: np.random.Generator) -> list[str]:
+    """Vehicle types of the `n` departures of one flow: its `type` (default 'car'), or its `mix` {type: share}.
+
+    A mix is applied by systematic sampling with a seeded random start (every 1/share-th vehicle on average, the
+    classes interleaved in a seeded random order): each drive meets the mix's shares up to one vehicle, instead of
+    a binomial draw that leaves some drives without any heavy vehicle. The rest of the flow is 'car'.
+    """
+    mix = flow.get("mix")
+    if not mix:
+        return [flow.get("type", "car")] * n
+    types = ["car"] * n
+    taken = np.zeros(n, bool)
+    for vtype, share in mix.items():
+        share = float(share)
+        if vtype == "car" or share <= 0.0:
+            continue
+        pos = (rng.uniform(0.0, 1.0) + np.arange(int(np.ceil(n * share)) + 1)) / share
+        for p in pos.astype(int):
+            while p < n and taken[p]:  # two classes on the same vehicle: the next free one
+                p += 1
+            if p < n:
+                types[p], taken[p] = vtype, True
+    return types
 
 
 @dataclass(frozen=True)

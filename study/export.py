@@ -156,26 +156,10 @@ def deidentify_table(table: str, df: pd.DataFrame) -> pd.DataFrame:
 
 
 def survey_wide(st, instrument: str) -> pd.DataFrame:
-    """Final answers, one row per participant and one column per item (the survey part's definition of final
-    when available, else the latest entry round of each answer)."""
-    try:
-        from study.survey import final_responses
-    except ImportError:
-        final_responses = None
-    if final_responses is not None:
-        return final_responses(st, instrument)
-    from study.instrument import load_instrument
+    """Final answers, one row per participant and one column per item (``study.survey.final_responses``)."""
+    from study.survey import final_responses
 
-    ins = load_instrument(instrument)
-    long = st.df("SELECT participant_id, item_id, arg_max(value, entry_round) AS value, "
-                 "arg_max(text, entry_round) AS text FROM responses WHERE instrument = ? "
-                 "GROUP BY participant_id, item_id", [instrument])
-    out = pd.DataFrame({"participant_id": sorted(long["participant_id"].unique())})
-    for item in ins.items.index:
-        col = "text" if item in ins.text_items else "value"
-        sub = long[long["item_id"] == item].set_index("participant_id")[col]
-        out[item] = out["participant_id"].map(sub)
-    return out
+    return final_responses(st, instrument)
 
 
 def collect(st, deidentify: bool = False) -> tuple[dict[str, pd.DataFrame], tuple[str, ...]]:

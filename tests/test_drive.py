@@ -146,3 +146,28 @@ def test_green_crossings_counts_a_stop_then_green_as_not_a_green_pass():
 def test_every_style_and_condition_completes_safely(style, condition):
     df = drive(31, style, condition)
     check_log(df)
+
+
+def car_following_share(df: pd.DataFrame, segment: str | None = None, within: float = 100.0) -> float:
+    """Share of drive time with a leader within `within` m (optionally of one segment)."""
+    sel = df if segment is None else df[df["segment"] == segment]
+    return float((sel["leader_gap"] < within).mean())
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("participant,style", [("P001", "cautious"), ("P002", "normal")])
+def test_car_following_happens_in_both_conditions(participant, style):
+    """The demand puts vehicles ahead of the ego in both conditions: the car-following share (leader within 100 m)
+    of a few persons of the cohort (seed 0), in town and overall; a pEDAS drive is slower than the surrounding
+    traffic, so its share is lower than baseline but not negligible."""
+    from pedas.cohort import participant_seed
+
+    seed = participant_seed(participant, 0)
+    for condition in ("baseline", "pedas"):
+        df = drive(seed, style, condition)
+        assert car_following_share(df) >= 0.15, (condition, car_following_share(df))
+        assert car_following_share(df, "urban") >= 0.15, (condition, car_following_share(df, "urban"))
+        if condition == "baseline":
+            assert car_following_share(df, "highway") > 0.1
+        if condition == "pedas":  # the car-following MPC is exercised, not only the signal MPC
+            assert (df["controller"] == "cf").mean() > 0.1

@@ -21,6 +21,8 @@ from scipy import stats
 
 from analysis.paper import grim
 from analysis.paper import published as P
+from analysis.render import markdown_table, md_cell
+from analysis.validity import stars
 
 N_TEXT = 41          # Section 4.2 / 5.2.1 text: "N=41" surveys
 N_CANDIDATES = (40, 41)
@@ -537,10 +539,6 @@ def check_ci(pub: pd.DataFrame, n: int = 40) -> list[Check]:
     return out
 
 
-def _p_stars(p: float, levels: tuple[float, float]) -> int:
-    return 2 if p < levels[1] else 1 if p < levels[0] else 0
-
-
 def check_stars(pub: pd.DataFrame, n: int = 40) -> list[Check]:
     """Significance stars: Table 4 (r, two-tailed, * .05 ** .01) and Table 5 (t = B/SE, * .05 ** .001)."""
     out = []
@@ -551,7 +549,7 @@ def check_stars(pub: pd.DataFrame, n: int = 40) -> list[Check]:
         for x in (lo, hi):
             t = abs(x) * np.sqrt((n - 2) / (1 - x * x))
             ps.append(2 * stats.t.sf(t, n - 2))
-        expected = {_p_stars(p, (0.05, 0.01)) for p in ps}
+        expected = {len(stars(p, (0.05, 0.01))) for p in ps}
         ok = r.stars in expected
         line = _line(pub, "table4", "r", r.a, r.b)
         out.append(Check(f"stars of r (N = {n})", f"Table 4 {r.a}-{r.b} (line {line})", f"{r.r:.3f}{'*' * r.stars}",
@@ -561,7 +559,7 @@ def check_stars(pub: pd.DataFrame, n: int = 40) -> list[Check]:
     for r in co.itertuples():
         k = len(_step_predictors(r.model, r.step))
         p = 2 * stats.t.sf(abs(r.b / r.se_b), n - k - 1)
-        ok = r.stars == _p_stars(p, (0.05, 0.001))
+        ok = r.stars == len(stars(p, (0.05, 0.001)))
         line = _line(pub, "table5", "beta", f"model {r.model} step {r.step}", r.predictor)
         out.append(Check(f"stars of β (N = {n})", f"Table 5 model {r.model} step {r.step} {r.predictor} (line {line})",
                          f"{r.beta:.3f}{'*' * r.stars}", f"t = {r.b / r.se_b:.2f}, p = {p:.4f}",
@@ -637,15 +635,10 @@ def finding_for(audit: pd.DataFrame, group: str) -> int | None:
 # Rendering
 # ----------------------------------------------------------------------------------------------------------------
 
-def _md_escape(x) -> str:
-    return str(x).replace("|", "\\|").replace("\n", " ")
-
-
 def _md_table(df: pd.DataFrame, cols: list[str]) -> list[str]:
-    lines = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
-    for row in df[cols].itertuples(index=False):
-        lines.append("| " + " | ".join("" if pd.isna(v) else _md_escape(v) for v in row) + " |")
-    return lines
+    """Markdown lines of the columns `cols` of `df`, values as printed by `str`, missing as empty."""
+    rows = [["" if pd.isna(v) else v for v in row] for row in df[cols].itertuples(index=False)]
+    return markdown_table(cols, rows).splitlines()
 
 
 def render_markdown(audit: pd.DataFrame) -> str:
@@ -661,7 +654,7 @@ def render_markdown(audit: pd.DataFrame) -> str:
         rows = audit[(audit["finding"] == r.finding) & (audit["status"] == "inconsistent")]
         out += [f"### Finding #{r.finding}: {r.title}", ""]
         first = rows.iloc[0]
-        out += [FINDING_NOTES.get(r.group, ""), "", f"First row: {_md_escape(first['explanation'])}", "",
+        out += [FINDING_NOTES.get(r.group, ""), "", f"First row: {md_cell(first['explanation'])}", "",
                 f"{len(rows)} inconsistent check(s):", ""]
         out += _md_table(rows.head(15), ["id", "check", "where", "reported", "recomputed"])
         if len(rows) > 15:

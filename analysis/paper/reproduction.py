@@ -18,6 +18,7 @@ import pandas as pd
 from analysis.paper import audit as A
 from analysis.paper import grim
 from analysis.paper import published as P
+from analysis.render import fmt_cell, markdown_table
 
 # tolerance per published quantity, with the reason (docs/paper_reproduction.md repeats these)
 TOLERANCES: dict[str, tuple[float, str]] = {
@@ -172,20 +173,12 @@ def largest_deltas(table: pd.DataFrame, k: int = 3, statuses: tuple[str, ...] | 
     return t.assign(abs_delta=t["delta"].abs()).nlargest(k, "abs_delta").drop(columns="abs_delta")
 
 
-def _fmt(x) -> str:
-    if isinstance(x, float):
-        return "" if not np.isfinite(x) else f"{x:.4f}"
-    return "" if x is None or (not isinstance(x, str) and pd.isna(x)) else str(x)
-
-
 def render_markdown(table: pd.DataFrame, source: str = "") -> str:
     """reproduction.md: summary counts, the three largest deltas, then every value."""
     cols = ["table", "quantity", "row", "column", "printed", "computed", "delta", "tolerance", "status", "audit_row"]
 
     def md(df: pd.DataFrame, cs: list[str]) -> list[str]:
-        out = ["| " + " | ".join(cs) + " |", "|" + "---|" * len(cs)]
-        out += ["| " + " | ".join(_fmt(v) for v in row) + " |" for row in df[cs].itertuples(index=False)]
-        return out
+        return markdown_table(cs, [[fmt_cell(v, 4) for v in row] for row in df[cs].itertuples(index=False)]).splitlines()
 
     s = summary(table)
     lines = ["# Reproduction of the paper's Tables 3-5", "",
@@ -195,8 +188,9 @@ def render_markdown(table: pd.DataFrame, source: str = "") -> str:
              "## Summary", ""] + md(s, ["status", "count"]) + ["", "## Three largest deltas", ""]
     lines += md(largest_deltas(table), cols) + ["", "Among values that are not audit findings:", ""]
     lines += md(largest_deltas(table, statuses=("match", "within tolerance", "miss")), cols)
-    lines += ["", "## Tolerances", "", "| quantity | tolerance | why |", "|---|---|---|"]
-    lines += [f"| {q} | {t:g} | {why} |" for q, (t, why) in TOLERANCES.items()]
+    lines += ["", "## Tolerances", ""]
+    lines += markdown_table(["quantity", "tolerance", "why"],
+                            [[q, f"{t:g}", why] for q, (t, why) in TOLERANCES.items()]).splitlines()
     lines += ["", "## All values", ""] + md(table, cols)
     return "\n".join(lines) + "\n"
 
