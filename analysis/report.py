@@ -172,8 +172,9 @@ def reproduction_step(cfg: ReportConfig) -> None:
 
 def core_figures_step(cfg: ReportConfig) -> None:
     from pedas.figures_core import plot_all
+    from pedas.route_study import study_route
 
-    plot_all(cfg.out / "figures")
+    plot_all(cfg.out / "figures", route=study_route())
 
 
 def study_figures_step(cfg: ReportConfig) -> None:

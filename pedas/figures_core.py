@@ -208,9 +208,9 @@ def plot_green_wave(out_dir: Path, route: Route | None = None) -> list[Path]:
     return _save(fig, out_dir, "green_wave_space_time")
 
 
-def plot_all(out_dir: Path) -> list[Path]:
-    """All core figures into out_dir."""
+def plot_all(out_dir: Path, route: Route | None = None) -> list[Path]:
+    """All core figures into out_dir; the DP profile (Fig. 2b) over `route` (default: a synthetic mixed route)."""
     out: list[Path] = []
-    for fn in (plot_aero_linearisation, plot_speed_correction, plot_power_map, plot_dp_profile, plot_green_wave):
+    for fn in (plot_aero_linearisation, plot_speed_correction, plot_power_map, plot_green_wave):
         out += fn(out_dir)
-    return out
+    return out + plot_dp_profile(out_dir, route=route)
