@@ -44,6 +44,7 @@ def test_tex_escape_is_one_pass():
 def test_tex_escape_symbols():
     assert tex_escape("λ, Cα, β, ΔR²") == r"$\lambda$, C$\alpha$, $\beta$, $\Delta$R$^2$"
     assert tex_escape("PEoU3† 0.1 – 0.2, PU -> BI") == r"PEoU3$^\dagger$ 0.1 -- 0.2, PU $\rightarrow$ BI"
+    assert tex_escape("≈ 0.5 ± 0.1 × 2 − 1") == r"$\approx$ 0.5 $\pm$ 0.1 $\times$ 2 $-$ 1"
 
 
 def test_tex_cell_bold_and_stars():

@@ -174,3 +174,20 @@ def test_failing_step_is_named_and_exits_non_zero(cli, tmp_path):
     r = cli("report", "--out", tmp_path / "r", "--cache-dir", tmp_path / "c", db=db)
     assert r.code != 0
     assert r.err.strip().splitlines()[-1].startswith("pedas-study: error: report step 'survey' failed: ")
+
+
+@pytest.mark.slow
+@pytest.mark.sumo
+def test_full_reference_report_through_the_cli(cli, tmp_path):
+    """The whole reference study (34 drivers x 2 drives) once, as `make report` runs it, on a temporary store."""
+    out = tmp_path / "reports"
+    r = cli("report", "--reference", "--out", out, "--workers", "2", db=tmp_path / "study.duckdb")
+    assert r.code == 0, r.err
+    assert "reproduction:" in r.out and "miss" not in r.out
+    rep = pd.read_csv(out / "reproduction.csv")
+    assert not (rep["status"] == "miss").any()
+    per = pd.read_csv(out / "drives" / "per_participant.csv")
+    assert per["participant_id"].nunique() == 34
+    bands = pd.read_csv(out / "drives" / "bands.csv")
+    assert len(bands) == 4 and bands["our_value"].notna().all()
+    _check_tables_parse(out / "tables")
