@@ -41,6 +41,7 @@ YELLOW_GO_DECEL = 3.0  # m/s^2, at yellow the vehicle goes when stopping would n
 FALLBACK_DECEL = 3.0  # m/s^2, deceleration of the safe braking fallback plan
 V_STOPPED = 0.3  # m/s, below this the vehicle counts as standing (stop-sign dwell)
 BAND_TOL = 0.5  # m, tolerance on the stop-line band when counting the dwell
+SS_PASSED = 1.0  # m past the stop sign after which it counts as passed (missed if the dwell was not served)
 PSI_RECOVERY = 0.2  # m per sample: rate at which the planned safe-distance margin may recover to SAFE_BACKOFF
 BLEND_STEPS = 10  # samples (2 s) of rate-limited advice after a controller switch
 BLEND_MAX_STEP = 0.4  # m/s per sample (2 m/s^2): bound on the advised-speed change during a hand-over
@@ -186,13 +187,15 @@ class PedasController:
         d_tl = tl.s - s if tl is not None else None
         ss = stops[self._ss_i] if self._ss_i < len(stops) else None
         d_ss = ss.s - s if ss is not None else None
-        if ss is not None and d_ss < -1.0:  # passed without completing the dwell
+        if ss is not None and d_ss < -SS_PASSED:  # passed without completing the dwell
             st["stops_missed"] += 1
             self._ss_i += 1
             self._dwell = 0.0
             ss = stops[self._ss_i] if self._ss_i < len(stops) else None
             d_ss = ss.s - s if ss is not None else None
-        if ss is not None and v < V_STOPPED and -BAND_TOL <= d_ss <= self._d_sits + BAND_TOL:
+        # a standstill anywhere short of "passed" serves the stop; a narrower window would leave a car that crept
+        # just past the line waiting for an advice of 0 km/h forever
+        if ss is not None and v < V_STOPPED and -SS_PASSED <= d_ss <= self._d_sits + BAND_TOL:
             self._dwell += dt_real
             if self._dwell >= STOP_DWELL - 1e-9:
                 st["stops_served"] += 1

@@ -56,6 +56,18 @@ def test_stop_sign_stop_in_band_and_dwell():
     assert not any(r["adv"].fallback for r in rows)
 
 
+def test_standstill_just_past_the_stop_sign_serves_the_stop():
+    """A driver who crept 0.8 m past the sign and stopped there: after the dwell the advice lets them go on."""
+    route = Route.synthetic(length=700.0, stops=[StopSign("SS1", 300.0)])
+    ctrl = PedasController(route)
+    t, advice = 0.0, []
+    while t < STOP_DWELL + 1.0:
+        advice.append(ctrl.step(t, 300.8, 0.0, None).v_advice)
+        t += DT
+    assert ctrl.stats["stops_served"] == 1 and ctrl.stats["stops_missed"] == 0
+    assert advice[-1] > 0.0
+
+
 def test_red_light_is_never_crossed():
     # red from 0 to 40 s at 300 m: a 12 m/s vehicle would arrive at 25 s
     tl = TrafficLight("TL1", 300.0, (("red", 40.0), ("green", 30.0), ("yellow", 3.0)))
