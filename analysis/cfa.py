@@ -188,7 +188,9 @@ def heywood_cases(loadings: pd.DataFrame, psi: pd.DataFrame, S: pd.DataFrame, ta
     for _, r in loadings.iterrows():
         s_ii = S.loc[r["item"], r["item"]]
         if r["error_var"] <= 1e-6 * s_ii:
-            out.append(f"{tag}Heywood case: error variance of {r['item']} = {r['error_var']:.4g} (<= 0)")
+            # a variance at its bound is zero up to optimiser noise (~1e-18); print it as such
+            ev = 0.0 if abs(r["error_var"]) < 1e-10 else r["error_var"]
+            out.append(f"{tag}Heywood case: error variance of {r['item']} = {ev:.4g} (<= 0)")
         elif abs(r["loading"]) >= 1.0:
             out.append(f"{tag}Heywood case: standardized loading of {r['item']} = {r['loading']:.3f} (|lambda| >= 1)")
     for c in psi.index:

@@ -104,7 +104,7 @@ def build_reference_store(cfg: ReportConfig) -> None:
 
 
 def survey_step(cfg: ReportConfig) -> None:
-    from analysis.survey import analyze_survey, responses_from_store
+    from analysis.survey import CSV_FLOAT, analyze_survey, responses_from_store
 
     with _open_store(cfg, read_only=True) as st:
         responses = responses_from_store(st)
@@ -118,7 +118,8 @@ def survey_step(cfg: ReportConfig) -> None:
     if cfg.compare_paper:
         from analysis.paper.reproduction import reproduce
 
-        reproduce(res).to_csv(out / "reproduction_tables.csv", index=False, lineterminator="\n")
+        reproduce(res).to_csv(out / "reproduction_tables.csv", index=False, lineterminator="\n",
+                              float_format=CSV_FLOAT)
 
 
 def drives_step(cfg: ReportConfig) -> None:
@@ -150,7 +151,7 @@ def reproduction_step(cfg: ReportConfig) -> None:
     from analysis.paper.reproduction import render_markdown
 
     table = pd.read_csv(cfg.out / "survey" / "reproduction_tables.csv")
-    table.to_csv(cfg.out / "reproduction.csv", index=False, lineterminator="\n")
+    table.to_csv(cfg.out / "reproduction.csv", index=False, lineterminator="\n", float_format="%.12g")
     md = [render_markdown(table, source="the reference survey in the study store").rstrip(), ""]
     bands = cfg.out / "drives" / "bands.csv"
     md += ["# Objective evaluation (Section 5.1) of the simulated reference cohort", ""]

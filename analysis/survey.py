@@ -73,6 +73,18 @@ def load_models(models=None) -> list[ModelSpec]:
     return [m if isinstance(m, ModelSpec) else ModelSpec.from_dict(m) for m in models]
 
 
+# 12 significant digits, and |x| < 1e-10 written as 0: the CFA optimiser's last bits (~1e-13, and variances at
+# their bound ~1e-18) vary between runs; the files should not
+CSV_FLOAT = "%.12g"
+
+
+def _stable(frame: pd.DataFrame) -> pd.DataFrame:
+    num = frame.select_dtypes("number").columns.difference(frame.select_dtypes("bool").columns)
+    out = frame.copy()
+    out[num] = out[num].mask(out[num].abs() < 1e-10, 0.0)
+    return out
+
+
 @dataclass
 class SurveyAnalysis:
     """All acceptance statistics of one survey; each table a tidy DataFrame in the DESIGN.md column contract."""
@@ -109,10 +121,10 @@ class SurveyAnalysis:
         paths = []
         for name, frame in self.tables().items():
             p = out / f"{name}.csv"
-            frame.to_csv(p, index=False)
+            _stable(frame).to_csv(p, index=False, float_format=CSV_FLOAT)
             paths.append(p)
         p = out / "composites.csv"
-        self.composites.to_csv(p, index=True, index_label="participant_id")
+        _stable(self.composites).to_csv(p, index=True, index_label="participant_id", float_format=CSV_FLOAT)
         paths.append(p)
         p = out / "warnings.txt"
         p.write_text("".join(w + "\n" for w in self.warnings))

@@ -165,3 +165,16 @@ def test_tables_are_rendered_from_the_frames(res):
     assert "| ATT1 |" in t3 and f"{ini.loc['ATT1', 'loading']:.3f}*" in t3 and "| PEoU3† |" in t3
     assert t5.count("Step ") == 8 and t5.count("Independent Variable - ") == 1 + 3 + 3 + 6
     assert r"$\beta$" in out["table5.tex"] and r"\textbf{" in out["table4.tex"]
+
+
+def test_reference_survey_files_are_byte_identical_between_runs(tmp_path):
+    """The reference survey has a Heywood case (BI): optimiser noise must not reach the written files."""
+    from pedas.paths import REFERENCE_DIR
+
+    responses = pd.read_csv(REFERENCE_DIR / "survey.csv")
+    outs = []
+    for k in range(2):
+        out = tmp_path / f"run{k}"
+        analyze_survey(responses, n_boot=50, seed=3).write(out)
+        outs.append({p.name: p.read_bytes() for p in sorted(out.iterdir())})
+    assert outs[0] == outs[1]

@@ -200,7 +200,7 @@ def write_reproduction(table: pd.DataFrame, out_dir: str | Path, source: str = "
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     p1, p2 = out / "reproduction.csv", out / "reproduction.md"
-    table.to_csv(p1, index=False, lineterminator="\n")
+    table.to_csv(p1, index=False, lineterminator="\n", float_format="%.12g")
     p2.write_text(render_markdown(table, source), encoding="utf-8")
     return [p1, p2]
 
