@@ -284,8 +284,8 @@ def build_pipeline(cfg: ReportConfig) -> Pipeline:
     if cfg.reference:
         from pedas.network import build_network
 
-        pipe.add(Step("network", lambda: build_network(), inputs=[NETWORK_DIR / f for f in
-                                                                  sorted(p.name for p in NETWORK_DIR.glob("*.*"))]))
+        sources = sorted(p for p in NETWORK_DIR.iterdir() if p.suffix in (".xml", ".json", ".netccfg"))
+        pipe.add(Step("network", lambda: build_network(), inputs=sources))
         pipe.add(Step("store", lambda: build_reference_store(cfg), after=["network"], outputs=[cfg.db],
                       inputs=[cfg.reference_dir, CODE["study"], CODE["pedas"], params]))
         store_inputs = []
