@@ -333,7 +333,7 @@ def store_kpis(st, drive_ids=None, params: KpiParams | None = None) -> pd.DataFr
         "SELECT DISTINCT drive_id FROM kpi_src_raw WHERE p_batt IS NULL OR a IS NULL ORDER BY 1").fetchall()]
     if missing:
         _fill_missing(con, missing)
-        con.execute(f"""CREATE OR REPLACE TEMP TABLE kpi_src AS
+        con.execute("""CREATE OR REPLACE TEMP TABLE kpi_src AS
             SELECT r.drive_id, r.idx, r.t, r.s, r.v, r.segment, r.speed_limit, coalesce(r.a, f.a) AS a,
                    coalesce(r.p_batt, f.p_batt) AS p_batt, r.tl_id, r.tl_state, r.d_tl
             FROM kpi_src_raw r LEFT JOIN kpi_fill f USING (drive_id, idx) ORDER BY r.drive_id, r.idx""")

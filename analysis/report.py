@@ -26,8 +26,7 @@ from analysis.pipeline import Pipeline, Step, StepResult
 from analysis.render import write_table
 from pedas.paths import NETWORK_DIR, PAPER_DIR, REFERENCE_DIR, REPO_ROOT
 
-PKG = REPO_ROOT
-CODE = {name: PKG / name for name in ("study", "pedas", "analysis")}
+CODE = {name: REPO_ROOT / name for name in ("study", "pedas", "analysis")}
 
 
 @dataclass

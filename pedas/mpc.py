@@ -34,6 +34,7 @@ import osqp
 import scipy.sparse as sp
 
 from pedas.constants import DT, N_HORIZON
+from pedas.power import PowerMap
 
 SHIFT_WARM_START = False  # warm start from the previous solution shifted by one sample (measured: no gain)
 KN = 1000.0  # N per kN: forces inside the QP are in kN
@@ -65,7 +66,7 @@ class MpcModel:
     """The numbers of the vehicle/power model the QP needs (SI units).
 
     ``c_aero`` = 0.5 rho A_f c_w (N s^2/m^2); the linearised drag is ``c_aero (p1 v + p2)`` (Sec. 3.3, Fig. 5a).
-    ``F_t,max ~ p3 v + p4`` (eq. 6a, N). ``a00..a02``: power map eq. (5), W with v in m/s and F in N.
+    ``F_t,max ~ p3 v + p4`` (eq. 6a, N). ``power``: the fitted power map eq. (5), W with v in m/s and F in N.
     """
 
     m_eq: float
@@ -76,12 +77,7 @@ class MpcModel:
     p2: float
     p3: float
     p4: float
-    a00: float
-    a10: float
-    a01: float
-    a11: float
-    a20: float
-    a02: float
+    power: PowerMap
     F_b_max: float
     g: float = 9.81
 
@@ -108,8 +104,7 @@ class MpcWeights:
 
 def power_hessian_eigs(m: MpcModel) -> np.ndarray:
     """Eigenvalues of the Hessian of eq. (5) in (v [m/s], F_t [N]); both >= 0 iff the power map is convex."""
-    H = np.array([[2.0 * m.a20, m.a11], [m.a11, 2.0 * m.a02]])
-    return np.linalg.eigvalsh(H)
+    return np.linalg.eigvalsh(m.power.hessian)
 
 
 @dataclass
@@ -168,12 +163,13 @@ class SparseMpc:
         eig = power_hessian_eigs(mm)
         self.power_convex = bool(eig.min() >= -1e-12)
         # power map in kW with F in kN: P = a00' + a10' v + a01' F + a11' v F + a20' v^2 + a02' F^2
-        self.pa00 = mm.a00 / KW
-        self.pa10 = mm.a10 / KW
-        self.pa01 = mm.a01 * KN / KW
-        self.pa11 = mm.a11 * KN / KW
-        self.pa20 = mm.a20 / KW
-        self.pa02 = mm.a02 * KN * KN / KW
+        pm = mm.power
+        self.pa00 = pm.a00 / KW
+        self.pa10 = pm.a10 / KW
+        self.pa01 = pm.a01 * KN / KW
+        self.pa11 = pm.a11 * KN / KW
+        self.pa20 = pm.a20 / KW
+        self.pa02 = pm.a02 * KN * KN / KW
         self.lin_v2 = (not self.power_convex) and self.pa20 < 0   # linearise a negative curvature, keep a positive one
         self.lin_f2 = (not self.power_convex) and self.pa02 < 0
 
@@ -453,8 +449,7 @@ def vehicle_model(params=None) -> MpcModel:
     lm = linear_model(p)
     pm = power_map(p)
     return MpcModel(m_eq=p.m_eq, m_v=p.m_v, c_r=p.c_r, c_aero=lm.c_a, p1=lm.p1, p2=lm.p2, p3=lm.p3, p4=lm.p4,
-                    a00=pm.a00, a10=pm.a10, a01=pm.a01, a11=pm.a11, a20=pm.a20, a02=pm.a02,
-                    F_b_max=p.F_b_max, g=p.g)
+                    power=pm, F_b_max=p.F_b_max, g=p.g)
 
 
 def solve_qp_cvxpy(P: sp.spmatrix, q: np.ndarray, A: sp.spmatrix, l: np.ndarray, u: np.ndarray,

@@ -22,7 +22,7 @@ from typing import Any, Callable
 import numpy as np
 import pandas as pd
 
-from study.errors import UserError
+from study.errors import UserError, check_choice
 
 CONDITIONS = ("baseline", "pedas")
 SOURCES = ("import", "simulation")
@@ -275,10 +275,8 @@ def _store_drive(st, participant_id: str, condition: str, frame: pd.DataFrame, c
                  progress: Callable[[str], None] | None) -> DriveImport:
     from study.participants import require
 
-    if condition not in CONDITIONS:
-        raise UserError(f"condition must be one of {'|'.join(CONDITIONS)}, not {condition!r}")
-    if source not in SOURCES:
-        raise UserError(f"source must be one of {'|'.join(SOURCES)}, not {source!r}")
+    check_choice("condition", condition, CONDITIONS)
+    check_choice("source", source, SOURCES)
     with st.transaction():
         require(st, participant_id)
         have = st.con.execute("SELECT drive_id, checksum, file_name FROM drives WHERE participant_id = ? "

@@ -4,3 +4,10 @@ from __future__ import annotations
 
 class UserError(ValueError):
     """Bad input or a refused operation; the message is shown to the user as is (one line)."""
+
+
+def check_choice(name: str, value, allowed: tuple[str, ...]):
+    """`value` if it is one of `allowed`, else UserError "<name> must be one of a|b|c, not 'x'"."""
+    if value not in allowed:
+        raise UserError(f"{name} must be one of {'|'.join(allowed)}, not {value!r}")
+    return value

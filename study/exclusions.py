@@ -11,7 +11,7 @@ from typing import Any
 
 import pandas as pd
 
-from study.errors import UserError
+from study.errors import UserError, check_choice
 
 SCOPES = ("all", "objective", "subjective")
 REASONS = ("motion_sickness", "technical_issue", "incomplete_survey", "withdrawn", "other")
@@ -22,10 +22,8 @@ def exclude(st, participant_id: str, scope: str, reason: str, note: str | None =
     """Record an exclusion (audited). One exclusion per participant and scope."""
     from study.participants import require
 
-    if scope not in SCOPES:
-        raise UserError(f"scope must be one of {'|'.join(SCOPES)}, not {scope!r}")
-    if reason not in REASONS:
-        raise UserError(f"reason must be one of {'|'.join(REASONS)}, not {reason!r}")
+    check_choice("scope", scope, SCOPES)
+    check_choice("reason", reason, REASONS)
     with st.transaction():
         require(st, participant_id)
         have = st.one("SELECT reason FROM exclusions WHERE participant_id = ? AND scope = ?", [participant_id, scope])
@@ -42,14 +40,12 @@ def revoke(st, participant_id: str, scope: str) -> None:
             raise UserError(f"{participant_id} has no exclusion with scope {scope}")
 
 
+# exclusion scopes that remove a participant from an analysis of each kind ("all": every scope counts)
+_EXCLUDING = {"objective": ("all", "objective"), "subjective": ("all", "subjective"), "all": SCOPES}
+
+
 def _excluding_scopes(analysis: str) -> tuple[str, ...]:
-    if analysis == "objective":
-        return ("all", "objective")
-    if analysis == "subjective":
-        return ("all", "subjective")
-    if analysis == "all":  # in every analysis: no exclusion of any scope
-        return SCOPES
-    raise UserError(f"analysis scope must be one of {'|'.join(ANALYSES)}, not {analysis!r}")
+    return _EXCLUDING[check_choice("analysis scope", analysis, ANALYSES)]
 
 
 def included_participants(st, scope: str) -> list[str]:

@@ -19,10 +19,9 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
-from study.errors import UserError
+from study.errors import UserError, check_choice
 
 FORMATS = ("csv", "parquet", "sav")
 
@@ -273,8 +272,7 @@ def _write(fmt: str, table: str, df: pd.DataFrame, path: Path, item_var, item_va
 
 def export(st, fmt: str, outdir: str | Path, deidentify: bool = False) -> ExportResult:
     """Write every table (and the wide survey files) to `outdir` as `fmt` (csv | parquet | sav)."""
-    if fmt not in FORMATS:
-        raise UserError(f"export format must be one of {'|'.join(FORMATS)}, not {fmt!r}")
+    check_choice("export format", fmt, FORMATS)
     outdir = Path(outdir)
     if outdir.exists() and not outdir.is_dir():
         raise UserError(f"{outdir} exists and is not a directory")

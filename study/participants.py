@@ -7,7 +7,7 @@ from typing import Any
 
 import pandas as pd
 
-from study.errors import UserError
+from study.errors import UserError, check_choice
 
 ID_PATTERN = re.compile(r"^P[0-9]{3,}$")  # ASCII digits only, as the schema's CHECK
 GENDERS = ("female", "male", "diverse", "undisclosed")
@@ -44,11 +44,7 @@ def _int(name: str, value: Any, lo: int, hi: int) -> int | None:
 
 
 def _choice(name: str, value: str | None, allowed: tuple[str, ...]) -> str | None:
-    if value is None:
-        return None
-    if value not in allowed:
-        raise UserError(f"{name} must be one of {'|'.join(allowed)}, not {value!r}")
-    return value
+    return None if value is None else check_choice(name, value, allowed)
 
 
 def add_participant(st, participant_id: str, age: int | None = None, gender: str | None = None,

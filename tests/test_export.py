@@ -47,7 +47,7 @@ def db(tmp_db):
 def test_every_table_exported(db, tmp_path, fmt):
     out = tmp_path / fmt
     with Store.open(db) as st:
-        r = export(st, fmt, out)
+        export(st, fmt, out)
         tables = st.tables()
         counts = st.counts()
     for t in tables:

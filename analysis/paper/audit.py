@@ -414,7 +414,7 @@ def check_table4_vs_table5(pub: pd.DataFrame) -> list[Check]:
             "ok" if ok else "inconsistent",
             ("agrees (two/three-predictor identities β = R_xx⁻¹ r_xy)" if ok else
              "Table 4's correlations do not give Table 5's β") +
-            f"; with r = β from Table 5's one-predictor steps, β imply r_xy = "
+            "; with r = β from Table 5's one-predictor steps, β imply r_xy = "
             + ", ".join(f"{p} {v:.3f}" for p, v in zip(preds, rxy_t5))
             + (" - consistent" if agree_t5 else " - still inconsistent"),
             "" if ok else "t4_t5"))
