@@ -160,6 +160,33 @@ def test_second_link_cannot_see_first_participants_page(browser, served):
     page.close()
 
 
+def test_fast_changes_to_one_item_are_stored_in_the_order_given(browser, served):
+    """Arrow keys fire one change per step; the server must end up with the last one even when an earlier
+    request is slow (here: the answer "2" is held back 0.6 s, so it would arrive after "3" and "4")."""
+    import time
+
+    from flask import request
+
+    st, srv, lock = served
+
+    @srv.app.before_request
+    def hold_back_two():
+        if request.path.endswith("/answer") and request.form.get("value") == "2":
+            time.sleep(0.6)
+
+    with lock:
+        token = sv.issue_link(st, "P002")
+    page = browser.new_page(viewport={"width": 1024, "height": 768})
+    page.goto(f"{srv.url}/s/{token}")
+    pick_by_keyboard(page, "PU1", 4)                                  # 1, 2, 3, 4 in quick succession
+    wait_saved(page)
+    with lock:
+        assert sv.draft(st, "P002")["PU1"].value == 4
+    page.reload()
+    assert checked_values(page)["PU1"] == 4
+    page.close()
+
+
 def test_keyboard_focus_is_visible(browser, served):
     st, srv, lock = served
     with lock:

@@ -27,7 +27,32 @@
     progress.textContent = done + " of " + names.length + " questions answered.";
   }
 
+  // One request in flight per item, the newest value queued behind it: arrow keys on a radio group fire a change
+  // per step, and parallel requests could reach the server out of order and leave an older value stored.
+  var inflight = {};
+  var queued = {};
+
   function save(name, value) {
+    if (inflight[name]) {
+      if (!(name in queued)) { setPending(1); }
+      queued[name] = value;
+      return;
+    }
+    send(name, value);
+  }
+
+  function next(name) {
+    inflight[name] = false;
+    if (name in queued) {
+      var value = queued[name];
+      delete queued[name];
+      setPending(-1);
+      send(name, value);
+    }
+  }
+
+  function send(name, value) {
+    inflight[name] = true;
     setPending(1);
     msg.textContent = "Saving…";
     var body = new URLSearchParams();
@@ -36,19 +61,25 @@
     fetch(url, { method: "POST", body: body, credentials: "same-origin" })
       .then(function (r) { return r.json().then(function (j) { return { ok: r.ok, json: j }; }); })
       .then(function (res) {
-        setPending(-1);
         var item = form.querySelector('[data-item="' + name + '"]');
         if (res.ok) {
           if (item) { item.classList.remove("invalid", "save-failed"); }
-          if (pending === 0) { msg.textContent = "All answers saved (" + res.json.saved_at + " UTC)."; }
         } else {
           if (item) { item.classList.add("save-failed"); }
-          msg.textContent = "Not saved: " + (res.json.error || "error");
         }
+        // the status message is set before the count drops: a pending count of 0 means the message is final
+        if (!res.ok) {
+          msg.textContent = "Not saved: " + (res.json.error || "error");
+        } else if (pending === 1) {
+          msg.textContent = "All answers saved (" + res.json.saved_at + " UTC).";
+        }
+        setPending(-1);
+        next(name);
       })
       .catch(function () {
-        setPending(-1);
         msg.textContent = "Not saved: no connection. Your answers on this page are kept; please tell the researcher.";
+        setPending(-1);
+        next(name);
       });
   }
 
