@@ -1,7 +1,9 @@
 """The report: the incremental pipeline, and an end-to-end run on a reduced reference cohort."""
 from __future__ import annotations
 
+import os
 import shutil
+import subprocess
 from pathlib import Path
 
 import pandas as pd
@@ -95,6 +97,23 @@ def _check_tables_parse(tables: Path) -> None:
         assert r"\toprule" in t and r"\bottomrule" in t, tex
 
 
+def _check_tables_compile(tables: Path, work: Path) -> None:
+    """Every .tex table compiles with pdflatex (booktabs only) and loses no character to a missing glyph."""
+    pdflatex = shutil.which("pdflatex")
+    if pdflatex is None:
+        assert not os.environ.get("CI"), "CI compiles the LaTeX tables: .ci/run installs pdflatex"
+        return
+    inputs = "\n".join(f"\\input{{{t.resolve().as_posix()}}}\n\\clearpage" for t in sorted(tables.glob("*.tex")))
+    (work / "tables.tex").write_text("\\documentclass{article}\n\\usepackage{booktabs}\n"
+                                     "\\usepackage[a3paper,landscape,margin=1cm]{geometry}\n"
+                                     "\\begin{document}\n" + inputs + "\n\\end{document}\n")
+    p = subprocess.run([pdflatex, "-interaction=nonstopmode", "-halt-on-error", "tables.tex"], cwd=work,
+                       capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stdout[-3000:]
+    log = (work / "tables.log").read_text(errors="replace")
+    assert "Missing character" not in log, [ln for ln in log.splitlines() if "Missing character" in ln][:5]
+
+
 @pytest.mark.slow
 @pytest.mark.sumo
 def test_report_on_reduced_reference_cohort(tmp_path):
@@ -117,6 +136,7 @@ def test_report_on_reduced_reference_cohort(tmp_path):
         for ext in (".csv", ".md", ".tex"):
             assert (out / "tables" / f"{stem}{ext}").exists() or ext == ".csv", stem + ext
     _check_tables_parse(out / "tables")
+    _check_tables_compile(out / "tables", tmp_path)
     rep = pd.read_csv(out / "reproduction.csv")
     assert len(rep) > 100 and not (rep["status"] == "miss").any()
     html = (out / "index.html").read_text()
