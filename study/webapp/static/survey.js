@@ -62,16 +62,13 @@
       .then(function (r) { return r.json().then(function (j) { return { ok: r.ok, json: j }; }); })
       .then(function (res) {
         var item = form.querySelector('[data-item="' + name + '"]');
+        // the message is set before the count drops: a pending count of 0 means the message is final
         if (res.ok) {
           if (item) { item.classList.remove("invalid", "save-failed"); }
+          if (pending === 1) { msg.textContent = "All answers saved (" + res.json.saved_at + " UTC)."; }
         } else {
           if (item) { item.classList.add("save-failed"); }
-        }
-        // the status message is set before the count drops: a pending count of 0 means the message is final
-        if (!res.ok) {
           msg.textContent = "Not saved: " + (res.json.error || "error");
-        } else if (pending === 1) {
-          msg.textContent = "All answers saved (" + res.json.saved_at + " UTC).";
         }
         setPending(-1);
         next(name);
