@@ -138,14 +138,14 @@ def advance(st, participant_id: str, phase: str, note: str | None = None,
     """
     from study.scheduling import ensure_order
 
-    ensure_order(st, participant_id)  # multi-order protocols: balanced assignment before the first phase
-    proto = protocol_of(st, participant_id)
-    idx = proto.index(phase)
     when = _when(at)
-    with st.transaction():
+    with st.transaction():  # the order assignment too: a refused step leaves the store as it was
         reason = _closed_by_exclusion(st, participant_id)
         if reason:
             raise UserError(f"{participant_id} is excluded from all analyses ({reason}); the protocol is closed")
+        ensure_order(st, participant_id)  # multi-order protocols: balanced assignment before the first phase
+        proto = protocol_of(st, participant_id)
+        idx = proto.index(phase)
         ev = _events(st, participant_id)
         done = list(ev["phase"])
         if phase in done:

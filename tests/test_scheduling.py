@@ -155,6 +155,22 @@ def test_counterbalanced_participant_follows_assigned_order(tmp_db):
         advance(st, "P002", "pedas_intro")
 
 
+@pytest.mark.parametrize("phase, msg", [("warmup", "unknown phase"), ("baseline_drive", "out of order")])
+def test_refused_first_step_assigns_no_order(tmp_db, phase, msg):
+    """The first step of a counterbalanced participant assigns the order; a refused one leaves no trace."""
+    from study.participants import add_participant
+    from study.protocol import advance
+
+    with Store.open(tmp_db, actor="tester") as st:
+        add_participant(st, "P001", protocol="counterbalanced_v1")
+        before = _counts(st)
+        with pytest.raises(UserError, match=msg):
+            advance(st, "P001", phase)
+        assert _counts(st) == before
+        advance(st, "P001", "familiarisation")
+        assert st.one("SELECT count(*) FROM order_assignments") == 1
+
+
 def test_ics_parses_and_holds_every_appointment(st):
     from icalendar import Calendar
 
