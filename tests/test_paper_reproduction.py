@@ -51,6 +51,29 @@ def test_status_rules():
     assert table.loc[("table4", "r", "BI", "SN"), "status"] == "miss"  # no finding explains it
 
 
+def test_a_loading_is_credited_to_an_audit_finding_only_with_evidence_about_its_construct():
+    """Finding #5 (printed loadings too high for the printed alpha) explains a low loading only through an
+    inconsistent audit row about the same construct; without one the value is a miss."""
+    pub = P.load_published()
+    fake = _fake_analysis(pub)
+    lo = fake.loadings
+    for item in ("SN1", "PU1"):
+        lo.loc[(lo["stage"] == "final") & (lo["item"] == item), "loading"] -= 0.2
+    audit = A.run_audit(pub)
+    table = RP.reproduce(fake, pub, audit).set_index(["table", "quantity", "row", "column"])
+    where = audit.set_index("id")["where"]
+    for item, construct in (("SN1", "SN"), ("PU1", "PU")):
+        row = table.loc[("table3", "loading", item, "loading")]
+        assert row["status"] == "audit finding #5"
+        assert f" {construct} (line" in where[row["audit_row"]]
+    # the same audit without any inconsistent row about SN: the SN loading is no longer explained
+    sn = audit["where"].str.contains(r"\bSN \(line") & (audit["group"] == "loadings_vs_alpha")
+    table = RP.reproduce(fake, pub, audit.assign(status=audit["status"].where(~sn, "ok")))
+    table = table.set_index(["table", "quantity", "row", "column"])
+    assert table.loc[("table3", "loading", "SN1", "loading"), "status"] == "miss"
+    assert table.loc[("table3", "loading", "PU1", "loading"), "status"] == "audit finding #5"
+
+
 @pytest.fixture(scope="module")
 def reproduction():
     from analysis.survey import analyze_survey

@@ -64,8 +64,11 @@ def _finding_group(table: str, quantity: str, row: str, column: str) -> str | No
     return None
 
 
-def _specific_row(hits: pd.DataFrame, table: str, row: str, column: str) -> str:
-    """The audit row of a finding that is about this very value when there is one, else the finding's first row."""
+def _specific_row(hits: pd.DataFrame, table: str, row: str, column: str, group: str) -> str | None:
+    """The audit row of a finding that is about this very value when there is one, else the finding's first row.
+
+    For the loadings-vs-alpha finding a Table 3/4 value needs evidence about its own construct (a check of that
+    construct in Table 3 or of its B/beta in Table 5): None when there is none, and the value stays a miss."""
     label = {"table3": "Table 3", "table4": "Table 4", "table5": "Table 5"}[table]
     construct = row.rstrip("0123456789") if table == "table3" else row
     for pattern in (f"{label} {row} " + (f"{column} " if table == "table5" and column else ""),
@@ -73,6 +76,9 @@ def _specific_row(hits: pd.DataFrame, table: str, row: str, column: str) -> str:
         m = hits[hits["where"].str.startswith(pattern)]
         if len(m):
             return str(m["id"].iloc[0])
+    if group == "loadings_vs_alpha" and table in ("table3", "table4"):
+        m = hits[hits["where"].str.match(rf"Table [35] .*\b{construct} \(line")]
+        return str(m["id"].iloc[0]) if len(m) else None
     if table == "table4" and row != column:  # Table 4 r vs a Table 5 step
         for step_row, pair in (("model 1 step 1", {"PEoU", "PU"}), ("model 2 step 1", {"PEoU", "ATT"})):
             m = hits[hits["where"].str.contains(step_row)]
@@ -147,10 +153,10 @@ def reproduce(analysis, published: pd.DataFrame | None = None, audit: pd.DataFra
         if status == "miss":
             group = _finding_group(r.table, r.quantity, r.row, r.column)
             k = A.finding_for(aud, group) if group else None
-            if k is not None:
-                finding = k
-                hit = aud[(aud["group"] == group) & (aud["status"] == "inconsistent")]
-                audit_row = _specific_row(hit, r.table, r.row, r.column)
+            hit = aud[(aud["group"] == group) & (aud["status"] == "inconsistent")]
+            evidence = _specific_row(hit, r.table, r.row, r.column, group) if k is not None else None
+            if evidence is not None:
+                finding, audit_row = k, evidence
                 status = f"audit finding #{k}"
                 note = A.FINDING_TITLES.get(group, group)
         rows.append([r.table, r.quantity, r.row, r.column, int(r.line), r.printed, float(r.value), value, delta,
