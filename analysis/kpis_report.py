@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from analysis.band_diagnostics import band_diagnostics, diagnostics_markdown
 from analysis.figures_drives import write_figures
 from analysis.savings import ObjectiveResult, objective_results, reproduction_bands
 from analysis.tables_drives import bands_markdown, kpi_markdown, style_cells, style_table, write_tables
@@ -46,7 +47,9 @@ def analyze_drives(st, out_dir: str | Path, participant: str = "P006", params=No
     bands = reproduction_bands(result.summary)
     files = write_tables(result, out)
     bands.to_csv(out / "bands.csv", index=False)
-    files.append(out / "bands.csv")
+    diag = band_diagnostics(st, result, params)
+    diag.to_csv(out / "band_diagnostics.csv", index=False, float_format="%.12g")
+    files += [out / "bands.csv", out / "band_diagnostics.csv"]
     figures = write_figures(st, result, out / "figures", participant)
     for v in figures.values():
         if not isinstance(v, str):
@@ -55,7 +58,8 @@ def analyze_drives(st, out_dir: str | Path, participant: str = "P006", params=No
     md = ["# Objective evaluation", "",
           f"Participants with both drives: {result.n}. Excluded (objective scope): "
           f"{', '.join(result.excluded) or 'none'}. Without a complete pair: {', '.join(result.incomplete) or 'none'}.",
-          "", (out / "style_table.md").read_text(encoding="utf-8"), bands_markdown(bands), "## Figures", ""]
+          "", (out / "style_table.md").read_text(encoding="utf-8"), bands_markdown(bands),
+          diagnostics_markdown(diag), "## Figures", ""]
     for k, v in figures.items():
         md.append(f"- {k}: " + (f"not drawn ({v})" if isinstance(v, str)
                                  else ", ".join(f"[{p.name}](figures/{p.name})" for p in v)))

@@ -157,10 +157,15 @@ def reproduction_step(cfg: ReportConfig) -> None:
     if bands.exists():
         from analysis.tables_drives import bands_markdown
 
-        md += [bands_markdown(pd.read_csv(bands)).rstrip(), "",
+        from analysis.band_diagnostics import diagnostics_markdown, why_missed
+
+        bands_df = pd.read_csv(bands)
+        diag = pd.read_csv(bands.with_name("band_diagnostics.csv"))
+        md += [bands_markdown(bands_df).rstrip(), "",
                "The drives are simulated by virtual participants whose parameters were chosen for realism, not "
-               "tuned to these bands; a band that does not hold is reported as such (see docs/kpis.md, "
-               "docs/drivers.md).", ""]
+               "tuned to these bands; a band that does not hold is reported as such, with what lies behind it:", "",
+               diagnostics_markdown(diag).rstrip(), ""]
+        md += [line for w in why_missed(bands_df, diag) for line in (f"- {w}", "")]
     else:
         md += ["No drives in the store.", ""]
     audit = pd.read_csv(cfg.out / "paper" / "audit.csv")
@@ -284,9 +289,11 @@ def build_pipeline(cfg: ReportConfig) -> Pipeline:
         from pedas.network import build_network
 
         sources = sorted(p for p in NETWORK_DIR.iterdir() if p.suffix in (".xml", ".json", ".netccfg"))
-        pipe.add(Step("network", lambda: build_network(), inputs=sources))
+        pipe.add(Step("network", lambda: build_network(), inputs=[*sources, CODE["pedas"] / "network.py"]))
+        # the store is built by this module and analysis.paper.cohort besides study/ and pedas/
         pipe.add(Step("store", lambda: build_reference_store(cfg), after=["network"], outputs=[cfg.db],
-                      inputs=[cfg.reference_dir, CODE["study"], CODE["pedas"], params]))
+                      inputs=[cfg.reference_dir, CODE["study"], CODE["pedas"], Path(__file__),
+                              CODE["analysis"] / "paper" / "cohort.py", params]))
         store_inputs = []
     after_store = ["store"] if cfg.reference else []
     pipe.add(Step("survey", lambda: survey_step(cfg), outputs=[cfg.out / "survey"], after=after_store,

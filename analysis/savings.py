@@ -156,6 +156,12 @@ def _published(quantity: str, row: str, column: str = "all") -> float:
         return np.nan
 
 
+BAND_OVERALL = "mean overall energy savings within 5-15 %"
+BAND_HIGHWAY = "highway savings above urban savings (difference of means, pp)"
+BAND_VIOLATION = "speed-violation reduction within 30-60 %"
+BAND_RED = "red stops reduced by 40-80 %"
+
+
 def reproduction_bands(summary: pd.DataFrame) -> pd.DataFrame:
     """The issue's reproduction bands for a (simulated) cohort beside the paper's numbers: band, paper_value,
     our_value, holds (bool), note. Paper values come from ``analysis.paper.published`` (NaN when absent)."""
@@ -169,25 +175,25 @@ def reproduction_bands(summary: pd.DataFrame) -> pd.DataFrame:
 
     rows = []
     o = ours("saving_overall_pct")
-    rows.append({"band": "mean overall energy savings within 5-15 %", "lo": 5.0, "hi": 15.0,
+    rows.append({"band": BAND_OVERALL, "lo": 5.0, "hi": 15.0,
                  "paper_value": _published("energy_saving_mean", "overall"), "our_value": o,
                  "holds": bool(5.0 <= o <= 15.0) if pd.notna(o) else False,
                  "note": f"n={n('saving_overall_pct')}"})
     hw, ur = ours("saving_highway_pct"), ours("saving_urban_pct")
     p_hw, p_ur = _published("energy_saving_mean", "highway"), _published("energy_saving_mean", "urban")
-    rows.append({"band": "highway savings above urban savings (difference of means, pp)", "lo": 0.0,
+    rows.append({"band": BAND_HIGHWAY, "lo": 0.0,
                  "hi": np.inf, "paper_value": p_hw - p_ur, "our_value": hw - ur,
                  "holds": bool(hw > ur) if pd.notna(hw) and pd.notna(ur) else False,
                  "note": f"ours: highway {hw:.2f} % vs urban {ur:.2f} %"
                          + (f"; paper {p_hw:g} % vs {p_ur:g} %" if pd.notna(p_hw) else "")})
     o = ours("violation_reduction_pct")
-    rows.append({"band": "speed-violation reduction within 30-60 %", "lo": 30.0, "hi": 60.0,
+    rows.append({"band": BAND_VIOLATION, "lo": 30.0, "hi": 60.0,
                  "paper_value": _published("speed_violation_reduction_mean", "overall"), "our_value": o,
                  "holds": bool(30.0 <= o <= 60.0) if pd.notna(o) else False,
                  "note": f"mean over n={n('violation_reduction_pct')} participants with baseline violations"})
     o = ours("red_stop_reduction_pct")
     pooled = ours("red_stop_reduction_pooled_pct")
-    rows.append({"band": "red stops reduced by 40-80 %", "lo": 40.0, "hi": 80.0,
+    rows.append({"band": BAND_RED, "lo": 40.0, "hi": 80.0,
                  "paper_value": _published("red_stop_reduction_mean", "overall"), "our_value": o,
                  "holds": bool(40.0 <= o <= 80.0) if pd.notna(o) else False,
                  "note": f"mean over n={n('red_stop_reduction_pct')} participants with baseline red stops; "

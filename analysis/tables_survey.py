@@ -109,7 +109,11 @@ TITLES = {"item_flags": "Item deletion rules of the initial measurement model",
 
 
 def render_all(res) -> dict[str, str]:
-    """file name -> text for table3/4/5 in Markdown (.md) and LaTeX booktabs (.tex)."""
+    """file name -> text for table3/4/5 (and the item flags) in Markdown (.md), LaTeX booktabs (.tex) and CSV (.csv:
+    the cells as printed, one header row; the notes are in the .md and .tex)."""
+    import csv
+    import io
+
     out = {}
     for name, fn in (("table3", table3_rows), ("table4", table4_rows), ("table5", table5_rows),
                      ("item_flags", item_flags_rows)):
@@ -118,4 +122,7 @@ def render_all(res) -> dict[str, str]:
         out[f"{name}.md"] = markdown_table(header, rows, TITLES[name], notes, title_style="bold",
                                            notes_style="plain")
         out[f"{name}.tex"] = latex_table(header, rows, TITLES[name], notes, align="l" + "c" * (len(header) - 1))
+        buf = io.StringIO()
+        csv.writer(buf, lineterminator="\n").writerows([header] + [[c.replace("**", "") for c in r] for r in rows])
+        out[f"{name}.csv"] = buf.getvalue()
     return out

@@ -79,7 +79,7 @@ def test_analyze_drives_writes_tables_figures_and_bands(cli, cohort_db, tmp_path
     assert "5 participants with both drives" in r.out and "1 excluded" in r.out
     for name in ("kpis.csv", "per_participant.csv", "summary.csv", "style_table.csv", "style_table.md",
                  "style_table.tex", "participant_table.csv", "participant_table.md", "participant_table.tex",
-                 "bands.csv", "objective.md"):
+                 "bands.csv", "band_diagnostics.csv", "objective.md"):
         assert (out / name).stat().st_size > 0, name
     for stem in ("fig9a_savings", "fig9b_savings_urban_by_style", "fig9c_savings_highway_by_style",
                  "fig9d_savings_overall_by_style", "fig10_tl_green", "fig11_driving_behaviour",
@@ -98,6 +98,16 @@ def test_analyze_drives_writes_tables_figures_and_bands(cli, cohort_db, tmp_path
     assert r"\toprule" in tex and r"\bottomrule" in tex
     bands = pd.read_csv(out / "bands.csv")
     assert len(bands) == 4 and set(bands["holds"]) <= {True, False}
+    # what lies behind the bands, known from the construction of the drives (5 included participants)
+    diag = pd.read_csv(out / "band_diagnostics.csv").set_index("quantity")
+    assert diag.loc["red stops, all drives", ["baseline", "pedas"]].tolist() == [5, 0]
+    assert diag.loc["red stops with a leader within 30 m (in a queue)", "baseline"] == 0  # no leader in town
+    assert pd.isna(diag.loc["red stops with the car-following MPC in charge", "baseline"])  # no MPC in baseline
+    assert diag.loc["drives above the limit at all (of 5)", ["baseline", "pedas"]].tolist() == [5, 0]
+    # the leader closes in from 250 m from 2.5 km on: within 100 m over the last 500 m of the 2 km highway
+    assert diag.loc["highway time with a leader within 100 m", "pedas"] == pytest.approx(25, abs=3)
+    assert 85 < diag.loc["mean speed on the highway", "pedas"] < 92
+    assert "Behind the bands" in (out / "objective.md").read_text()
     # keep one copy to look at
     OUTPUT.mkdir(exist_ok=True)
     for stem in ("fig9a_savings", "fig9b_savings_urban_by_style", "fig9c_savings_highway_by_style",
