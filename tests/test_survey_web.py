@@ -231,6 +231,27 @@ def test_twenty_concurrent_submissions(tmp_db):
         assert final.loc[p, "Q1"] == answers[p]["Q1"]
 
 
+def test_close_waits_for_the_request_using_the_store_then_refuses(store, app):
+    """Stopping the server leaves a request in progress in its thread: close() waits until it has finished with
+    the store (so the store can be closed next), and any later use is refused with 503, nothing stored."""
+    import threading
+
+    token = sv.issue_link(store, "P001")
+    srv = SurveyServer(app, quiet=True).start()
+    lock = app.extensions["survey"]["lock"]
+    lock.acquire()                                  # a request is using the store
+    closer = threading.Thread(target=srv.close)
+    closer.start()
+    closer.join(timeout=1.0)
+    assert closer.is_alive()                        # close() waits for it
+    lock.release()
+    closer.join(timeout=10)
+    assert not closer.is_alive()
+    r = app.test_client().post(f"/s/{token}/answer", data={"item": "PU1", "value": "3"})
+    assert r.status_code == 503
+    assert store.one("SELECT count(*) FROM survey_drafts") == 0
+
+
 def free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))

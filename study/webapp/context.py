@@ -5,7 +5,7 @@ import threading
 from contextlib import contextmanager
 from typing import Iterator
 
-from flask import current_app, render_template
+from flask import abort, current_app, render_template
 
 from study import survey as sv
 
@@ -26,6 +26,8 @@ def store(actor: str | None = None) -> Iterator:
     """The store under the app's lock; `actor` (if given) is recorded in the audit log for the writes."""
     s = state()
     with s["lock"]:
+        if s.get("closed"):
+            abort(503, "The survey server is shutting down.")
         if actor is None:
             yield s["store"]
         else:
@@ -36,3 +38,12 @@ def store(actor: str | None = None) -> Iterator:
 def message(title: str, text: str, status: int):
     """A plain page with one message (errors, refusals)."""
     return render_template("message.html", title=title, text=text), status
+
+
+def close(app) -> None:
+    """Wait until no request uses the store, then refuse every further use (503): after this the caller may
+    close the store. A stopped server can still have a request in progress in one of its threads."""
+    s = app.extensions.get("survey")
+    if s is not None:
+        with s["lock"]:
+            s["closed"] = True

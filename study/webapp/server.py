@@ -30,9 +30,13 @@ class SurveyServer:
         return self
 
     def close(self) -> None:
+        """Stop serving and wait for a request still using the store; the store may be closed afterwards."""
+        from study.webapp.context import close
+
         self.server.shutdown()
         self.server.server_close()
         self.thread.join(timeout=10)
+        close(self.app)
 
     def __enter__(self) -> "SurveyServer":
         return self.start()
