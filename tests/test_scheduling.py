@@ -217,3 +217,50 @@ def test_cli_schedule_flow(cli, tmp_path):
     ics = tmp_path / "lab.ics"
     r = cli("schedule", "export", "--ics", ics)
     assert r.code == 0 and ics.read_bytes().count(b"BEGIN:VEVENT") == 1
+
+
+def test_cli_appointment_life_cycle(cli, tmp_db):
+    """reschedule, cancel, no-show, attended, assign and durations through the CLI: each changes what it says,
+    is audited, and a refused one leaves the store as it was."""
+    assert cli("init").code == 0
+    for args in (("P001",), ("P002",), ("P003", "--protocol", "counterbalanced_v1")):
+        assert cli("participant", "add", *args).code == 0
+    at, later = FUTURE.strftime("%Y-%m-%dT%H:%M"), (FUTURE + timedelta(hours=3)).strftime("%Y-%m-%dT%H:%M")
+    assert cli("session", "schedule", "P001", "--at", at).code == 0
+    r = cli("session", "reschedule", "P001", "--at", later)
+    assert r.code == 0, r.err
+    assert cli("session", "schedule", "P002", "--at", at).code == 0         # the old slot is free again
+    assert cli("session", "cancel", "P002", "--note", "ill").code == 0
+    assert cli("session", "schedule", "P002", "--at", at).code == 0         # a cancelled slot is free
+    assert cli("session", "no-show", "P002").code == 0
+    assert cli("session", "attended", "P001").code == 0
+    r = cli("session", "assign", "P003")
+    assert r.code == 0 and "order" in r.out
+    with Store.open(tmp_db, read_only=True) as st:
+        statuses = st.df("SELECT participant_id, status, note FROM appointments ORDER BY appointment_id")
+        assert statuses[["participant_id", "status"]].values.tolist() == [
+            ["P001", "attended"], ["P002", "cancelled"], ["P002", "no_show"]]
+        assert statuses["note"].tolist()[1] == "ill"
+        audited = st.df("SELECT action, new FROM audit_log WHERE table_name = 'appointments' "
+                        "AND action = 'update' ORDER BY audit_id")
+        assert [s for s in ("cancelled", "no_show", "attended") if any(s in str(v) for v in audited["new"])] == \
+            ["cancelled", "no_show", "attended"]
+        assert st.one("SELECT count(*) FROM order_assignments WHERE participant_id = 'P003'") == 1
+        before = _counts(st)
+    # refused: nothing booked any more, unknown participant
+    for args, msg in ((("session", "cancel", "P001"), "holds no booked appointment"),
+                      (("session", "reschedule", "P404", "--at", later), "P404")):
+        r = cli(*args)
+        assert r.code == 2 and msg in r.err and len(r.err.strip().splitlines()) == 1, r.err
+    with Store.open(tmp_db, read_only=True) as st:
+        assert _counts(st) == before
+    # planned vs actual durations from the recorded phases
+    t0 = FUTURE - timedelta(days=40)
+    for k, phase in enumerate(("familiarisation", "baseline_drive")):
+        r = cli("session", "advance", "P001", phase, "--at", (t0 + timedelta(minutes=12 * k)).isoformat())
+        assert r.code == 0, r.err
+    r = cli("schedule", "durations", "P001", "--format", "csv")
+    assert r.code == 0, r.err
+    rows = [ln.split(",") for ln in r.out.strip().splitlines()]
+    head, fam = rows[0], next(x for x in rows if "familiarisation" in x)
+    assert float(fam[head.index("actual_minutes")]) == pytest.approx(12.0)
