@@ -225,7 +225,7 @@ def run_bench(rows: int = FULL_ROWS, repeat: int = 1, seed: int = 1, samples_per
             duck_runs, result = [], None
             for _ in range(max(1, repeat)):
                 t0 = time.perf_counter()
-                result = kpis_from_relation(con, "drive_samples")
+                result = kpis_from_relation(con, "drive_samples", workers=int(nthreads))
                 duck_runs.append(time.perf_counter() - t0)
 
             peer = con.execute(f"SELECT * FROM drive_samples WHERE drive_id < {peer_drives} "

@@ -78,7 +78,7 @@ WITH p0 AS NOT MATERIALIZED (
            lead(a) OVER {w} AS a_n, lead(tl_id) OVER {w} AS tl_n,
            lag(v > speed_limit + greatest($tol_abs, $tol_rel * speed_limit)) OVER {w} AS viol_p,
            lag((CASE WHEN v < $v_stop THEN 1 WHEN v > $v_moving THEN 2 END)::UTINYINT) OVER {w} AS st_p
-    FROM {src}
+    FROM {src} {where}
     {window}
 ),
 p1 AS NOT MATERIALIZED (
@@ -220,7 +220,7 @@ _ORDER_CHECK_SQL = """
 SELECT count(*) FILTER (WHERE pd = drive_id AND pi >= idx) AS backwards,
        count(*) FILTER (WHERE pd IS DISTINCT FROM drive_id) AS runs,
        count(DISTINCT drive_id)                             AS drives
-FROM (SELECT drive_id, idx, lag(drive_id) OVER () AS pd, lag(idx) OVER () AS pi FROM {src})
+FROM (SELECT drive_id, idx, lag(drive_id) OVER () AS pd, lag(idx) OVER () AS pi FROM {src} {where})
 """
 
 
@@ -230,37 +230,77 @@ def _check_name(src: str) -> str:
     return src
 
 
-def kpi_sql(src: str = "drive_samples", mode: str = "sorted") -> str:
+_RANGE = "WHERE drive_id >= $lo AND drive_id < $hi"  # one chunk of drives (parameters lo, hi)
+
+
+def kpi_sql(src: str = "drive_samples", mode: str = "sorted", chunk: bool = False) -> str:
     """The KPI query over the relation ``src`` (a table or view with :data:`KPI_COLUMNS`); parameters are the
     fields of :class:`KpiParams` (``$tol_abs`` ...). ``mode="sorted"`` windows ``PARTITION BY drive_id ORDER BY
     idx`` (any row order); ``mode="stream"`` reads neighbours in the relation's own order, which must be grouped
-    by drive and ascending in idx (:func:`in_drive_order`)."""
+    by drive and ascending in idx (:func:`in_drive_order`). ``chunk``: only the drives with ``$lo <= drive_id <
+    $hi`` (a filter keeps the rows' order, so a chunk of a relation in drive order is in drive order)."""
     if mode == "sorted":
         w, window = "w", "WINDOW w AS (PARTITION BY drive_id ORDER BY idx)"
     elif mode == "stream":
         w, window = "()", ""
     else:
         raise ValueError(f"mode must be sorted or stream, not {mode!r}")
-    return _KPI_SQL.format(src=_check_name(src), w=w, window=window)
+    return _KPI_SQL.format(src=_check_name(src), w=w, window=window, where=_RANGE if chunk else "")
 
 
-def in_drive_order(con, src: str) -> bool:
-    """Whether ``src`` scans in drive order: each drive's rows contiguous and idx strictly ascending."""
+def in_drive_order(con, src: str, lo_hi: tuple[int, int] | None = None) -> bool:
+    """Whether ``src`` (or its drives ``lo <= drive_id < hi``) scans in drive order: each drive's rows contiguous
+    and idx strictly ascending."""
     if not con.execute("SELECT current_setting('preserve_insertion_order')").fetchone()[0]:
         return False  # scans may reorder rows: un-partitioned windows would see an arbitrary order
-    backwards, runs, drives = con.execute(_ORDER_CHECK_SQL.format(src=_check_name(src))).fetchone()
+    sql = _ORDER_CHECK_SQL.format(src=_check_name(src), where=_RANGE if lo_hi else "")
+    backwards, runs, drives = con.execute(sql, dict(zip(("lo", "hi"), lo_hi or ()))).fetchone()
     return backwards == 0 and runs == drives
 
 
-def kpis_from_relation(con, src: str, params: KpiParams | None = None, mode: str = "auto") -> pd.DataFrame:
+def kpis_from_relation(con, src: str, params: KpiParams | None = None, mode: str = "auto",
+                       workers: int = 1) -> pd.DataFrame:
     """KPIs (one row per drive and segment, columns :data:`KPI_FIELDS`) of the samples in relation ``src`` on the
     DuckDB connection ``con``. NULL ``p_batt`` -> NULL energy, NULL ``a`` -> no jerk/|a| contribution.
-    ``mode="auto"`` streams when the relation is already in drive order (one cheap check scan), else sorts."""
+    ``mode="auto"`` streams when the relation is already in drive order (one cheap check scan), else sorts.
+
+    ``workers`` > 1 splits the drives into that many chunks of about equal rows and runs them at once, each on its
+    own cursor: the streaming window is one thread per query, so this is what puts more cores to work. The
+    relation must then be visible to other cursors (a table or view, not a TEMP one). Same result as one chunk.
+    """
+    from concurrent.futures import ThreadPoolExecutor
+
     params = params or KpiParams()
-    if mode == "auto":
-        mode = "stream" if in_drive_order(con, src) else "sorted"
-    df = con.execute(kpi_sql(src, mode), params.sql_params()).df()
-    return df[list(KPI_FIELDS)]
+    chunks = _drive_chunks(con, src, workers) if workers > 1 else [None]
+
+    def run(lo_hi):
+        c = con.cursor() if lo_hi else con
+        try:
+            m = mode if mode != "auto" else ("stream" if in_drive_order(c, src, lo_hi) else "sorted")
+            values = {**params.sql_params(), **dict(zip(("lo", "hi"), lo_hi or ()))}
+            return c.execute(kpi_sql(src, m, chunk=lo_hi is not None), values).df()
+        finally:
+            if lo_hi:
+                c.close()
+
+    if len(chunks) == 1:
+        parts = [run(chunks[0])]
+    else:
+        with ThreadPoolExecutor(len(chunks)) as pool:
+            parts = list(pool.map(run, chunks))
+    return pd.concat(parts, ignore_index=True)[list(KPI_FIELDS)]
+
+
+def _drive_chunks(con, src: str, n: int) -> list[tuple[int, int] | None]:
+    """Up to ``n`` drive-id ranges [lo, hi) with about equal numbers of rows (one aggregate scan)."""
+    sizes = con.execute(f"SELECT drive_id, count(*) AS n FROM {_check_name(src)} GROUP BY drive_id "
+                        "ORDER BY drive_id").df()
+    if len(sizes) < 2:
+        return [None]
+    ids, cum = sizes["drive_id"].to_numpy(), sizes["n"].cumsum().to_numpy()
+    cuts = sorted({int(ids[np.searchsorted(cum, cum[-1] * k / n)]) for k in range(1, n)} - {int(ids[0])})
+    bounds = [int(ids[0])] + cuts + [int(ids[-1]) + 1]
+    return list(zip(bounds[:-1], bounds[1:]))
 
 
 def kpis_from_frame(samples: pd.DataFrame, params: KpiParams | None = None, con=None) -> pd.DataFrame:
