@@ -17,8 +17,10 @@ from __future__ import annotations
 import html
 import json
 import shutil
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Iterator
 
 import pandas as pd
 
@@ -102,6 +104,22 @@ def build_reference_store(cfg: ReportConfig) -> None:
     tmp.replace(cfg.db)
 
 
+@contextmanager
+def _fresh_dir(out: Path) -> Iterator[Path]:
+    """A new, empty folder beside `out` to write a step's outputs into; it replaces `out` only when the block
+    ends without an error, so a failing step leaves its previous outputs as they were."""
+    new = out.with_name(out.name + ".new")
+    shutil.rmtree(new, ignore_errors=True)
+    new.mkdir(parents=True)
+    try:
+        yield new
+    except BaseException:
+        shutil.rmtree(new, ignore_errors=True)
+        raise
+    shutil.rmtree(out, ignore_errors=True)
+    new.replace(out)
+
+
 def survey_step(cfg: ReportConfig) -> None:
     from analysis.survey import CSV_FLOAT, analyze_survey, responses_from_store
 
@@ -110,37 +128,31 @@ def survey_step(cfg: ReportConfig) -> None:
     if responses.empty:
         raise ValueError("the store has no survey answers of included participants")
     res = analyze_survey(responses, n_boot=cfg.n_boot, seed=cfg.seed or 20240101)
-    out = cfg.out / "survey"
-    shutil.rmtree(out, ignore_errors=True)
-    res.write(out)
-    responses.to_csv(out / "responses.csv", index=False)
-    if cfg.compare_paper:
-        from analysis.paper.reproduction import reproduce
+    with _fresh_dir(cfg.out / "survey") as out:
+        res.write(out)
+        responses.to_csv(out / "responses.csv", index=False)
+        if cfg.compare_paper:
+            from analysis.paper.reproduction import reproduce
 
-        reproduce(res).to_csv(out / "reproduction_tables.csv", index=False, lineterminator="\n",
-                              float_format=CSV_FLOAT)
+            reproduce(res).to_csv(out / "reproduction_tables.csv", index=False, lineterminator="\n",
+                                  float_format=CSV_FLOAT)
 
 
 def drives_step(cfg: ReportConfig) -> None:
     from analysis.kpis_report import analyze_drives
 
-    out = cfg.out / "drives"
-    shutil.rmtree(out, ignore_errors=True)
-    with _open_store(cfg, read_only=True) as st:
-        n = st.one("SELECT count(*) FROM drives")
-        if not n:
-            out.mkdir(parents=True, exist_ok=True)
+    with _open_store(cfg, read_only=True) as st, _fresh_dir(cfg.out / "drives") as out:
+        if st.one("SELECT count(*) FROM drives"):
+            analyze_drives(st, out)
+        else:
             (out / "objective.md").write_text("# Objective evaluation\n\nThe store has no drives.\n")
-            return
-        analyze_drives(st, out)
 
 
 def audit_step(cfg: ReportConfig) -> None:
     from analysis.paper.audit import write_audit
 
-    out = cfg.out / "paper"
-    shutil.rmtree(out, ignore_errors=True)
-    write_audit(out)
+    with _fresh_dir(cfg.out / "paper") as out:
+        write_audit(out)
 
 
 def reproduction_step(cfg: ReportConfig) -> None:

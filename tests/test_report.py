@@ -185,6 +185,23 @@ def test_report_on_missing_store_is_one_line_error(cli, tmp_path):
     assert not (tmp_path / "none.duckdb").exists()
 
 
+def test_a_step_that_fails_keeps_its_previous_outputs(tmp_path):
+    """survey, drives and audit write into a fresh folder that replaces theirs only on success."""
+    from analysis.report import _fresh_dir
+
+    out = tmp_path / "drives"
+    out.mkdir()
+    (out / "kpis.csv").write_text("old")
+    with pytest.raises(RuntimeError, match="boom"):
+        with _fresh_dir(out) as new:
+            (new / "kpis.csv").write_text("half")
+            raise RuntimeError("boom")
+    assert (out / "kpis.csv").read_text() == "old" and sorted(tmp_path.iterdir()) == [out]
+    with _fresh_dir(out) as new:
+        (new / "kpis.csv").write_text("new")
+    assert (out / "kpis.csv").read_text() == "new" and sorted(tmp_path.iterdir()) == [out]
+
+
 def test_failing_step_is_named_and_exits_non_zero(cli, tmp_path):
     """A store without survey answers: the survey step fails, names itself, and the run stops."""
     from study.store import Store
