@@ -178,3 +178,24 @@ def test_reference_survey_files_are_byte_identical_between_runs(tmp_path):
         analyze_survey(responses, n_boot=50, seed=3).write(out)
         outs.append({p.name: p.read_bytes() for p in sorted(out.iterdir())})
     assert outs[0] == outs[1]
+
+
+def test_missing_answers_listwise_and_available_case(data):
+    """Three participants leave one answer each blank: listwise leaves them out everywhere (n = 37, warned);
+    available-case keeps their other answers (item n 39 or 40) and says which analyses use complete rows."""
+    holes = data.copy()
+    for pid, item in (("P001", "PU2"), ("P002", "SN1"), ("P003", "PU2")):
+        holes.loc[holes["participant_id"] == pid, item] = np.nan
+    lw = analyze_survey(holes, n_boot=0, seed=5)
+    assert lw.n == 37 and set(lw.descriptives["n"]) == {37}
+    assert set(lw.regressions["n"]) == {37}
+    assert any(w.startswith("listwise deletion: 3 of 40") for w in lw.warnings)
+    ac = analyze_survey(holes, n_boot=0, seed=5, listwise=False)
+    n_item = ac.descriptives.set_index("item")["n"]
+    assert n_item["PU2"] == 38 and n_item["SN1"] == 39 and n_item["PU1"] == 40
+    assert any(w.startswith("available-case analysis: CFA, alpha and omega use the 37 complete rows")
+               for w in ac.warnings)
+    # a participant who skipped one PU item still has a PU composite (mean of the answered items)
+    comp = ac.composites
+    assert comp.loc["P001", "PU"] == pytest.approx(holes.set_index("participant_id").loc["P001", ["PU1", "PU3", "PU4"]]
+                                                   .astype(float).mean())

@@ -34,6 +34,17 @@ def test_holzinger_df_and_convergence(hs):
     assert res.converged and res.warnings == []
 
 
+def test_non_convergence_is_reported(hs, monkeypatch):
+    """An optimiser stopped after one iteration: the result says it did not converge, with a warning."""
+    import analysis.cfa as cfa
+
+    data, _ = hs
+    monkeypatch.setattr(cfa, "SOLVERS", (("SLSQP", {"maxiter": 1}),))
+    res = cfa.fit_cfa(data, HS_MODEL, label="initial")
+    assert not res.converged
+    assert any("CFA initial: did not converge (SLSQP" in w for w in res.warnings), res.warnings
+
+
 @pytest.mark.parametrize("item", list(LAVAAN_STD))
 def test_holzinger_std_loadings_match_lavaan(hs, item):
     _, res = hs

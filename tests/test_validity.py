@@ -46,6 +46,22 @@ def test_fornell_larcker_pass_and_fail():
     assert not fornell_larcker(corr, rel).set_index("b").loc["BI", "pass"]
 
 
+@pytest.mark.parametrize("hetero, above_085, above_090", [(0.426, True, False), (0.465, True, True)])
+def test_htmt_flags(hetero, above_085, above_090):
+    """HTMT = hetero / sqrt(0.6 x 0.4): 0.870 is above the strict 0.85 only, 0.949 above both thresholds."""
+    R = np.array([[1.0, 0.6, hetero, hetero],
+                  [0.6, 1.0, hetero, hetero],
+                  [hetero, hetero, 1.0, 0.4],
+                  [hetero, hetero, 0.4, 1.0]])
+    rng = np.random.default_rng(1)
+    z = rng.standard_normal((5000, 4))
+    z = (z - z.mean(0)) @ np.linalg.inv(np.linalg.cholesky(np.cov(z, rowvar=False))).T
+    x = pd.DataFrame(z @ np.linalg.cholesky(R).T, columns=["a1", "a2", "b1", "b2"])
+    out = htmt(x, {"A": ["a1", "a2"], "B": ["b1", "b2"]})
+    assert out.loc[0, "htmt"] == pytest.approx(hetero / np.sqrt(0.24), abs=1e-9)
+    assert (bool(out.loc[0, "above_085"]), bool(out.loc[0, "above_090"])) == (above_085, above_090)
+
+
 def test_htmt_hand_example():
     # Correlation structure built so every item correlation is known:
     R = np.array([[1.0, 0.6, 0.3, 0.3],
