@@ -167,9 +167,8 @@ def reproduction_step(cfg: ReportConfig) -> None:
     bands = cfg.out / "drives" / "bands.csv"
     md += ["# Objective evaluation (Section 5.1) of the simulated reference cohort", ""]
     if bands.exists():
-        from analysis.tables_drives import bands_markdown
-
         from analysis.band_diagnostics import diagnostics_markdown, why_missed
+        from analysis.tables_drives import bands_markdown
 
         bands_df = pd.read_csv(bands)
         diag = pd.read_csv(bands.with_name("band_diagnostics.csv"))
