@@ -121,7 +121,7 @@ def _fresh_dir(out: Path) -> Iterator[Path]:
 
 
 def survey_step(cfg: ReportConfig) -> None:
-    from analysis.survey import CSV_FLOAT, analyze_survey, responses_from_store
+    from analysis.survey import analyze_survey, responses_from_store
 
     with _open_store(cfg, read_only=True) as st:
         responses = responses_from_store(st)
@@ -131,11 +131,6 @@ def survey_step(cfg: ReportConfig) -> None:
     with _fresh_dir(cfg.out / "survey") as out:
         res.write(out)
         responses.to_csv(out / "responses.csv", index=False)
-        if cfg.compare_paper:
-            from analysis.paper.reproduction import reproduce
-
-            reproduce(res).to_csv(out / "reproduction_tables.csv", index=False, lineterminator="\n",
-                                  float_format=CSV_FLOAT)
 
 
 def drives_step(cfg: ReportConfig) -> None:
@@ -158,10 +153,16 @@ def audit_step(cfg: ReportConfig) -> None:
 def reproduction_step(cfg: ReportConfig) -> None:
     """reproduction.csv / .md: Tables 3-5 value by value (status per value), the Section 5.1 KPI bands of the
     simulated cohort beside the paper's numbers, and the audit findings that explain what cannot be met."""
-    from analysis.paper.audit import findings
-    from analysis.paper.reproduction import render_markdown
+    from types import SimpleNamespace
 
-    table = pd.read_csv(cfg.out / "survey" / "reproduction_tables.csv")
+    from analysis.paper.audit import findings
+    from analysis.paper.reproduction import render_markdown, reproduce
+
+    # from the files the survey and audit steps wrote: the comparison reruns when either changes
+    survey = SimpleNamespace(**{name: pd.read_csv(cfg.out / "survey" / f"{name}.csv")
+                                for name in ("descriptives", "loadings", "reliability", "correlations", "regressions")})
+    audit = pd.read_csv(cfg.out / "paper" / "audit.csv")
+    table = reproduce(survey, audit=audit)
     table.to_csv(cfg.out / "reproduction.csv", index=False, lineterminator="\n", float_format="%.12g")
     md = [render_markdown(table, source="the reference survey in the study store").rstrip(), ""]
     bands = cfg.out / "drives" / "bands.csv"
@@ -179,7 +180,6 @@ def reproduction_step(cfg: ReportConfig) -> None:
         md += [line for w in why_missed(bands_df, diag) for line in (f"- {w}", "")]
     else:
         md += ["No drives in the store.", ""]
-    audit = pd.read_csv(cfg.out / "paper" / "audit.csv")
     md += ["# Audit findings", "", "Published values that contradict other published values "
            "(details: [paper/audit.md](paper/audit.md)).", ""]
     md += [f"{int(r.finding)}. {r.title}" for r in findings(audit).itertuples()]
@@ -207,7 +207,7 @@ def study_figures_step(cfg: ReportConfig) -> None:
         plot_likert(pd.read_csv(responses), load_instrument(), figs)
 
 
-_RAW_DATA = {"responses", "reproduction_tables", "composites"}  # data files, not tables to render
+_RAW_DATA = {"responses", "composites"}  # data files, not tables to render
 
 
 def collect_step(cfg: ReportConfig) -> None:
@@ -229,8 +229,6 @@ def collect_step(cfg: ReportConfig) -> None:
                     shutil.copy2(g, tables / f"{sub}_{g.name}")
             else:
                 write_table(pd.read_csv(f), tables, f"{sub}_{f.stem}", f"{sub}: {f.stem}")
-        for f in sorted(d.glob("table*.md")) + sorted(d.glob("table*.tex")):
-            shutil.copy2(f, tables / f"{sub}_{f.name}")
         for f in sorted((d / "figures").glob("*")) if (d / "figures").exists() else []:
             shutil.copy2(f, figs / f.name)
 
@@ -317,7 +315,8 @@ def build_pipeline(cfg: ReportConfig) -> Pipeline:
         pipe.add(Step("reproduction", lambda: reproduction_step(cfg), after=["survey", "drives", "audit"],
                       outputs=[cfg.out / "reproduction.md", cfg.out / "reproduction.csv"],
                       inputs=[CODE["analysis"], params]))
-    pipe.add(Step("core figures", lambda: core_figures_step(cfg), outputs=[cfg.out / "figures" / "aero_linearisation.png"],
+    pipe.add(Step("core figures", lambda: core_figures_step(cfg),
+                  outputs=[cfg.out / "figures" / "aero_linearisation.png"],
                   inputs=[CODE["pedas"], params]))
     pipe.add(Step("study figures", lambda: study_figures_step(cfg), after=["survey", *after_store],
                   outputs=[cfg.out / "figures" / "participant_flow.png"],

@@ -175,6 +175,10 @@ def test_report_on_a_lab_store_without_paper_comparison(cli, tmp_path):
     assert not (out / "reproduction.md").exists() and not (out / "paper").exists()
     assert (out / "drives" / "objective.md").read_text().count("no drives") == 1
     _check_tables_parse(out / "tables")
+    # asked for the paper comparison afterwards: the survey step stays cached, the comparison still runs
+    r = cli("report", "--out", out, "--bootstrap", "50", "--compare-paper", "--cache-dir", tmp_path / "cache", db=db)
+    assert r.code == 0, r.err
+    assert "reproduction:" in r.out and (out / "reproduction.csv").exists() and (out / "paper" / "audit.csv").exists()
 
 
 def test_report_on_missing_store_is_one_line_error(cli, tmp_path):
