@@ -38,7 +38,8 @@ def _box(ax, groups, labels, title):
     pos = np.arange(1, len(data) + 1)
     nonempty = [i for i, d in enumerate(data) if len(d)]
     if nonempty:
-        ax.boxplot([data[i] for i in nonempty], positions=pos[nonempty], widths=0.5, showmeans=True,
+        # every participant is drawn as a dot below, so the box plot's own outlier markers would draw some twice
+        ax.boxplot([data[i] for i in nonempty], positions=pos[nonempty], widths=0.5, showmeans=True, showfliers=False,
                    meanprops={"marker": "^", "markerfacecolor": "white", "markeredgecolor": "black"})
     _points(ax, data, pos)
     ax.set_xticks(pos, [f"{lab}\n(n={len(d)})" for lab, d in zip(labels, data)])
