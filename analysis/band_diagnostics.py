@@ -5,8 +5,9 @@ and by how much. Red-stop reduction: the red stops, and how many of them are in 
 happen while the car-following MPC, which does not plan for the green wave, is in charge.
 
 Computed in DuckDB over the drive samples of the participants of the objective analysis (both drives); the
-definitions follow :mod:`analysis.kpis` (a red stop: v < v_stop at red within red_stop_dist of the line, once per
-approach = a run of samples with one ``tl_id``).
+definitions follow :mod:`analysis.kpis`: the counts of red stops and speeding drives come from its KPI table; the
+shares of red stops in a queue or under the car-following MPC look at the first red stand-still of each approach
+(a run of samples with one ``tl_id``), the same stand-stills the KPI counts.
 """
 from __future__ import annotations
 
@@ -19,7 +20,7 @@ from pedas.constants import KMH, SENSOR_RANGE
 
 QUEUE_GAP = 30.0  # m: a red stop with a leader this close is a stop in a queue (a car length + minGap ~ 7 m each)
 
-COLUMNS = ["band", "quantity", "unit", "baseline", "pedas"]
+COLUMNS = ["band", "key", "quantity", "unit", "baseline", "pedas"]
 
 _SQL = """
 WITH s0 AS (
@@ -37,12 +38,12 @@ red AS (   -- the first red stand-still sample of each approach
     FROM s WHERE v < $v_stop AND tl_state = 'red' AND d_tl < $red_stop_dist AND tl_id IS NOT NULL
     GROUP BY drive_id, appr
 )
-SELECT c.condition, h.v_highway, h.lead_highway, coalesce(r.red_stops, 0) AS red_stops, r.queued, r.cf
+SELECT c.condition, h.v_highway, h.lead_highway, r.queued, r.cf
 FROM (SELECT DISTINCT condition FROM s) c
 LEFT JOIN (SELECT condition, avg(v) AS v_highway,
                   avg(CASE WHEN leader_gap <= $lead_range THEN 1.0 ELSE 0.0 END) AS lead_highway
            FROM s WHERE segment = 'highway' GROUP BY condition) h USING (condition)
-LEFT JOIN (SELECT condition, count(*) AS red_stops,
+LEFT JOIN (SELECT condition,
                   avg(CASE WHEN leader_gap < $queue_gap THEN 1.0 ELSE 0.0 END) AS queued,
                   avg(CASE WHEN controller = 'cf' THEN 1.0 WHEN controller = 'rt' THEN 0.0 END) AS cf
            FROM red GROUP BY condition) r USING (condition)
@@ -50,36 +51,33 @@ LEFT JOIN (SELECT condition, count(*) AS red_stops,
 
 
 def band_diagnostics(st, result: ObjectiveResult, params: KpiParams | None = None) -> pd.DataFrame:
-    """Tidy frame band, quantity, unit, baseline, pedas over the participants with both drives in ``result``."""
+    """Tidy frame band, key, quantity, unit, baseline, pedas over the participants with both drives in ``result``
+    (``key``: a stable name of the quantity, ``quantity``: its label)."""
     p = params or KpiParams()
     k = result.kpis[result.kpis["participant_id"].isin(result.per_participant["participant_id"])]
     ids = sorted(int(i) for i in k["drive_id"].unique())
     q = st.con.execute(_SQL, {"ids": ids, "v_stop": p.v_stop, "red_stop_dist": p.red_stop_dist,
                               "lead_range": SENSOR_RANGE, "queue_gap": QUEUE_GAP}).df().set_index("condition")
-    overall = k[k["segment"] == "overall"].set_index(["condition", "participant_id"])
+    overall = k[k["segment"] == "overall"].groupby("condition")
+    speeding = overall["violation_share"]
+    kpi = {"drives_speeding": speeding.apply(lambda x: (x > 0).sum()), "share_speeding": 100 * speeding.mean(),
+           "red_stops": overall["red_stops"].sum()}
 
-    def per_cond(fn) -> tuple[float, float]:
-        vals = (fn(c) if c in q.index else np.nan for c in ("baseline", "pedas"))
-        return tuple(np.nan if pd.isna(v) else float(v) for v in vals)
-
-    def drives_speeding(c):
-        return (overall.loc[c, "violation_share"] > 0).sum() if c in overall.index.get_level_values(0) else np.nan
-
-    def share_speeding(c):
-        return 100 * overall.loc[c, "violation_share"].mean() if c in overall.index.get_level_values(0) else np.nan
+    def per_cond(key: str) -> tuple[float, float]:
+        col = kpi[key] if key in kpi else q[key] * (1 / KMH if key == "v_highway" else 100)
+        return tuple(float(col[c]) if c in col.index and pd.notna(col[c]) else np.nan for c in ("baseline", "pedas"))
 
     hw, vio, red = BAND_HIGHWAY, BAND_VIOLATION, BAND_RED
     rows = [
-        (hw, "mean speed on the highway", "km/h", *per_cond(lambda c: q.loc[c, "v_highway"] / KMH)),
-        (hw, f"highway time with a leader within {SENSOR_RANGE:g} m", "%",
-         *per_cond(lambda c: 100 * q.loc[c, "lead_highway"])),
-        (vio, f"drives above the limit at all (of {result.n})", "drives", *per_cond(drives_speeding)),
-        (vio, "distance above the limit, mean of drives", "%", *per_cond(share_speeding)),
-        (red, "red stops, all drives", "stops", *per_cond(lambda c: q.loc[c, "red_stops"])),
-        (red, f"red stops with a leader within {QUEUE_GAP:g} m (in a queue)", "%",
-         *per_cond(lambda c: 100 * q.loc[c, "queued"])),
-        (red, "red stops with the car-following MPC in charge", "%", *per_cond(lambda c: 100 * q.loc[c, "cf"])),
+        (hw, "v_highway", "mean speed on the highway", "km/h"),
+        (hw, "lead_highway", f"highway time with a leader within {SENSOR_RANGE:g} m", "%"),
+        (vio, "drives_speeding", f"drives above the limit at all (of {result.n})", "drives"),
+        (vio, "share_speeding", "distance above the limit, mean of drives", "%"),
+        (red, "red_stops", "red stops, all drives", "stops"),
+        (red, "queued", f"red stops with a leader within {QUEUE_GAP:g} m (in a queue)", "%"),
+        (red, "cf", "red stops with the car-following MPC in charge", "%"),
     ]
+    rows = [(*r, *per_cond(r[1])) for r in rows]
     return pd.DataFrame(rows, columns=COLUMNS)
 
 
@@ -101,34 +99,34 @@ def diagnostics_markdown(diag: pd.DataFrame) -> str:
 def why_missed(bands: pd.DataFrame, diag: pd.DataFrame) -> list[str]:
     """For a simulated cohort: one explanation per band that does not hold, from the diagnostics (the direction
     of the miss decides which explanation applies; otherwise only the numbers are pointed to)."""
-    d = diag.set_index("quantity")
+    d = diag.set_index("key")
 
-    def val(prefix: str, cond: str) -> float:
-        return float(d.loc[[q for q in d.index if q.startswith(prefix)][0], cond])
+    def val(key: str, cond: str) -> float:
+        return float(d.loc[key, cond])
 
     out = []
     for b in bands[~bands["holds"].astype(bool)].itertuples():
         if b.band == BAND_HIGHWAY and b.our_value <= 0:
-            out.append(f"*{b.band}*: baseline drivers average {val('mean speed on the highway', 'baseline'):.1f} km/h "
-                       f"on the highway (pEDAS {val('mean speed on the highway', 'pedas'):.1f} km/h) and spend "
-                       f"{val('highway time with a leader', 'baseline'):.0f} % of it behind a leader within "
-                       f"{SENSOR_RANGE:g} m: with hardly any speed above the 80 km/h minimum there is little to save on "
-                       "the highway. The paper's highway savings imply that its baseline drivers went faster there; "
-                       "ours are held at ~80 km/h by the lorries of a single-lane highway without overtaking "
+            out.append(f"*{b.band}*: baseline drivers average {val('v_highway', 'baseline'):.1f} km/h "
+                       f"on the highway (pEDAS {val('v_highway', 'pedas'):.1f} km/h) and spend "
+                       f"{val('lead_highway', 'baseline'):.0f} % of it behind a leader within "
+                       f"{SENSOR_RANGE:g} m: with hardly any speed above the 80 km/h minimum there is little to "
+                       "save on the highway. The paper's highway savings imply that its baseline drivers went faster "
+                       "there; ours are held at ~80 km/h by the lorries of a single-lane highway without overtaking "
                        "(docs/route_and_traffic.md).")
         elif b.band == BAND_VIOLATION and b.our_value > b.hi:
-            out.append(f"*{b.band}*: {val('drives above the limit', 'baseline'):.0f} baseline drives exceed the "
-                       f"limit at all ({val('distance above the limit', 'baseline'):.2f} % of the distance on "
-                       f"average), {val('drives above the limit', 'pedas'):.0f} pEDAS drives "
-                       f"({val('distance above the limit', 'pedas'):.2f} %): the virtual drivers track an advice that "
+            out.append(f"*{b.band}*: {val('drives_speeding', 'baseline'):.0f} baseline drives exceed the "
+                       f"limit at all ({val('share_speeding', 'baseline'):.2f} % of the distance on "
+                       f"average), {val('drives_speeding', 'pedas'):.0f} pEDAS drives "
+                       f"({val('share_speeding', 'pedas'):.2f} %): the virtual drivers track an advice that "
                        "never exceeds the limit and brake once more than 6 km/h above it (docs/drivers.md), so each "
                        "baseline violator's reduction is close to 100 %. The paper's value implies that its "
                        "participants kept speeding for part of the pEDAS drive.")
         elif b.band == BAND_RED and b.our_value < b.lo:
-            out.append(f"*{b.band}*: pEDAS drives stop at red {val('red stops, all', 'pedas'):.0f} times (baseline "
-                       f"{val('red stops, all', 'baseline'):.0f}); {val('red stops with a leader', 'pedas'):.0f} % "
+            out.append(f"*{b.band}*: pEDAS drives stop at red {val('red_stops', 'pedas'):.0f} times (baseline "
+                       f"{val('red_stops', 'baseline'):.0f}); {val('queued', 'pedas'):.0f} % "
                        "of these stops are in a queue behind a vehicle, and "
-                       f"{val('red stops with the car-following', 'pedas'):.0f} % happen with the car-following MPC "
+                       f"{val('cf', 'pedas'):.0f} % happen with the car-following MPC "
                        "in charge, which follows the leader instead of the green-wave reference. The paper, too, "
                        "names the dense urban traffic as what limits the urban effect; our urban demand "
                        "(docs/route_and_traffic.md) leaves fewer red stops for the green wave to avoid.")

@@ -29,16 +29,6 @@ STYLES = ("cautious", "normal", "sporty")
 SUMMARY_METRICS = ("saving_overall_pct", "saving_urban_pct", "saving_highway_pct", "violation_reduction_pct",
                    "red_stop_reduction_pct", "jerk_reduction_pct")
 
-METRIC_LABELS = {
-    "saving_overall_pct": "Energy savings, overall trip (%)",
-    "saving_urban_pct": "Energy savings, urban (%)",
-    "saving_highway_pct": "Energy savings, highway (%)",
-    "violation_reduction_pct": "Speed-limit violation reduction (%)",
-    "red_stop_reduction_pct": "Red-stop reduction (%)",
-    "jerk_reduction_pct": "RMS jerk reduction (%)",
-}
-
-
 def reduction_pct(baseline, pedas) -> np.ndarray:
     """100 (baseline - pedas) / baseline, elementwise; NaN where the baseline is 0 or missing."""
     b = np.asarray(baseline, dtype=float)

@@ -28,6 +28,7 @@ from pedas.mpc import INF, MpcPlan, vehicle_model
 from pedas.mpc_cf import CF_WEIGHTS, SAFE_BACKOFF, CarFollowingMpc
 from pedas.mpc_rt import RT_WEIGHTS, ReferenceTrackingMpc
 from pedas.params import LEAF, VehicleParams
+from pedas.route import braking_envelope
 from pedas.speed_correction import corrected_speed
 
 A_STOP = 1.0  # m/s^2, deceleration of the stop / curve approach envelope of v_ref (early and gentle)
@@ -97,11 +98,7 @@ class PedasController:
         self._grade = np.asarray(route.grade, float)
         self._limit = np.asarray(route.speed_limit, float)
         # curve envelope: the highest speed from which every later v_max is reachable at A_STOP (backward pass)
-        env = self._vmax.copy()
-        ds = np.diff(self._s)
-        for i in range(env.size - 2, -1, -1):
-            env[i] = min(env[i], np.sqrt(env[i + 1] ** 2 + 2 * A_STOP * ds[i]))
-        self._venv = env
+        self._venv = braking_envelope(self._s, self._vmax, A_STOP)
         # starts of curves whose limit is below the legal limit (for the HUD curve icon)
         curvy = np.asarray(route.v_curve, float) < self._limit - 1e-9
         starts = np.flatnonzero(curvy & ~np.r_[False, curvy[:-1]])

@@ -28,7 +28,7 @@ from pedas.constants import DT
 from pedas.drivers import DriverParams, HumanDriver, Perception, sample_driver
 from pedas.network import build_network
 from pedas.route_study import study_route
-from pedas.traffic import LEADER_LOOKAHEAD, Traffic
+from pedas.traffic import Traffic
 
 CONDITIONS = ("baseline", "pedas")
 LOG_COLUMNS = ("t", "s", "v", "segment", "speed_limit", "a", "grade", "ft", "fb", "p_batt", "tl_id", "tl_state",
@@ -138,8 +138,6 @@ def drive(participant_seed: int, style: str, condition: str, *, traffic_seed: in
             t = tr.time
             s, v = tr.ego_state()
             lead = tr.leader()
-            if lead is not None and lead.gap > LEADER_LOOKAHEAD:
-                lead = None
             gap = lead.gap if lead is not None else None
             try:
                 guard.check(t, s, v, gap, tr.ego_collided())

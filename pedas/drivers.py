@@ -30,6 +30,7 @@ import numpy as np
 
 from pedas.constants import DT, HIGHWAY_MIN_SPEED, HUD_BAND, KMH
 from pedas.params import LEAF, VehicleParams
+from pedas.route import braking_envelope
 from pedas.vehicle import traction_envelope
 
 STYLES = ("cautious", "normal", "sporty")
@@ -132,24 +133,12 @@ def sample_driver(seed: int, style: str) -> DriverParams:
     return DriverParams(style=style, seed=int(seed), hud_delay=vals["reaction"] + hud_glance, **vals)
 
 
-def _anticipate(s: np.ndarray, v: np.ndarray, b: float) -> np.ndarray:
-    """Backward pass: at each point the highest speed from which every later value is reached braking at b."""
-    env = v.copy()
-    ds = np.diff(s)
-    two_b = 2.0 * b
-    for i in range(env.size - 2, -1, -1):  # 13k points, once per drive
-        nxt = math.sqrt(env[i + 1] * env[i + 1] + two_b * ds[i])
-        if nxt < env[i]:
-            env[i] = nxt
-    return env
-
-
 def curve_speed_profile(route, drv: DriverParams) -> np.ndarray:
     """The driver's own curve speed sqrt(a_lat / |kappa|) along the route grid, anticipated (m/s)."""
     k = np.abs(np.asarray(route.curvature, float))
     with np.errstate(divide="ignore"):
         v_curve = np.where(k > 1e-9, np.sqrt(drv.a_lat / np.maximum(k, 1e-12)), 1e3)
-    return _anticipate(np.asarray(route.s, float), v_curve, ANTICIPATION * drv.b_comf)
+    return braking_envelope(np.asarray(route.s, float), v_curve, ANTICIPATION * drv.b_comf)
 
 
 def desired_speed_profile(route, drv: DriverParams) -> np.ndarray:
@@ -164,7 +153,7 @@ def desired_speed_profile(route, drv: DriverParams) -> np.ndarray:
     v_wish = np.minimum(v_wish, v_curve)
     on_main = np.asarray(route.v_min, float) > 0  # the instructed highway minimum applies here
     v_wish = np.where(on_main, np.maximum(v_wish, HIGHWAY_MIN_SPEED + HIGHWAY_MARGIN), v_wish)
-    return _anticipate(np.asarray(route.s, float), v_wish, ANTICIPATION * drv.b_comf)
+    return braking_envelope(np.asarray(route.s, float), v_wish, ANTICIPATION * drv.b_comf)
 
 
 def idm_free(v: float, v0: float, a: float) -> float:

@@ -7,7 +7,7 @@ Constants the paper prints (DT, N, alphas, ...) live in `pedas.constants`, not h
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 
 @dataclass(frozen=True)
@@ -38,10 +38,6 @@ class VehicleParams:
     V_oc: float  # V, battery pack open-circuit voltage (nominal)
     R_int: float  # Ohm, battery pack internal resistance
     E_batt: float  # Wh, battery gross capacity
-
-    def with_(self, **changes) -> "VehicleParams":
-        """A copy with some values changed (sensitivity studies)."""
-        return replace(self, **changes)
 
     @property
     def F_t_peak(self) -> float:

@@ -94,10 +94,6 @@ class PowerMap:
         return float(out) if np.ndim(out) == 0 else out
 
     @property
-    def coefficients(self) -> dict[str, float]:
-        return {k: getattr(self, k) for k in ("a00", "a10", "a01", "a11", "a20", "a02")}
-
-    @property
     def hessian(self) -> np.ndarray:
         """Hessian of P w.r.t. (v, F_t): [[2 a20, a11], [a11, 2 a02]]."""
         return np.array([[2 * self.a20, self.a11], [self.a11, 2 * self.a02]])

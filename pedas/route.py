@@ -19,6 +19,19 @@ D_STOPLINE_DEFAULT = 5.0  # m, d_s,ITS: the soft stop-line approach band of eq. 
 A_LAT_MAX_DEFAULT = 2.0  # m/s^2, comfortable lateral acceleration for the curve speed limit (not printed)
 
 
+def braking_envelope(s: np.ndarray, v: np.ndarray, b: float) -> np.ndarray:
+    """Backward pass over a speed profile v(s) (m, m/s): at each point the highest speed from which every later
+    value is reached braking at b (m/s^2), v_env,i = min(v_i, sqrt(v_env,i+1^2 + 2 b ds))."""
+    env = np.array(v, dtype=float)
+    ds = np.diff(np.asarray(s, float))
+    two_b = 2.0 * b
+    for i in range(env.size - 2, -1, -1):  # ~13k points, once per drive / controller
+        nxt = math.sqrt(env[i + 1] * env[i + 1] + two_b * ds[i])
+        if nxt < env[i]:
+            env[i] = nxt
+    return env
+
+
 @dataclass(frozen=True)
 class TrafficLight:
     """A fixed-time traffic light at route position `s` (its stop line, m).

@@ -214,8 +214,3 @@ def sumo_cycle_start(offset: float) -> float:
     type counts the cycle from `TrafficLight.offset`, so the sign flips (checked against libsumo in the tests).
     """
     return float(offset)
-
-
-def edge_offsets(net_file: str | Path) -> dict[str, float]:
-    """Start offset (m) along the route of every lane of the ego path (lane id -> s0)."""
-    return {pl.lane_id: pl.s0 for pl in ego_path(net_file)}

@@ -274,15 +274,17 @@ class Traffic:
     def leader(self, lookahead: float = LEADER_LOOKAHEAD) -> Leader | None:
         """The vehicle ahead on the ego's route within `lookahead` m (``vehicle.getLeader``), else None.
 
-        getLeader reports the gap minus the ego's minGap; it is added back to give the bumper-to-bumper gap.
+        getLeader reports the gap minus the ego's minGap; it is added back to give the bumper-to-bumper gap, and a
+        vehicle whose bumper-to-bumper gap is beyond `lookahead` (getLeader searches a little further) is None.
         """
         ls = self._ls
         res = ls.vehicle.getLeader(EGO_ID, lookahead)
         if not res or not res[0]:
             return None
-        vid, gap = res
-        return Leader(vid, float(gap) + self.ego_min_gap, float(ls.vehicle.getSpeed(vid)),
-                      float(ls.vehicle.getAcceleration(vid)))
+        vid, gap = res[0], float(res[1]) + self.ego_min_gap
+        if gap > lookahead:
+            return None
+        return Leader(vid, gap, float(ls.vehicle.getSpeed(vid)), float(ls.vehicle.getAcceleration(vid)))
 
     def set_ego_speed(self, v: float) -> None:
         """Command the ego's speed (m/s) for the next step."""
@@ -291,10 +293,6 @@ class Traffic:
     def ego_collided(self) -> bool:
         """True if SUMO detected a collision involving the ego vehicle in the last step."""
         return EGO_ID in self._ls.simulation.getCollidingVehiclesIDList()
-
-    def tl_state(self, tl_id: str, link_index: int = 0) -> str:
-        """SUMO's signal character of one link of a traffic light (as reported after the last step)."""
-        return self._ls.trafficlight.getRedYellowGreenState(tl_id)[link_index]
 
     def vehicle_count(self) -> int:
         """Vehicles currently in the network (incl. the ego)."""

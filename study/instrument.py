@@ -74,11 +74,6 @@ class Instrument:
         return self.items.index[self.items["response_type"].isin(DEMOGRAPHIC_TYPES)].tolist()
 
     @property
-    def integer_items(self) -> list[str]:
-        """Every item whose answer is an integer (scaled, number and choice items)."""
-        return self.items.index[self.items["response_type"] != "text"].tolist()
-
-    @property
     def required_items(self) -> list[str]:
         return self.items.index[self.items["required"] == 1].tolist()
 

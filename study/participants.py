@@ -12,14 +12,6 @@ from study.errors import UserError, check_choice
 ID_PATTERN = re.compile(r"^P[0-9]{3,}$")  # ASCII digits only, as the schema's CHECK
 GENDERS = ("female", "male", "diverse", "undisclosed")
 STYLES = ("cautious", "normal", "sporty")
-# The five familiarity levels of the paper's socio-demographic survey (participants section).
-ECO_FAMILIARITY = {
-    1: "never heard of eco-driving",
-    2: "heard of it, never used it",
-    3: "moderately familiar, used a few times",
-    4: "quite familiar, used occasionally",
-    5: "use or used a similar system regularly",
-}
 AGE_RANGE = (16, 110)
 
 

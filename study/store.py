@@ -137,10 +137,6 @@ class Store:
                 pass
             raise UserError(f"commit failed: {_one_line(exc)}") from exc
 
-    @property
-    def in_transaction(self) -> bool:
-        return self._depth > 0
-
     # ------------------------------------------------------------------ schema helpers
     def columns(self, table: str) -> list[str]:
         """Column names of `table` in order; unknown table -> UserError."""

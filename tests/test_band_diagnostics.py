@@ -8,13 +8,13 @@ from analysis.band_diagnostics import COLUMNS, why_missed
 from analysis.savings import BAND_HIGHWAY, BAND_OVERALL, BAND_RED, BAND_VIOLATION
 
 DIAG = pd.DataFrame([
-    (BAND_HIGHWAY, "mean speed on the highway", "km/h", 80.4, 79.9),
-    (BAND_HIGHWAY, "highway time with a leader within 100 m", "%", 91.6, 30.0),
-    (BAND_VIOLATION, "drives above the limit at all (of 10)", "drives", 4, 1),
-    (BAND_VIOLATION, "distance above the limit, mean of drives", "%", 1.5, 0.02),
-    (BAND_RED, "red stops, all drives", "stops", 50, 30),
-    (BAND_RED, "red stops with a leader within 30 m (in a queue)", "%", 90.0, 80.0),
-    (BAND_RED, "red stops with the car-following MPC in charge", "%", np.nan, 70.0),
+    (BAND_HIGHWAY, "v_highway", "mean speed on the highway", "km/h", 80.4, 79.9),
+    (BAND_HIGHWAY, "lead_highway", "highway time with a leader within 100 m", "%", 91.6, 30.0),
+    (BAND_VIOLATION, "drives_speeding", "drives above the limit at all (of 10)", "drives", 4, 1),
+    (BAND_VIOLATION, "share_speeding", "distance above the limit, mean of drives", "%", 1.5, 0.02),
+    (BAND_RED, "red_stops", "red stops, all drives", "stops", 50, 30),
+    (BAND_RED, "queued", "red stops with a leader within 30 m (in a queue)", "%", 90.0, 80.0),
+    (BAND_RED, "cf", "red stops with the car-following MPC in charge", "%", np.nan, 70.0),
 ], columns=COLUMNS)
 
 
