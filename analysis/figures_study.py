@@ -65,12 +65,12 @@ def plot_participant_flow(flow: ParticipantFlow, out_dir: Path, stem: str = "par
     box = dict(boxstyle="round,pad=0.5", fc="#eef3f8", ec="#2b5d8a")
     side = dict(boxstyle="round,pad=0.4", fc="#fbeeee", ec="#a33")
     arrow = dict(arrowstyle="->", color="#444")
+    into_box = dict(arrowstyle="<-", color="#444")  # drawn from the box's text, so it ends at the box's edge
     line = dict(arrowstyle="-", color="#444")
     ax.text(0.5, 0.94, f"Enrolled\nN = {flow.enrolled}", ha="center", va="center", bbox=box, fontsize=11)
     ax.annotate("", xy=(0.5, 0.64), xytext=(0.5, 0.88), arrowprops=arrow)
-    ax.annotate("", xy=(0.68, 0.77), xytext=(0.5, 0.77), arrowprops=arrow)
-    ax.text(0.84, 0.77, f"Excluded from all analyses\n{_fmt(flow.excluded_all)}", ha="center", va="center",
-            bbox=side, fontsize=9)
+    ax.annotate(f"Excluded from all analyses\n{_fmt(flow.excluded_all)}", xy=(0.5, 0.77), xytext=(0.84, 0.77),
+                ha="center", va="center", bbox=side, fontsize=9, arrowprops=into_box)
     ax.text(0.5, 0.58, f"Took part\nN = {took_part}", ha="center", va="center", bbox=box, fontsize=11)
     for x, sx, label, reasons, n in ((0.3, 0.1, "Survey (subjective) sample", flow.excluded_subjective,
                                       flow.subjective_sample),
@@ -78,8 +78,8 @@ def plot_participant_flow(flow: ParticipantFlow, out_dir: Path, stem: str = "par
                                       flow.objective_sample)):
         ax.annotate("", xy=(x, 0.45), xytext=(0.5, 0.52), arrowprops=line)
         ax.annotate("", xy=(x, 0.14), xytext=(x, 0.45), arrowprops=arrow)
-        ax.annotate("", xy=(sx + (0.08 if sx < x else -0.08), 0.31), xytext=(x, 0.31), arrowprops=arrow)
-        ax.text(sx, 0.31, f"Excluded\n{_fmt(reasons)}", ha="center", va="center", bbox=side, fontsize=8.5)
+        ax.annotate(f"Excluded\n{_fmt(reasons)}", xy=(x, 0.31), xytext=(sx, 0.31), ha="center", va="center",
+                    bbox=side, fontsize=8.5, arrowprops=into_box)
         ax.text(x, 0.08, f"{label}\nN = {n}", ha="center", va="center", bbox=box, fontsize=10)
     ax.set_xlim(-0.05, 1.05)
     ax.set_ylim(0.0, 1.0)
