@@ -27,7 +27,8 @@ from pedas.paths import NETWORK_DIR, REPO_ROOT
 _SUMO_LOCK = threading.Lock()  # one libsumo simulation per process
 _CODE_FILES = ("constants.py", "params.py", "vehicle.py", "power.py", "route.py", "dp.py", "greenwave.py", "mpc.py",
                "mpc_rt.py", "mpc_cf.py", "speed_correction.py", "hud.py", "controller.py", "network.py",
-               "route_study.py", "traffic.py", "drivers.py", "drive.py")
+               "route_study.py", "traffic.py", "drivers.py", "drive.py", "exact_lstsq.py", "fitted.py",
+               "fitted_coefficients.json")
 _NETWORK_FILES = ("study.nod.xml", "study.edg.xml", "study.con.xml", "study.tll.xml", "study.netccfg",
                   "study.rou.xml", "vtypes.add.xml", "demand.json")
 

@@ -11,6 +11,11 @@ to its arrival at the end of the route. Every step checks the safety invariants 
 * no stop-sign roll-through: before crossing a stop sign's line the ego has stood still (v <= HALT_CHECK m/s)
   within STOP_CHECK_BAND m before it.
 
+and the liveness invariant (:class:`LivenessGuard`): the ego never stands still for more than STANDSTILL_LIMIT s
+while nothing holds it (no red or yellow light and no vehicle within LIVENESS_REACH m ahead); a person at a green
+light on a free road drives off. Every error of a drive is a :class:`DriveError` whose message starts with the
+drive (condition, participant seed, style, traffic seed) and whose ``kind`` names the failure.
+
 Time: the log's `t` counts from the ego's insertion; the controller and the signal programs use SUMO time.
 """
 from __future__ import annotations
@@ -36,10 +41,46 @@ LOG_COLUMNS = ("t", "s", "v", "segment", "speed_limit", "a", "grade", "ft", "fb"
 HALT_CHECK = 0.1  # m/s, standing still for the stop-sign invariant
 STOP_CHECK_BAND = 10.0  # m, the halt must happen this close before the stop line
 MAX_DURATION = 3600.0  # s of simulated driving after which a drive is declared stuck
+STANDSTILL_LIMIT = 20.0  # s an unheld standstill may last (reaction + start-up take a few s; a dwell at most 4 s)
+LIVENESS_REACH = 50.0  # m, a red/yellow light or a vehicle this close ahead holds the ego legitimately
 
 
-class SafetyViolation(RuntimeError):
-    """A safety invariant failed during a drive (collision, red-light crossing, stop-sign roll-through)."""
+class DriveError(RuntimeError):
+    """A simulated drive failed. ``kind`` names the failure (for the robustness sweep's counts); the message
+    starts with the drive it belongs to (condition, participant seed, style, traffic seed) and says t and s."""
+
+    kind = "error"
+
+    def __init__(self, message: str, kind: str | None = None) -> None:
+        super().__init__(message)
+        if kind is not None:
+            self.kind = kind
+
+    def __reduce__(self):  # keep the kind across process boundaries (pool workers pickle exceptions)
+        return type(self), (str(self), self.kind)
+
+    def named(self, prefix: str) -> "DriveError":
+        """The same error with `prefix: ` before its message."""
+        return type(self)(f"{prefix}: {self}", self.kind)
+
+
+class SafetyViolation(DriveError):
+    """A safety invariant failed during a drive; ``kind`` is collision|red_light|stop_sign|backwards."""
+
+    kind = "safety"
+
+
+class LivenessViolation(DriveError):
+    """The ego stood still for more than STANDSTILL_LIMIT s although nothing held it: no red or yellow light and
+    no vehicle within LIVENESS_REACH m ahead (a deadlock of driver and advice; a person would drive off)."""
+
+    kind = "standstill"
+
+
+class DriveTimeout(DriveError):
+    """The drive did not reach the end of the route within its maximum duration."""
+
+    kind = "timeout"
 
 
 @dataclass
@@ -72,7 +113,7 @@ class SafetyGuard:
     def check(self, t: float, s: float, v: float, leader_gap: float | None, collided: bool) -> None:
         """Check the step that ended at (t, s, v)."""
         if collided or (leader_gap is not None and leader_gap <= 0.0):
-            raise SafetyViolation(f"collision at t={t:.1f} s, s={s:.1f} m (gap {leader_gap})")
+            raise SafetyViolation(f"collision at t={t:.1f} s, s={s:.1f} m (gap {leader_gap})", "collision")
         for i, ss in enumerate(self._stops):
             d = ss.s - s
             if v <= HALT_CHECK and -0.01 <= d <= STOP_CHECK_BAND:
@@ -80,14 +121,40 @@ class SafetyGuard:
         if self._prev is not None:
             t0, s0 = self._prev
             if s < s0 - 1e-6:
-                raise SafetyViolation(f"the ego vehicle moved backwards at t={t:.1f} s")
+                raise SafetyViolation(f"the ego vehicle moved backwards at t={t:.1f} s, s={s:.1f} m", "backwards")
             for tl in self._lights:
                 if s0 < tl.s <= s and tl.state_at(t0) == "red":
-                    raise SafetyViolation(f"red light {tl.tl_id} crossed at t={t0:.1f}-{t:.1f} s (s={tl.s:.1f} m)")
+                    raise SafetyViolation(f"red light {tl.tl_id} crossed at t={t0:.1f}-{t:.1f} s (s={tl.s:.1f} m)",
+                                          "red_light")
             for i, ss in enumerate(self._stops):
                 if s0 < ss.s <= s and not self._halted[i]:
-                    raise SafetyViolation(f"stop sign {ss.ss_id} passed without a full stop at t={t:.1f} s")
+                    raise SafetyViolation(f"stop sign {ss.ss_id} passed without a full stop at t={t:.1f} s, "
+                                          f"s={s:.1f} m", "stop_sign")
         self._prev = (t, s)
+
+
+class LivenessGuard:
+    """Raises :class:`LivenessViolation` when the ego stands still (v <= HALT_CHECK m/s) for more than `limit` s
+    while nothing holds it: the next light is green or farther than LIVENESS_REACH m, and no vehicle is within
+    LIVENESS_REACH m ahead. A stop sign does not stop the clock: its halt lasts a few seconds."""
+
+    def __init__(self, limit: float = STANDSTILL_LIMIT) -> None:
+        self.limit = limit
+        self._since: float | None = None  # start of the current unheld standstill
+
+    def check(self, t: float, s: float, v: float, leader_gap: float | None, tl_state: str | None,
+              d_tl: float | None) -> None:
+        held_by_light = tl_state in ("red", "yellow") and d_tl is not None and d_tl <= LIVENESS_REACH
+        held_by_leader = leader_gap is not None and leader_gap <= LIVENESS_REACH
+        if v > HALT_CHECK or held_by_light or held_by_leader:
+            self._since = None
+            return
+        if self._since is None:
+            self._since = t
+        elif t - self._since > self.limit:
+            ahead = f"light {tl_state} {d_tl:.0f} m ahead" if d_tl is not None else "no light ahead"
+            raise LivenessViolation(f"standing still for {t - self._since:.1f} s at t={t:.1f} s, s={s:.1f} m with "
+                                    f"nothing holding the car ({ahead}, no vehicle within {LIVENESS_REACH:.0f} m)")
 
 
 @lru_cache(maxsize=2)
@@ -124,69 +191,81 @@ def drive(participant_seed: int, style: str, condition: str, *, traffic_seed: in
 
         ctrl = PedasController(route, v_dp=v_dp)
     guard = SafetyGuard(route)
+    alive = LivenessGuard()
+    name = (f"{'pEDAS' if assisted else 'baseline'} drive of participant seed {participant_seed} ({style}, "
+            f"traffic seed {tseed})")
     lights = tuple(route.lights)
     cols: dict[str, list] = {c: [] for c in ("t", "s", "v", "a", "tl_id", "tl_state", "d_tl", "leader_gap",
                                              "leader_v", "v_advice", "controller", "hud_arrow", "hud_in_band",
                                              "warning")}
     wall0 = time.perf_counter()
-    steps = 0
-    max_veh = 0
-    with Traffic(tseed, net_file) as tr:
-        t_ins = tr.insert_ego()
-        tl_i = 0
-        while True:
-            t = tr.time
-            s, v = tr.ego_state()
-            lead = tr.leader()
-            gap = lead.gap if lead is not None else None
-            try:
-                guard.check(t, s, v, gap, tr.ego_collided())
-            except SafetyViolation as exc:
-                raise SafetyViolation(f"{condition} drive of participant seed {participant_seed} ({style}): "
-                                      f"{exc}") from None
-            while tl_i < len(lights) and lights[tl_i].s < s:
-                tl_i += 1
-            tl = lights[tl_i] if tl_i < len(lights) else None
-            tl_state = tl.state_at(t) if tl is not None else None
-            adv = None
-            if ctrl is not None:
-                adv = ctrl.step(t, s, v, (lead.gap, lead.v) if lead is not None else None)
-            obs = Perception(t, gap, lead.v if lead is not None else None, tl_state,
-                             tl.remaining(t) if tl is not None else None,
-                             adv.v_advice if adv is not None else None, bool(adv.warning) if adv is not None else False,
-                             s=s, leader_a=lead.a if lead is not None else 0.0)
-            a = human.act(t, s, v, obs)
-            v_next = max(v + a * DT, 0.0)
-            a = (v_next - v) / DT
-            cols["t"].append(t - t_ins)
-            cols["s"].append(s)
-            cols["v"].append(v)
-            cols["a"].append(a)
-            cols["tl_id"].append(tl.tl_id if tl is not None else None)
-            cols["tl_state"].append(tl_state)
-            cols["d_tl"].append(tl.s - s if tl is not None else math.nan)
-            cols["leader_gap"].append(gap if gap is not None else math.nan)
-            cols["leader_v"].append(lead.v if lead is not None else math.nan)
-            cols["v_advice"].append(adv.v_advice if adv is not None else math.nan)
-            cols["controller"].append(adv.controller if adv is not None else "none")
-            cols["hud_arrow"].append(adv.hud_arrow if adv is not None else None)
-            cols["hud_in_band"].append(adv.hud_in_band if adv is not None else None)
-            cols["warning"].append(adv.warning if adv is not None else None)
-            steps += 1
-            if steps % 50 == 0:
-                max_veh = max(max_veh, tr.vehicle_count())
-            if t - t_ins > max_duration:
-                raise RuntimeError(f"drive did not finish within {max_duration} s (stuck at s={s:.0f} m)")
-            tr.set_ego_speed(v_next)
-            tr.step()
-            if tr.ego_arrived():
-                break
+    try:
+        with Traffic(tseed, net_file) as tr:
+            steps, max_veh, t_ins = _loop(tr, route, lights, human, ctrl, guard, alive, cols, max_duration)
+    except DriveError as exc:
+        raise exc.named(name) from None
+    except Exception as exc:  # any other failure still says which drive it was
+        raise DriveError(f"{name}: {type(exc).__name__}: {exc}") from exc
     wall = time.perf_counter() - wall0
     df = _log_frame(cols, route)
     info = DriveInfo(int(participant_seed), style, condition, tseed, drv.as_dict(), float(t_ins),
                      float(df["t"].iloc[-1]), wall, steps, max_veh, dict(ctrl.stats) if ctrl is not None else None)
     df.attrs["drive"] = info.__dict__
     return df
+
+
+def _loop(tr: Traffic, route, lights, human: HumanDriver, ctrl, guard: SafetyGuard, alive: LivenessGuard,
+          cols: dict, max_duration: float) -> tuple[int, int, float]:
+    """Step the drive until the ego arrives; fills `cols`; returns (steps, max vehicles, SUMO insertion time)."""
+    steps = 0
+    max_veh = 0
+    t_ins = tr.insert_ego()
+    tl_i = 0
+    while True:
+        t = tr.time
+        s, v = tr.ego_state()
+        lead = tr.leader()
+        gap = lead.gap if lead is not None else None
+        guard.check(t, s, v, gap, tr.ego_collided())
+        while tl_i < len(lights) and lights[tl_i].s < s:
+            tl_i += 1
+        tl = lights[tl_i] if tl_i < len(lights) else None
+        tl_state = tl.state_at(t) if tl is not None else None
+        alive.check(t - t_ins, s, v, gap, tl_state, tl.s - s if tl is not None else None)
+        adv = None
+        if ctrl is not None:
+            adv = ctrl.step(t, s, v, (lead.gap, lead.v) if lead is not None else None)
+        obs = Perception(t, gap, lead.v if lead is not None else None, tl_state,
+                         tl.remaining(t) if tl is not None else None,
+                         adv.v_advice if adv is not None else None, bool(adv.warning) if adv is not None else False,
+                         s=s, leader_a=lead.a if lead is not None else 0.0)
+        a = human.act(t, s, v, obs)
+        v_next = max(v + a * DT, 0.0)
+        a = (v_next - v) / DT
+        cols["t"].append(t - t_ins)
+        cols["s"].append(s)
+        cols["v"].append(v)
+        cols["a"].append(a)
+        cols["tl_id"].append(tl.tl_id if tl is not None else None)
+        cols["tl_state"].append(tl_state)
+        cols["d_tl"].append(tl.s - s if tl is not None else math.nan)
+        cols["leader_gap"].append(gap if gap is not None else math.nan)
+        cols["leader_v"].append(lead.v if lead is not None else math.nan)
+        cols["v_advice"].append(adv.v_advice if adv is not None else math.nan)
+        cols["controller"].append(adv.controller if adv is not None else "none")
+        cols["hud_arrow"].append(adv.hud_arrow if adv is not None else None)
+        cols["hud_in_band"].append(adv.hud_in_band if adv is not None else None)
+        cols["warning"].append(adv.warning if adv is not None else None)
+        steps += 1
+        if steps % 50 == 0:
+            max_veh = max(max_veh, tr.vehicle_count())
+        if t - t_ins > max_duration:
+            raise DriveTimeout(f"did not finish within {max_duration:.0f} s (at t={t - t_ins:.1f} s, "
+                               f"s={s:.1f} m)")
+        tr.set_ego_speed(v_next)
+        tr.step()
+        if tr.ego_arrived():
+            return steps, max_veh, t_ins
 
 
 def _log_frame(cols: dict, route) -> pd.DataFrame:

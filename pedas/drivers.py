@@ -29,6 +29,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from pedas.constants import DT, HIGHWAY_MIN_SPEED, HUD_BAND, KMH
+from pedas.hud import wants_start
 from pedas.params import LEAF, VehicleParams
 from pedas.route import braking_envelope
 from pedas.vehicle import traction_envelope
@@ -353,7 +354,8 @@ class HumanDriver:
     def _track(self, v: float, s: float, v_own: float, adv: float, warn: bool) -> float:
         """Assisted longitudinal command towards target = advice + (1 - compliance) (own wish - advice).
 
-        Inside the +-2 km/h band the driver coasts (the paper's instruction for a short arrow). Below the band
+        Inside the +-2 km/h band the driver coasts (the paper's instruction for a short arrow), unless the car
+        stands and the target lies above it (:func:`pedas.hud.wants_start`): then the driver drives off. Below the band
         the driver accelerates and keeps the pedal until the target is reached (hysteresis instead of pedal
         chatter at the band edge); above it the driver first lifts off (coasts) and brakes only when the
         excess exceeds COAST_EXCESS or a warning tone sounds (then the advice is followed fully). The own curve
@@ -369,7 +371,8 @@ class HumanDriver:
         if self._v_min[self._idx(s)] > 0.0:  # the instructed highway minimum holds whatever the advice
             target = max(target, self._v_min[self._idx(s)] + HUD_BAND + 0.5 * KMH)
         err = target - v
-        if err > HUD_BAND or (self._tracking and err > TRACK_DONE):
+        # standing, the band's "coast" means "stay": a person advised to drive off does (pedas.hud.wants_start)
+        if err > HUD_BAND or (self._tracking and err > TRACK_DONE) or wants_start(v, target):
             self._tracking = True
             a = min(err / TRACK_TIME, p.a_max)
         else:

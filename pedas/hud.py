@@ -5,6 +5,10 @@ Labs can drive a real head-up display from :func:`advisory`; the controller call
 - optimal speed v_opt = the first planned speed of the MPC plan;
 - arrow up (green) when v < v_opt - HUD_BAND, down (red) when v > v_opt + HUD_BAND, none inside the +-2 km/h band,
   where the digits turn black and the driver is advised to coast (no pedal);
+- at standstill (v < STANDSTILL) the band does not apply: a standing car cannot coast, so an optimal speed more
+  than START_MIN above v shows the arrow up ("drive off"). Without this, a plan that leaves standstill gently
+  (v_opt = v_1, one sample ahead, rises by F_t,max/m_eq x 0.2 s, which can be < 2 km/h) would show black digits,
+  and a driver who coasts as instructed would stand at a green light forever;
 - arrow length proportional to |v - v_opt|, full length at ARROW_FULL_SCALE, capped at 1;
 - the remaining time of the next traffic light's phase when it is below HUD_TL_COUNTDOWN and the light is within
   ICON_RANGE;
@@ -23,6 +27,13 @@ ARROW_FULL_SCALE = 10.0 * KMH  # m/s, |v - v_opt| at which the arrow has full le
 ICON_RANGE = 150.0  # m, look-ahead for TL countdown / stop-sign / curve icons (design choice)
 WARN_DELAY = 2.0  # s, a slow-down advice ignored this long triggers the warning tone (design choice)
 NOT_DECEL = 0.3  # m/s^2, a deceleration weaker than this does not count as following a slow-down advice
+STANDSTILL = 0.1  # m/s, below this the car stands (the drive loop's halt threshold)
+START_MIN = 0.3 * KMH  # m/s, v_opt this far above a standing car's speed means "drive off" (design choice)
+
+
+def wants_start(v: float, v_target: float) -> bool:
+    """A standing car (v < STANDSTILL m/s) is advised to drive off: v_target exceeds v by more than START_MIN."""
+    return v < STANDSTILL and v_target - v > START_MIN
 
 
 @dataclass(frozen=True)
@@ -83,7 +94,7 @@ def advisory(state: HudState, plan: Sequence[float], context: HudContext) -> Hud
     """The HUD record for a measured state, a plan of predicted speeds v_1..v_N (m/s) and the route context."""
     v_opt = float(plan[0])
     dv = v_opt - state.v
-    if dv > HUD_BAND:
+    if dv > HUD_BAND or wants_start(state.v, v_opt):
         arrow, color = 1, "green"
     elif dv < -HUD_BAND:
         arrow, color = -1, "red"

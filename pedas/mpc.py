@@ -160,8 +160,8 @@ class SparseMpc:
         self.a_v = 1.0 - dt * mm.c_aero * mm.p1 / mm.m_eq          # v_{k+1} = a_v v_k + b (Ft - Fb) + c_k
         self.b_f = dt * KN / mm.m_eq                                # per kN
         self.c_const = -dt * mm.c_aero * mm.p2 / mm.m_eq            # part of c_k independent of the grade
-        eig = power_hessian_eigs(mm)
-        self.power_convex = bool(eig.min() >= -1e-12)
+        # the 2x2 Hessian is PSD iff a20, a02 >= 0 and 4 a20 a02 >= a11^2: decided exactly, not by LAPACK's eigvalsh
+        self.power_convex = mm.power.jointly_convex
         # power map in kW with F in kN: P = a00' + a10' v + a01' F + a11' v F + a20' v^2 + a02' F^2
         pm = mm.power
         self.pa00 = pm.a00 / KW
@@ -353,7 +353,8 @@ class SparseMpc:
             l[i0] = u[i0] = d_rel0 / LU
             l[R["dyn_r"]] = u[R["dyn_r"]] = self.dt * v_p / LU
             l[R["safe"]] = (self.w.d_min + safe_margin) / LU
-        # linear cost: power (eq. 5) on k=0..N-1 and tracking on v_1..v_N; other entries of q stay 0
+        # linear cost: power (eq. 5) on k=0..N-1 and tracking on v_1..v_N; other entries of q stay 0.
+        # Sums of products, not `@`: a BLAS dot product's last bits depend on the kernel numpy picks.
         sv0, sv1, sft = self._sv0, self._sv1, self._sft
         const = N * self.pa00
         q[sv0] = self.pa10
@@ -365,16 +366,16 @@ class SparseMpc:
             # a11 v F ~ a11 (vbar F + Fbar v - vbar Fbar): first-order Taylor at the previous trajectory
             q[sv0] += self.pa11 * fb_
             q[sft] += self.pa11 * vb
-            const -= self.pa11 * float(vb @ fb_)
+            const -= self.pa11 * float(np.sum(vb * fb_))
             if self.lin_v2:
                 q[sv0] += 2.0 * self.pa20 * vb
-                const -= self.pa20 * float(vb @ vb)
+                const -= self.pa20 * float(np.sum(vb * vb))
             if self.lin_f2:
                 q[sft] += 2.0 * self.pa02 * fb_
-                const -= self.pa02 * float(fb_ @ fb_)
+                const -= self.pa02 * float(np.sum(fb_ * fb_))
         if not self.follow:
             q[sv1] -= 2.0 * self.w.zeta1 * v_ref                       # zeta1 (v_{k+1} - v_ref,k)^2, eq. (9a)
-            const += self.w.zeta1 * float(v_ref @ v_ref)
+            const += self.w.zeta1 * float(np.sum(v_ref * v_ref))
         elif self.w.zeta_v > 0:
             q[sv1] -= 2.0 * self.w.zeta_v * v_p                         # zeta_v (v_{k+1} - v_p)^2
             const += self.w.zeta_v * N * v_p * v_p

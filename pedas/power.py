@@ -16,6 +16,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from pedas import exact_lstsq
 from pedas.params import LEAF, VehicleParams
 from pedas.vehicle import V_RANGE_DEFAULT, forces_from_trace, split_braking, traction_envelope
 
@@ -26,7 +27,8 @@ T_SMOOTH = 10.0  # Nm: speed-dependent inverter/iron losses ramp in over this to
 def _motor_losses(T_m, omega, p: VehicleParams):
     """Motor + inverter losses in W for shaft torque T_m (Nm, any sign) at speed omega (rad/s)."""
     on = np.minimum(np.abs(T_m) / T_SMOOTH, 1.0)  # an idle (zero-torque) inverter draws ~nothing
-    return p.k_copper * T_m ** 2 + on * (p.k_iron * omega + p.k_wind * omega ** 3 + p.P_const_loss)
+    # products, not `** 3`: numpy's power ufunc is CPU-dispatched (SIMD variants may differ in the last bit)
+    return p.k_copper * T_m * T_m + on * (p.k_iron * omega + p.k_wind * omega * omega * omega + p.P_const_loss)
 
 
 def _cells_power(p_terminal, p: VehicleParams):
@@ -146,10 +148,9 @@ def fit_power_map(p: VehicleParams = LEAF, v_range=V_RANGE_DEFAULT, ft_range=Non
     """
     V, F = half_map_grid(p, v_range, ft_range, nv, nf)
     P = battery_power(V, F, 0.0, p=p)
-    A = np.column_stack([np.ones_like(V), V, F, V * F, V ** 2, F ** 2])
-    coef, *_ = np.linalg.lstsq(A, P, rcond=None)
-    pm = PowerMap(*(float(c) for c in coef))
-    resid = P - A @ coef
+    A = np.column_stack([np.ones_like(V), V, F, V * F, V * V, F * F])
+    pm = PowerMap(*exact_lstsq.lstsq(A, P))  # exact: the same coefficients on every machine
+    resid = P - pm(V, F)
     ss_res = float(np.sum(resid ** 2))
     ss_tot = float(np.sum((P - P.mean()) ** 2))
     margin = 4 * pm.a20 * pm.a02 - pm.a11 ** 2
@@ -165,9 +166,14 @@ def _cached_fit(p: VehicleParams) -> tuple[PowerMap, FitReport]:
     return fit_power_map(p)
 
 
+@lru_cache(maxsize=8)
 def power_map(p: VehicleParams = LEAF) -> PowerMap:
-    """The default (cached) power map of `p` fitted over 0-130 km/h."""
-    return _cached_fit(p)[0]
+    """The power map of `p` over 0-130 km/h: the committed coefficients where they exist for `p`
+    (:mod:`pedas.fitted`), else fitted now (exactly)."""
+    from pedas.fitted import committed
+
+    rec = committed(p, V_RANGE_DEFAULT)
+    return PowerMap(**rec["power_map"]) if rec is not None else _cached_fit(p)[0]
 
 
 def power_map_report(p: VehicleParams = LEAF) -> FitReport:

@@ -144,7 +144,8 @@ def _moving_average(a: np.ndarray, n: int) -> np.ndarray:
         return a
     pad = n // 2
     ap = np.concatenate([np.full(pad, a[0]), a, np.full(n - 1 - pad, a[-1])])
-    return np.convolve(ap, np.ones(n) / n, mode="valid")
+    # a mean over sliding windows, not np.convolve: convolve sums through BLAS, whose last bits depend on the kernel
+    return np.lib.stride_tricks.sliding_window_view(ap, n).mean(axis=-1)
 
 
 def study_route(net_file: str | Path | None = None, ds: float = DS) -> Route:

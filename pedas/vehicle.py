@@ -15,6 +15,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from pedas import exact_lstsq
 from pedas.constants import DT, KMH
 from pedas.params import LEAF, VehicleParams
 
@@ -53,9 +54,8 @@ def fit_aero(p: VehicleParams = LEAF, v_lo: float = V_RANGE_DEFAULT[0], v_hi: fl
     if not v_hi > v_lo >= 0:
         raise ValueError(f"need 0 <= v_lo < v_hi, got {v_lo}, {v_hi}")
     v = np.linspace(v_lo, v_hi, n)
-    A = np.column_stack([v, np.ones_like(v)])
-    (p1, p2), *_ = np.linalg.lstsq(A, v * v, rcond=None)
-    return float(p1), float(p2)
+    p1, p2 = exact_lstsq.lstsq(np.column_stack([v, np.ones_like(v)]), v * v)
+    return p1, p2
 
 
 def traction_envelope(v, p: VehicleParams = LEAF):
@@ -76,29 +76,30 @@ def fit_traction_limit(p: VehicleParams = LEAF, v_lo: float = V_RANGE_DEFAULT[0]
 
     `conservative=True` (default): the least-squares line subject to lying on or below the envelope at every grid
     speed, so the MPC never plans a force the motor cannot deliver (the envelope is convex above base speed, so a
-    line under it exists). `conservative=False`: the plain least-squares line ("line approximation").
-    p3 in N/(m/s), p4 in N.
+    line under it exists); solved exactly and proven optimal (:func:`pedas.exact_lstsq.line_below`), then lowered
+    by any excess over the envelope between the grid speeds (where the convex part can dip below the line). `conservative=False`: the plain least-squares line ("line approximation"), exact.
+    p3 in N/(m/s), p4 in N. The same bits on every machine: no floating-point solver or BLAS call is involved.
     """
     if not v_hi > v_lo >= 0:
         raise ValueError(f"need 0 <= v_lo < v_hi, got {v_lo}, {v_hi}")
     v = np.linspace(v_lo, v_hi, n)
     f = traction_envelope(v, p)
-    A = np.column_stack([v, np.ones_like(v)])
-    x, *_ = np.linalg.lstsq(A, f, rcond=None)
-    if conservative:
-        from scipy.optimize import minimize
-
-        cons = {"type": "ineq", "fun": lambda z: f - A @ z, "jac": lambda z: -A}
-        # start from a feasible point: a flat line at the envelope's minimum
-        z0 = np.array([0.0, float(f.min())])
-        res = minimize(lambda z: float(np.sum((A @ z - f) ** 2)), z0,
-                       jac=lambda z: 2 * A.T @ (A @ z - f), constraints=[cons], method="SLSQP",
-                       options={"maxiter": 500, "ftol": 1e-10})
-        x = res.x
-        # remove any residual infeasibility (solver tolerance, and between the grid speeds) on a dense grid
-        vd = np.linspace(v_lo, v_hi, 50 * n)
-        x = np.array([x[0], x[1] - max(0.0, float(np.max(x[0] * vd + x[1] - traction_envelope(vd, p))))])
-    return float(x[0]), float(x[1])
+    if not conservative:
+        p3, p4 = exact_lstsq.lstsq(np.column_stack([v, np.ones_like(v)]), f)
+        return p3, p4
+    p3, p4 = exact_lstsq.line_below(v, f)
+    # between grid speeds the envelope's convex part P/v can dip under the line: the excess a v + b - P/v is
+    # concave there, largest at v* = sqrt(-P/a); check it, the kinks and a dense grid, and lower the line by the
+    # largest excess plus 1 uN (so that rounding at any speed cannot put it above the envelope)
+    p_eff = p.P_max * p.eta_gear
+    v_b = p_eff / p.F_t_peak  # base speed: torque limit -> power limit
+    special = [v_b, p.v_top] + ([np.sqrt(-p_eff / p3)] if p3 < 0 else [])
+    vd = np.concatenate([np.linspace(v_lo, v_hi, 50 * n), [x for x in special if v_lo <= x <= v_hi]])
+    excess = float(np.max(p3 * vd + p4 - traction_envelope(vd, p)))
+    p4 -= max(excess, 0.0) + 1e-6
+    if not (np.all(p3 * v + p4 <= f) and np.all(p3 * vd + p4 <= traction_envelope(vd, p))):  # postcondition
+        raise exact_lstsq.FitError("the traction-limit line lies above the motor envelope")
+    return p3, p4
 
 
 @dataclass(frozen=True)
@@ -152,10 +153,17 @@ class AeroLinearisation:
 
 @lru_cache(maxsize=32)
 def linear_model(p: VehicleParams = LEAF, v_range: tuple[float, float] = V_RANGE_DEFAULT) -> LinearModel:
-    """The (cached) linear model of `p` fitted over `v_range` m/s."""
+    """The (cached) linear model of `p` over `v_range` m/s: the committed coefficients where they exist for exactly
+    these inputs (:mod:`pedas.fitted`), else fitted now with the same exact methods."""
+    from pedas.fitted import committed
+
     v_lo, v_hi = float(v_range[0]), float(v_range[1])
-    p1, p2 = fit_aero(p, v_lo, v_hi)
-    p3, p4 = fit_traction_limit(p, v_lo, v_hi)
+    rec = committed(p, (v_lo, v_hi))
+    if rec is not None:  # the committed coefficients (pedas/fitted_coefficients.json)
+        (p1, p2), (p3, p4) = rec["aero"].values(), rec["traction_limit"].values()
+    else:
+        p1, p2 = fit_aero(p, v_lo, v_hi)
+        p3, p4 = fit_traction_limit(p, v_lo, v_hi)
     return LinearModel(p1, p2, p3, p4, 0.5 * p.rho * p.A_f * p.c_w, v_lo, v_hi)
 
 
