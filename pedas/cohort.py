@@ -118,7 +118,7 @@ def run_task(task: DriveTask, cache_dir: str | None = None, key: str | None = No
     """Simulate one task (in the calling process) unless cached; store it in the cache. Worker entry point.
 
     `key`: the cache key computed by the caller (so that parent and worker agree on it)."""
-    from pedas.drive import drive
+    from pedas.drive import DriveError, drive
 
     cdir = Path(cache_dir) if cache_dir else default_cache_dir()
     key = key or task_key(task)
@@ -126,7 +126,10 @@ def run_task(task: DriveTask, cache_dir: str | None = None, key: str | None = No
     if hit is not None:
         return hit
     with _SUMO_LOCK:
-        df = drive(task.seed, task.style, task.condition, traffic_seed=task.traffic_seed)
+        try:
+            df = drive(task.seed, task.style, task.condition, traffic_seed=task.traffic_seed)
+        except DriveError as exc:  # the message names the drive; add whose it is
+            raise exc.named(task.participant_id) from None
     _store_cached(key, df, cdir)
     return df
 

@@ -9,6 +9,8 @@ from pathlib import Path
 
 import pytest
 
+import pedas  # noqa: F401  (before anything imports numpy: the same SIMD paths as the CLI, see pedas/__init__.py)
+
 REPO = Path(__file__).resolve().parents[1]
 OUTPUT = REPO / "tests" / "output"  # screenshots and other artefacts a person may want to look at
 

@@ -83,3 +83,15 @@ def test_a_stalled_driver_model_is_caught_and_the_real_one_drives_on(flat_tracti
     # the real model with the same weak traction limit reaches the end of the route
     df = drive(1005, "cautious", "pedas")
     assert df["s"].iloc[-1] > 13_000
+
+
+def test_a_cohort_drive_error_names_the_participant(monkeypatch, tmp_path):
+    import pedas.drive
+    from pedas.cohort import DriveTask, run_task
+
+    def stalled(seed, style, condition, traffic_seed=None):
+        raise LivenessViolation(f"pEDAS drive of participant seed {seed} ({style}): standing still at t=1 s")
+
+    monkeypatch.setattr(pedas.drive, "drive", stalled)
+    with pytest.raises(LivenessViolation, match=r"^P003: pEDAS drive of participant seed 42 \(sporty\)"):
+        run_task(DriveTask("P003", 42, "sporty", "pedas"), str(tmp_path))
