@@ -1,21 +1,41 @@
-# Every target sets up .venv by itself (python3 -m venv + pip install -e .[test]).
+# Every target sets up .venv by itself: python3 -m venv, the exact versions of requirements.lock, then the project
+# itself (editable, no second resolution). `make lock` regenerates the lock from pyproject.toml's ranges.
 PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
+LOCK   := requirements.lock
 OUT    ?= reports
 PYTEST_ARGS ?=
+# numpy on its AVX2 code paths on every x86-64 CPU: the same float64 results with and without AVX-512
+# (importing pedas sets the same default; here it also holds for anything that imports numpy first)
+export NPY_DISABLE_CPU_FEATURES ?= X86_V4 AVX512_ICL AVX512_SPR
+# the locking tool's version, and extra options for it, e.g. LOCK_ARGS=--upgrade or LOCK_ARGS='--upgrade-package numpy'
+UV_VERSION ?= 0.13.9
+LOCK_ARGS ?=
 
 .DEFAULT_GOAL := report
-.PHONY: report test bench serve clean venv
+.PHONY: report test bench serve clean venv lock refit
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml $(LOCK)
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
-	$(BIN)/python -m pip install -q -e '.[test]'
+	$(BIN)/python -m pip install -q --require-hashes -r $(LOCK)
+	$(BIN)/python -m pip install -q --no-deps -e .
 	touch $(STAMP)
 
+# CPython 3.11 on x86-64 Linux, the runtime dependencies plus the `test` extra, every file's sha256
+lock:
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install -q uv==$(UV_VERSION)
+	$(BIN)/uv pip compile pyproject.toml --extra test --python-version 3.11 --python-platform x86_64-unknown-linux-gnu \
+		--generate-hashes --custom-compile-command 'make lock' --quiet $(LOCK_ARGS) -o $(LOCK)
+
 venv: $(STAMP)
+
+# refit the vehicle model's committed coefficients (pedas/fitted_coefficients.json; exact, machine-independent)
+refit: $(STAMP)
+	$(BIN)/python -m pedas.fitted
 
 report: $(STAMP)
 	$(BIN)/pedas-study report --out $(OUT)
