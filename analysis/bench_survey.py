@@ -52,7 +52,7 @@ def simulate_responses(n: int = 40, seed: int = 1, instrument=None, loading: flo
 def bench_survey(n: int = 40, n_boot: int = 2000, repeats: int = 3, seed: int = 1) -> dict:
     """Median wall time of `analyze_survey` on `n` synthetic rows with `n_boot` resamples, and the share of it
     the bootstrap takes (ratio to the same run with n_boot = 0)."""
-    from analysis.survey import analyze_survey
+    from analysis.acceptance import analyze_survey
 
     data = simulate_responses(n, seed)
     analyze_survey(data, n_boot=0)  # warm-up: imports, semopy compile paths

@@ -32,7 +32,7 @@ def _reconstruct(args: argparse.Namespace) -> int:
 
 
 def _cohort(args: argparse.Namespace) -> int:
-    from analysis.paper.cohort import make_cohort
+    from analysis.paper.reference_cohort import make_cohort
 
     cohort = make_cohort(seed=args.seed)
     paths = cohort.write(args.out)

@@ -1,5 +1,5 @@
 """CLI commands of the acceptance statistics: ``analyze survey`` and ``bench survey``
-(see `study.cli` for the registration contract). Handlers are thin; the work is in `analysis.survey`."""
+(see `study.cli` for the registration contract). Handlers are thin; the work is in `analysis.acceptance`."""
 from __future__ import annotations
 
 
@@ -35,7 +35,7 @@ def _analyze_survey(args) -> int:
 
     import pandas as pd
 
-    from analysis.survey import analyze_survey, responses_from_store
+    from analysis.acceptance import analyze_survey, responses_from_store
 
     if args.bootstrap < 0:
         raise ValueError("--bootstrap must be >= 0")

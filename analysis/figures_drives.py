@@ -16,7 +16,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.render import pyplot, save_figure
-from analysis.savings import STYLES
+from pedas.vocabulary import STYLES
 from pedas.constants import SENSOR_RANGE
 
 BASE_COLOR, PEDAS_COLOR = "#7f7f7f", "#2ca02c"

@@ -36,8 +36,9 @@ import numpy as np
 import pandas as pd
 
 from pedas.constants import KMH
+from pedas.vocabulary import SEGMENTS as ROUTE_SEGMENTS
 
-SEGMENTS = ("urban", "highway", "overall")
+SEGMENTS = (*ROUTE_SEGMENTS, "overall")  # KPI rows: each route segment and the whole drive
 
 #: The columns of drive_samples the KPIs read.
 KPI_COLUMNS = ("drive_id", "idx", "t", "s", "v", "segment", "speed_limit", "a", "p_batt",

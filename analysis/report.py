@@ -65,7 +65,7 @@ def _open_store(cfg: ReportConfig, read_only: bool = False):
 def load_reference(st, ref_dir: Path = REFERENCE_DIR) -> None:
     """Load the reference study inputs into an open store: participants and protocol events with exclusions
     (`participants.csv`, `events.csv`) and the reconstructed survey (`survey.csv`), each import all or nothing."""
-    from analysis.paper.cohort import Cohort, load_into_store
+    from analysis.paper.reference_cohort import Cohort, load_into_store
     from study.survey_import import import_survey
 
     participants = pd.read_csv(ref_dir / "participants.csv", dtype={"participant_id": str})
@@ -121,7 +121,7 @@ def _fresh_dir(out: Path) -> Iterator[Path]:
 
 
 def survey_step(cfg: ReportConfig) -> None:
-    from analysis.survey import analyze_survey, responses_from_store
+    from analysis.acceptance import analyze_survey, responses_from_store
 
     with _open_store(cfg, read_only=True) as st:
         responses = responses_from_store(st)
@@ -299,10 +299,10 @@ def build_pipeline(cfg: ReportConfig) -> Pipeline:
 
         sources = sorted(p for p in NETWORK_DIR.iterdir() if p.suffix in (".xml", ".json", ".netccfg"))
         pipe.add(Step("network", lambda: build_network(), inputs=[*sources, CODE["pedas"] / "network.py"]))
-        # the store is built by this module and analysis.paper.cohort besides study/ and pedas/
+        # the store is built by this module and analysis.paper.reference_cohort besides study/ and pedas/
         pipe.add(Step("store", lambda: build_reference_store(cfg), after=["network"], outputs=[cfg.db],
                       inputs=[cfg.reference_dir, CODE["study"], CODE["pedas"], Path(__file__),
-                              CODE["analysis"] / "paper" / "cohort.py", params]))
+                              CODE["analysis"] / "paper" / "reference_cohort.py", params]))
         store_inputs = []
     after_store = ["store"] if cfg.reference else []
     pipe.add(Step("survey", lambda: survey_step(cfg), outputs=[cfg.out / "survey"], after=after_store,

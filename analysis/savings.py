@@ -22,8 +22,8 @@ import numpy as np
 import pandas as pd
 
 from analysis.kpis import store_kpis
+from pedas.vocabulary import STYLES
 
-STYLES = ("cautious", "normal", "sporty")
 
 #: The per-participant statistics summarised by style, in the order the paper reports them.
 SUMMARY_METRICS = ("saving_overall_pct", "saving_urban_pct", "saving_highway_pct", "violation_reduction_pct",

@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.render import fmt_cell, latex_table, markdown_table
-from analysis.savings import STYLES
+from pedas.vocabulary import STYLES
 
 # (metric, column label) of the per-style table, in the paper's order
 STYLE_TABLE_METRICS = (

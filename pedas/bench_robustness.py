@@ -21,8 +21,8 @@ from typing import Callable, NamedTuple, Sequence
 
 import pandas as pd
 
-STYLES = ("cautious", "normal", "sporty")
-CONDITIONS = ("baseline", "pedas")
+from pedas.vocabulary import CONDITIONS, STYLES
+
 COLUMNS = ("seed", "style", "condition", "traffic_seed", "ok", "kind", "message", "duration_s", "steps", "wall_s")
 
 

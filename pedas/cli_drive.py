@@ -81,7 +81,8 @@ def _names(text: str, allowed: tuple[str, ...], option: str) -> list[str]:
 def _bench_robustness(args) -> int:
     import json
 
-    from pedas.bench_robustness import CONDITIONS, STYLES, robustness_sweep, summarise, traffic_design, wall_time
+    from pedas.bench_robustness import robustness_sweep, summarise, traffic_design, wall_time
+    from pedas.vocabulary import CONDITIONS, STYLES
 
     seeds = _seed_range(args.seeds)
     styles = _names(args.styles, STYLES, "--styles")

@@ -34,8 +34,8 @@ from pedas.drivers import DriverParams, HumanDriver, Perception, sample_driver
 from pedas.network import build_network
 from pedas.route_study import study_route
 from pedas.traffic import Traffic
+from pedas.vocabulary import CONDITIONS
 
-CONDITIONS = ("baseline", "pedas")
 LOG_COLUMNS = ("t", "s", "v", "segment", "speed_limit", "a", "grade", "ft", "fb", "p_batt", "tl_id", "tl_state",
                "d_tl", "leader_gap", "leader_v", "v_advice", "controller", "hud_arrow", "hud_in_band", "warning")
 HALT_CHECK = 0.1  # m/s, standing still for the stop-sign invariant

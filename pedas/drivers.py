@@ -33,8 +33,8 @@ from pedas.hud import wants_start
 from pedas.params import LEAF, VehicleParams
 from pedas.route import braking_envelope
 from pedas.vehicle import traction_envelope
+from pedas.vocabulary import STYLES
 
-STYLES = ("cautious", "normal", "sporty")
 IDM_DELTA = 4.0  # IDM acceleration exponent (Treiber et al. 2000)
 HIGHWAY_MARGIN = 5.0 * KMH  # m/s, drivers keep their wish a little above the instructed 80 km/h minimum
 STOP_MARGIN = 0.5  # m, drivers aim to stand this far before the stop line

@@ -193,9 +193,10 @@ def _add_time(p: argparse.ArgumentParser) -> None:
 
 def register(cli) -> None:
     """Add this module's commands to the `pedas-study` parser."""
-    from study.drives import CONDITIONS
+    from pedas.vocabulary import CONDITIONS
     from study.exclusions import REASONS, SCOPES
-    from study.participants import GENDERS, STYLES
+    from pedas.vocabulary import STYLES
+    from study.participants import GENDERS
 
     cli.command("init", "create the study store (or upgrade its schema)", _init)
 

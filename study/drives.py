@@ -22,12 +22,11 @@ from typing import Any, Callable
 import numpy as np
 import pandas as pd
 
+from pedas.vocabulary import CONDITIONS, SEGMENTS
 from study.errors import UserError, check_choice
 
-CONDITIONS = ("baseline", "pedas")
 SOURCES = ("import", "simulation")
 REQUIRED = ("t", "s", "v", "segment", "speed_limit")
-SEGMENTS = ("urban", "highway")
 TL_STATES = ("green", "yellow", "red")
 CONTROLLERS = ("rt", "cf", "none")
 FLOAT_OPTIONAL = ("a", "grade", "ft", "fb", "p_batt", "d_tl", "leader_gap", "leader_v", "v_advice")

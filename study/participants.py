@@ -7,11 +7,11 @@ from typing import Any
 
 import pandas as pd
 
+from pedas.vocabulary import STYLES
 from study.errors import UserError, check_choice
 
 ID_PATTERN = re.compile(r"^P[0-9]{3,}$")  # ASCII digits only, as the schema's CHECK
 GENDERS = ("female", "male", "diverse", "undisclosed")
-STYLES = ("cautious", "normal", "sporty")
 AGE_RANGE = (16, 110)
 
 

@@ -26,7 +26,7 @@ from typing import Any
 
 import pandas as pd
 
-from study.audit import utcnow
+from study.audit_trail import utcnow
 from study.errors import UserError
 
 PROTOCOL_DIR = Path(__file__).with_name("protocols")

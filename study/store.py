@@ -22,7 +22,7 @@ from typing import Any, Iterator, Mapping, Sequence
 
 import duckdb
 
-from study import audit, migrate
+from study import audit_trail, migrate
 from study.errors import UserError
 
 INSTRUMENT_DIR = Path(__file__).with_name("instruments")
@@ -66,7 +66,7 @@ class Store:
             applied = [] if read_only else migrate.migrate(con)
             if read_only:
                 migrate.check_not_newer(con)
-            st = cls(con, path, audit.resolve_actor(actor), read_only)
+            st = cls(con, path, audit_trail.resolve_actor(actor), read_only)
             st.applied = [m.version for m in applied]  # migrations applied by this open (for `init`)
             if not read_only:
                 st._load_instruments()
@@ -218,7 +218,7 @@ class Store:
             cur = self._write(f'INSERT INTO "{table}" ({cols}) VALUES ({marks}) RETURNING *', list(row.values()), table)
             names = [d[0] for d in cur.description]
             stored = dict(zip(names, cur.fetchone()))
-            audit.record(self.con, self.actor, "insert", table, self._key_of(table, stored), None, stored)
+            audit_trail.record(self.con, self.actor, "insert", table, self._key_of(table, stored), None, stored)
         return stored
 
     def update(self, table: str, key: Mapping[str, Any], values: Mapping[str, Any]) -> dict[str, Any]:
@@ -234,19 +234,19 @@ class Store:
         with self.transaction():
             old_rows = self._fetch(table, key)
             if not old_rows:
-                raise UserError(f"no {table} row with {audit.to_json(key)}")
+                raise UserError(f"no {table} row with {audit_trail.to_json(key)}")
             sets = ", ".join(f'"{c}" = ?' for c in values)
             where, params = self._where(key)
             cur = self._write(f'UPDATE "{table}" SET {sets} WHERE {where} RETURNING *',
                               list(values.values()) + params, table)
             names = [d[0] for d in cur.description]
             new_rows = [dict(zip(names, r)) for r in cur.fetchall()]
-            by_key = {audit.to_json(self._key_of(table, r)): r for r in old_rows}
+            by_key = {audit_trail.to_json(self._key_of(table, r)): r for r in old_rows}
             for new in new_rows:
                 k = self._key_of(table, new)
-                old = by_key.get(audit.to_json(k), old_rows[0])
+                old = by_key.get(audit_trail.to_json(k), old_rows[0])
                 changed = [c for c in values if old.get(c) != new.get(c)]
-                audit.record(self.con, self.actor, "update", table, k,
+                audit_trail.record(self.con, self.actor, "update", table, k,
                              {c: old.get(c) for c in changed}, {c: new.get(c) for c in changed})
         return new_rows[0]
 
@@ -262,7 +262,7 @@ class Store:
             where, params = self._where(key)
             self._write(f'DELETE FROM "{table}" WHERE {where}', params, table)
             for old in old_rows:
-                audit.record(self.con, self.actor, "delete", table, self._key_of(table, old), old, None)
+                audit_trail.record(self.con, self.actor, "delete", table, self._key_of(table, old), old, None)
         return len(old_rows)
 
     # ------------------------------------------------------------------ bulk
@@ -327,7 +327,7 @@ class Store:
                 items = ins.items.reset_index()
                 if ins.name not in have:
                     self.con.execute("INSERT INTO instruments (instrument, version, n_items, loaded_at) "
-                                     "VALUES (?, ?, ?, ?)", [ins.name, ins.version, len(items), audit.utcnow()])
+                                     "VALUES (?, ?, ?, ?)", [ins.name, ins.version, len(items), audit_trail.utcnow()])
                 else:
                     self.con.execute("UPDATE instruments SET n_items = ? WHERE instrument = ?",
                                      [len(items), ins.name])

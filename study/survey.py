@@ -26,8 +26,8 @@ from typing import Any, Iterator, Mapping
 
 import pandas as pd
 
-from study import audit
-from study.audit import utcnow
+from study import audit_trail
+from study.audit_trail import utcnow
 from study.errors import UserError
 from study.instrument import DEFAULT_INSTRUMENT, Answer, Instrument, load_instrument
 
@@ -276,9 +276,9 @@ def insert_audited(st, table: str, rows: list[dict]) -> None:
     log = pd.DataFrame({
         "at": [at] * len(rows), "actor": [st.actor] * len(rows), "action": ["insert"] * len(rows),
         "table_name": [table] * len(rows),
-        "row_key": [audit.to_json({k: r[k] for k in keys}) for r in rows],
+        "row_key": [audit_trail.to_json({k: r[k] for k in keys}) for r in rows],
         "old": pd.Series([None] * len(rows), dtype=object),
-        "new": [audit.to_json({c: r.get(c) for c in df.columns}) for r in rows]})
+        "new": [audit_trail.to_json({c: r.get(c) for c in df.columns}) for r in rows]})
     with st.transaction():
         st.insert_df(table, df)
         st.insert_df("audit_log", log)

@@ -8,7 +8,7 @@ import pandas as pd
 import pytest
 
 from analysis.bench_survey import simulate_responses
-from analysis.survey import COLUMNS, analyze_survey
+from analysis.acceptance import COLUMNS, analyze_survey
 
 DESIGN_FILES = ["descriptives", "loadings", "fit", "reliability", "correlations", "htmt", "regressions", "hypotheses"]
 

@@ -5,7 +5,7 @@ import pandas as pd
 import pytest
 
 from analysis.hypotheses import judge_hypotheses, load_hypotheses
-from analysis.survey import load_models
+from analysis.acceptance import load_models
 
 
 def test_shipped_spec_tests_each_hypothesis_where_the_paper_does():

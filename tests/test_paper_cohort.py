@@ -4,7 +4,7 @@ from __future__ import annotations
 import pandas as pd
 import pytest
 
-from analysis.paper import cohort as C
+from analysis.paper import reference_cohort as C
 from analysis.paper import published as P
 from pedas.paths import REFERENCE_DIR
 

@@ -159,7 +159,7 @@ def test_read_only(tmp_db):
 
 
 def test_timestamps_are_utc(tmp_db):
-    from study.audit import utcnow
+    from study.audit_trail import utcnow
 
     with Store.open(tmp_db) as st:
         row = st.insert("participants", {"participant_id": "P001"})

@@ -523,7 +523,7 @@ def reconstruct(seed: int = DEFAULT_SEED, published: pd.DataFrame | None = None,
     rng = np.random.default_rng(seed)
     X, info = _arrange(targets, rng)
     if participant_ids is None:
-        from analysis.paper.cohort import make_cohort
+        from analysis.paper.reference_cohort import make_cohort
 
         participant_ids = make_cohort(seed=seed).survey_ids()
     if len(participant_ids) != n:

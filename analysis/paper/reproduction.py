@@ -124,7 +124,7 @@ def computed_values(analysis) -> dict[tuple[str, str, str, str], float]:
 
 
 def reproduce(analysis, published: pd.DataFrame | None = None, audit: pd.DataFrame | None = None) -> pd.DataFrame:
-    """Compare a :class:`analysis.survey.SurveyAnalysis` with every published value of Tables 3-5.
+    """Compare a :class:`analysis.acceptance.SurveyAnalysis` with every published value of Tables 3-5.
 
     Returns one row per published value: table, quantity, row, column, line, printed, published, computed, delta,
     tolerance, status (match | within tolerance | audit finding #k | miss), finding, audit_row, note."""
@@ -213,7 +213,7 @@ def write_reproduction(table: pd.DataFrame, out_dir: str | Path, source: str = "
 
 def reproduce_files(responses: str | Path | None, out_dir: str | Path, n_boot: int = 2000, seed: int = 1) -> pd.DataFrame:
     """Analyse a survey CSV (default: the shipped reconstruction) and write the comparison into ``out_dir``."""
-    from analysis.survey import analyze_survey
+    from analysis.acceptance import analyze_survey
     from pedas.paths import REFERENCE_DIR
 
     path = Path(responses) if responses else REFERENCE_DIR / "survey.csv"

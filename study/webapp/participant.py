@@ -10,7 +10,7 @@ from __future__ import annotations
 from flask import Blueprint, jsonify, redirect, render_template, request, url_for
 
 from study import survey as sv
-from study.audit import utcnow
+from study.audit_trail import utcnow
 from study.errors import UserError
 from study.instrument import Answer
 from study.webapp.context import message, state, store

@@ -1,6 +1,6 @@
 """Acceptance statistics of a pEDAS survey in one call (paper Section 5.2, Tables 3-5).
 
-    >>> from analysis.survey import analyze_survey
+    >>> from analysis.acceptance import analyze_survey
     >>> res = analyze_survey(responses)          # wide frame: participant_id + PU1..BI2, raw 1-5
     >>> res.reliability, res.regressions, res.hypotheses
     >>> res.write("out/")                        # the DESIGN.md CSVs + table3/4/5 .md and .tex
