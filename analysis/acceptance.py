@@ -1,9 +1,12 @@
 """Acceptance statistics of a pEDAS survey in one call (paper Section 5.2, Tables 3-5).
 
-    >>> from analysis.acceptance import analyze_survey
-    >>> res = analyze_survey(responses)          # wide frame: participant_id + PU1..BI2, raw 1-5
-    >>> res.reliability, res.regressions, res.hypotheses
-    >>> res.write("out/")                        # the DESIGN.md CSVs + table3/4/5 .md and .tex
+Usage (a runnable example is in :class:`SurveyAnalysis`)::
+
+    res = analyze_survey(responses)          # wide frame: participant_id + PU1..BI2, raw 1-5
+    res.reliability, res.regressions, res.hypotheses
+    print(res.to_markdown())                 # Tables 3, 4 and 5 as the paper prints them (to_latex: booktabs)
+    res.write("out/")                        # the CSVs of docs/contracts.md + table3/4/5 .md, .tex and .csv
+    SurveyAnalysis.read("out/")              # the same results back from those files
 
 Pipeline: scoring (reverse PEoU3, listwise) -> item descriptives -> CFA stage ``initial`` (all items) with the
 item flags -> CFA stage ``final`` (declared deletions, ``analysis/specs/cfa.json``) -> reliability/validity on the
@@ -16,6 +19,7 @@ import json
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Sequence
 
 import pandas as pd
 
@@ -29,7 +33,7 @@ from analysis.validity import composite_correlations, fornell_larcker, htmt
 
 SPEC_DIR = Path(__file__).with_name("specs")
 
-# Column contracts of DESIGN.md "Machine-readable analysis outputs" (extra columns follow these).
+# Column contracts of docs/contracts.md "Analysis outputs" (extra columns follow these).
 COLUMNS = {
     "descriptives": ["item", "n", "mean", "sd"],
     "loadings": ["stage", "construct", "item", "loading", "retained"],
@@ -49,7 +53,17 @@ def _ordered(df: pd.DataFrame, name: str) -> pd.DataFrame:
 
 
 def load_cfa_config(cfa_config=None) -> dict:
-    """The item-deletion config: dict, JSON path, or the shipped default (``specs/cfa.json``) when None."""
+    """The item-deletion config: dict, JSON path, or the shipped default (``specs/cfa.json``) when None.
+
+    Examples
+    --------
+    >>> from analysis.acceptance import load_cfa_config
+    >>> cfg = load_cfa_config()                     # the paper's final model
+    >>> cfg["drop"], cfg["rules"]
+    (['PEoU3', 'ATT1', 'ATT2', 'ATT3', 'ATT4', 'ATT5'], {'min_loading': 0.7, 'cross_margin': 0.0})
+    >>> load_cfa_config({"drop": []})["rules"]["min_loading"]
+    0.7
+    """
     if cfa_config is None:
         cfa_config = SPEC_DIR / "cfa.json"
     if isinstance(cfa_config, (str, Path)):
@@ -61,7 +75,14 @@ def load_cfa_config(cfa_config=None) -> dict:
 
 
 def load_models(models=None) -> list[ModelSpec]:
-    """Regression models: list of ModelSpec/dicts, a spec dict with 'models', a JSON path, or the default."""
+    """Regression models: list of ModelSpec/dicts, a spec dict with 'models', a JSON path, or the default.
+
+    Examples
+    --------
+    >>> from analysis.acceptance import load_models
+    >>> [(m.name, m.dv, m.steps) for m in load_models()][:2]
+    [('1', 'PU', (('PEoU',),)), ('2', 'ATT', (('PEoU',), ('PU',)))]
+    """
     if models is None:
         models = SPEC_DIR / "models.json"
     if isinstance(models, (str, Path)):
@@ -85,9 +106,60 @@ def _stable(frame: pd.DataFrame) -> pd.DataFrame:
     return out
 
 
+# text columns of the written CSVs (read back as strings, an empty cell as ""); every other column is numeric or
+# boolean and an empty cell is NaN
+TEXT_COLUMNS = {
+    "descriptives": ["item", "construct"],
+    "loadings": ["stage", "construct", "item", "cross_construct", "rule"],
+    "fit": ["stage"],
+    "reliability": ["construct"],
+    "correlations": ["a", "b", "stars"],
+    "fornell_larcker": ["a", "b"],
+    "htmt": ["a", "b"],
+    "regressions": ["model", "dv", "predictor", "label"],
+    "hypotheses": ["hypothesis", "path", "model"],
+    "composites": ["participant_id"],
+}
+
+
+def _read_csv(path: Path, text: list[str], **kw) -> pd.DataFrame:
+    cols = pd.read_csv(path, nrows=0).columns
+    return pd.read_csv(path, dtype={c: str for c in cols if c in text}, keep_default_na=False,
+                       na_values={c: [""] for c in cols if c not in text}, **kw)
+
+
 @dataclass
 class SurveyAnalysis:
-    """All acceptance statistics of one survey; each table a tidy DataFrame in the DESIGN.md column contract."""
+    """All acceptance statistics of one survey; each table a tidy DataFrame in the column contract of docs/contracts.md.
+
+    The object renders itself (in the spirit of statsmodels' ``summary()``): :meth:`to_markdown` and
+    :meth:`to_latex` give the paper-shaped Tables 3, 4 and 5 as one string, :meth:`write` saves every table as
+    CSV, Markdown and LaTeX, and :meth:`read` loads a written analysis back.
+
+    Examples
+    --------
+    The shipped reference survey (40 participants), without bootstrap resamples:
+
+    >>> import tempfile
+    >>> import pandas as pd
+    >>> from analysis.acceptance import SurveyAnalysis, analyze_survey
+    >>> from pedas.paths import REFERENCE_DIR
+    >>> res = analyze_survey(pd.read_csv(REFERENCE_DIR / "survey.csv"), n_boot=0)
+    >>> res.n, len(res.hypotheses)
+    (40, 7)
+    >>> print(res.to_markdown("table4").splitlines()[0])
+    **Inter-construct correlation matrix of the TAM and TPB constructs**
+    >>> print(res.to_latex("table4").splitlines()[2])
+    \\caption{Inter-construct correlation matrix of the TAM and TPB constructs}
+
+    Written and read back, it renders the same tables:
+
+    >>> with tempfile.TemporaryDirectory() as d:
+    ...     _ = res.write(d)
+    ...     back = SurveyAnalysis.read(d)
+    >>> back.to_markdown() == res.to_markdown() and back.to_latex() == res.to_latex()
+    True
+    """
 
     descriptives: pd.DataFrame
     loadings: pd.DataFrame
@@ -113,7 +185,8 @@ class SurveyAnalysis:
                 "hypotheses": self.hypotheses}
 
     def write(self, out_dir) -> list[Path]:
-        """Write the DESIGN.md CSVs, composites.csv, warnings.txt, settings.json and table3/4/5 (.md, .tex)."""
+        """Write the CSVs of docs/contracts.md, composites.csv, warnings.txt, settings.json and table3/4/5 + item_flags
+        (.md, .tex, .csv; :func:`analysis.tables_survey.render_all`). :meth:`read` loads them back."""
         from analysis.tables_survey import render_all
 
         out = Path(out_dir)
@@ -138,11 +211,76 @@ class SurveyAnalysis:
             paths.append(p)
         return paths
 
+    def to_markdown(self, tables: str | Sequence[str] = ("table3", "table4", "table5")) -> str:
+        """The paper-shaped tables as one Markdown string.
+
+        Parameters
+        ----------
+        tables : str or sequence of str
+            Which tables, in this order: "table3", "table4", "table5" (the default: all three) and/or
+            "item_flags".
+
+        Returns
+        -------
+        str
+            Each table exactly as :meth:`write` saves it as ``<name>.md`` (bold title, table, notes; ending in a
+            newline), joined by one blank line. ``to_markdown("table4")`` is the text of ``table4.md``.
+        """
+        return self._render(tables, "md")
+
+    def to_latex(self, tables: str | Sequence[str] = ("table3", "table4", "table5")) -> str:
+        """The paper-shaped tables as one LaTeX string: booktabs ``table`` environments, each exactly as
+        :meth:`write` saves it as ``<name>.tex``, joined by one blank line (`tables` as in :meth:`to_markdown`).
+        The preamble needs ``\\usepackage{booktabs}``."""
+        return self._render(tables, "tex")
+
+    def _render(self, tables, fmt: str) -> str:
+        from analysis.tables_survey import render_table
+
+        names = [tables] if isinstance(tables, str) else list(tables)
+        return "\n".join(render_table(self, name, fmt) for name in names)
+
+    @classmethod
+    def read(cls, out_dir) -> "SurveyAnalysis":
+        """Load an analysis that :meth:`write` saved in `out_dir`.
+
+        The tables come from the CSV files (numbers as written: 12 significant digits), `n`, `n_input` and
+        `settings` from ``settings.json`` (JSON types: the model steps come back as lists), `warnings` from
+        ``warnings.txt``. ``latent_correlations`` is not written as such; it is rebuilt from the ``r_latent``
+        column of ``correlations.csv`` (unit diagonal). A text cell written empty comes back as ``""``.
+        ``read(d).to_markdown()`` / ``to_latex()`` equal the original's, and ``read(d).write(d2)`` writes the
+        same files as ``d``. Raises FileNotFoundError when a file is missing.
+        """
+        d = Path(out_dir)
+        names = list(COLUMNS) + ["fornell_larcker"]
+        missing = [f for f in [f"{n}.csv" for n in names] + ["composites.csv", "settings.json", "warnings.txt"]
+                   if not (d / f).is_file()]
+        if missing:
+            raise FileNotFoundError(f"{d} does not hold a written survey analysis: missing {', '.join(missing)}")
+        frames = {n: _read_csv(d / f"{n}.csv", TEXT_COLUMNS[n]) for n in names}
+        comp = _read_csv(d / "composites.csv", TEXT_COLUMNS["composites"], index_col="participant_id")
+        settings = json.loads((d / "settings.json").read_text())
+        n, n_input = int(settings.pop("n")), int(settings.pop("n_input"))
+        lines = (d / "warnings.txt").read_text().split("\n")
+        if lines[-1] == "":
+            lines.pop()
+        order = list(frames["reliability"]["construct"])
+        latent = pd.DataFrame(float("nan"), index=order, columns=order)
+        corr = frames["correlations"]
+        if "r_latent" in corr.columns:
+            for a, b, r in zip(corr["a"], corr["b"], corr["r_latent"]):
+                if a in latent.index and b in latent.index:
+                    latent.loc[a, b] = latent.loc[b, a] = r
+        for c in order:
+            latent.loc[c, c] = 1.0
+        return cls(**frames, composites=comp, latent_correlations=latent, n=n, n_input=n_input, settings=settings,
+                   warnings=lines)
+
 
 def analyze_survey(responses: pd.DataFrame, *, instrument=None, cfa_config=None, models=None, hypotheses=None,
                    n_boot: int = 2000, seed: int = 20240101, listwise: bool = True,
                    boot_method: str = "percentile") -> SurveyAnalysis:
-    """Run the whole acceptance analysis on a wide survey frame (DESIGN.md "Survey CSV").
+    """Run the whole acceptance analysis on a wide survey frame (docs/contracts.md "Survey CSV").
 
     instrument: codebook name or Instrument (default ``pedas_acceptance_v1``); cfa_config / models / hypotheses:
     dict, JSON path or None for the shipped specs; n_boot resamples (0 = none) seeded by `seed`; listwise:

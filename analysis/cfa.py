@@ -49,12 +49,57 @@ class CFAResult:
 
 
 def model_description(constructs: dict[str, list[str]]) -> str:
-    """semopy/lavaan syntax, one ``F =~ x1 + x2`` line per construct (first loading fixed to 1 by semopy)."""
+    """semopy/lavaan syntax, one ``F =~ x1 + x2`` line per construct (first loading fixed to 1 by semopy).
+
+    Examples
+    --------
+    >>> from analysis.cfa import model_description
+    >>> print(model_description({"PU": ["PU1", "PU2"], "BI": ["BI1", "BI2"]}))
+    PU =~ PU1 + PU2
+    BI =~ BI1 + BI2
+    """
     return "\n".join(f"{c} =~ {' + '.join(items)}" for c, items in constructs.items())
 
 
 def fit_indices(S: np.ndarray, sigma: np.ndarray, n: int, n_params: int) -> dict:
-    """lavaan-convention ML fit indices from the biased sample covariance `S`, implied `sigma`, sample size `n`."""
+    """lavaan-convention ML fit indices (the formulas of the module docstring).
+
+    Parameters
+    ----------
+    S : ndarray, shape (p, p)
+        Sample covariance of the items, biased (divisor N).
+    sigma : ndarray, shape (p, p)
+        Model-implied covariance.
+    n : int
+        Sample size N.
+    n_params : int
+        Number of free parameters; df = p(p + 1)/2 - n_params.
+
+    Returns
+    -------
+    dict
+        chi2, df, p, cfi, tli, rmsea, srmr, n, chi2_baseline, df_baseline, n_params (p, TLI, RMSEA NaN at df 0).
+
+    Examples
+    --------
+    Two items correlating .5 (|S| = .75), N = 100. A model that reproduces S exactly (2 parameters, df 1) has
+    chi2 = 0, CFI = 1, RMSEA = SRMR = 0, and TLI = (chi2_b/1 - 0)/(chi2_b/1 - 1) = 1.036 -- TLI can exceed 1;
+    the baseline chi2_b = N (log 1 + log 1 - log .75) = 28.768 on 1 df:
+
+    >>> import numpy as np
+    >>> from analysis.cfa import fit_indices
+    >>> S = np.array([[1.0, 0.5], [0.5, 1.0]])
+    >>> fit = fit_indices(S, S, n=100, n_params=2)
+    >>> {k: round(fit[k], 3) for k in ("chi2", "df", "cfi", "tli", "rmsea", "srmr", "chi2_baseline")}
+    {'chi2': 0.0, 'df': 1, 'cfi': 1.0, 'tli': 1.036, 'rmsea': 0.0, 'srmr': 0.0, 'chi2_baseline': 28.768}
+
+    The independence model (Sigma = diag S) is the baseline itself: chi2 = chi2_b = 28.768 on 1 df,
+    RMSEA = sqrt((28.768 - 1)/(1 x 100)) = .527, SRMR = sqrt(.5^2/3) = .289 (see :func:`srmr`):
+
+    >>> fit = fit_indices(S, np.eye(2), n=100, n_params=2)
+    >>> {k: round(fit[k], 3) for k in ("chi2", "chi2_baseline", "rmsea", "srmr")}
+    {'chi2': 28.768, 'chi2_baseline': 28.768, 'rmsea': 0.527, 'srmr': 0.289}
+    """
     p = S.shape[0]
     _, logdet_sigma = np.linalg.slogdet(sigma)
     _, logdet_s = np.linalg.slogdet(S)
@@ -75,7 +120,29 @@ def fit_indices(S: np.ndarray, sigma: np.ndarray, n: int, n_params: int) -> dict
 
 
 def srmr(S: np.ndarray, sigma: np.ndarray) -> float:
-    """Standardized root mean square residual, lavaan's ``srmr_bentler`` (no mean structure)."""
+    """Standardized root mean square residual, lavaan's ``srmr_bentler`` (no mean structure).
+
+    Root mean square of (s_ij - sigma_ij)/sqrt(s_ii s_jj) over the p(p + 1)/2 elements i <= j.
+
+    Parameters
+    ----------
+    S, sigma : ndarray, shape (p, p)
+        Sample and model-implied covariance.
+
+    Returns
+    -------
+    float
+
+    Examples
+    --------
+    Two items correlating .5 and a model that implies none: residuals 0, .5, 0 over 3 elements,
+    SRMR = sqrt(.25/3) = .289:
+
+    >>> import numpy as np
+    >>> from analysis.cfa import srmr
+    >>> round(srmr(np.array([[1.0, 0.5], [0.5, 1.0]]), np.eye(2)), 3)
+    0.289
+    """
     d = 1.0 / np.sqrt(np.diag(S))
     r = (S - sigma) * np.outer(d, d)
     iu = np.triu_indices(S.shape[0])
@@ -183,7 +250,21 @@ def _standard_errors(model) -> dict:
 
 def heywood_cases(loadings: pd.DataFrame, psi: pd.DataFrame, S: pd.DataFrame, tag: str = "") -> list[str]:
     """Warnings for improper solutions: error variance <= 0 (or at its bound), |std loading| >= 1,
-    latent variance <= 0 or a latent covariance matrix that is not positive definite."""
+    latent variance <= 0 or a latent covariance matrix that is not positive definite.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import pandas as pd
+    >>> from analysis.cfa import heywood_cases
+    >>> lo = pd.DataFrame({"item": ["x1", "x2"], "loading": [0.9, 1.02], "error_var": [-0.01, 0.05]})
+    >>> psi = pd.DataFrame([[1.0]], index=["F"], columns=["F"])
+    >>> S = pd.DataFrame(np.eye(2), index=["x1", "x2"], columns=["x1", "x2"])
+    >>> for w in heywood_cases(lo, psi, S, "CFA final: "):
+    ...     print(w)
+    CFA final: Heywood case: error variance of x1 = -0.01 (<= 0)
+    CFA final: Heywood case: standardized loading of x2 = 1.020 (|lambda| >= 1)
+    """
     out = []
     for _, r in loadings.iterrows():
         s_ii = S.loc[r["item"], r["item"]]

@@ -10,6 +10,35 @@ def item_descriptives(scored: pd.DataFrame, raw: pd.DataFrame | None = None, con
 
     `scored` holds answers after reverse scoring; `mean`/`sd` describe it (the scale every later table uses).
     `mean_raw` is the mean as ticked, so a reader can match a table printed on the raw scale.
+
+    Parameters
+    ----------
+    scored : DataFrame
+        Participant x item answers after reverse scoring.
+    raw : DataFrame, optional
+        The same answers as ticked (for `mean_raw`).
+    constructs : dict, optional
+        Construct -> items (for the `construct` column).
+    reverse_items : sequence of str
+        The reverse-scored items (the `reversed` column).
+
+    Returns
+    -------
+    DataFrame
+        item, n, mean, sd, construct, reversed, mean_raw; NaN statistics for an item nobody answered.
+
+    Examples
+    --------
+    PEoU3 ticked 1, 2, 3 is scored 5, 4, 3: mean 4 on the analysis scale, 2 as ticked, SD 1 on both:
+
+    >>> import pandas as pd
+    >>> from analysis.descriptives import item_descriptives
+    >>> raw = pd.DataFrame({"PU1": [1.0, 2.0, 3.0], "PEoU3": [1.0, 2.0, 3.0]})
+    >>> scored = raw.assign(PEoU3=6 - raw["PEoU3"])
+    >>> item_descriptives(scored, raw, {"PU": ["PU1"], "PEoU": ["PEoU3"]}, ["PEoU3"])
+        item  n  mean   sd construct  reversed  mean_raw
+    0    PU1  3   2.0  1.0        PU     False       2.0
+    1  PEoU3  3   4.0  1.0      PEoU      True       2.0
     """
     owner = {i: c for c, items in (constructs or {}).items() for i in items}
     rows = []

@@ -35,7 +35,17 @@ class Hypothesis:
 
 
 def load_hypotheses(spec=None) -> tuple[list[Hypothesis], float]:
-    """Hypotheses and alpha from a spec dict, a JSON path, a list of dicts, or the shipped default when None."""
+    """Hypotheses and alpha from a spec dict, a JSON path, a list of dicts, or the shipped default when None.
+
+    Examples
+    --------
+    >>> from analysis.hypotheses import load_hypotheses
+    >>> hyps, alpha = load_hypotheses()                 # analysis/specs/hypotheses.json
+    >>> [h.hypothesis for h in hyps], alpha
+    (['H1', 'H2', 'H3', 'H4', 'H5', 'H6', 'H7'], 0.05)
+    >>> hyps[0]
+    Hypothesis(hypothesis='H1', path='PEoU -> PU', predictor='PEoU', dv='PU', model='1', step=1)
+    """
     if spec is None:
         spec = SPEC_DIR / "hypotheses.json"
     if isinstance(spec, (str, Path)):
@@ -50,9 +60,40 @@ def load_hypotheses(spec=None) -> tuple[list[Hypothesis], float]:
 
 
 def judge_hypotheses(regressions: pd.DataFrame, hypotheses: list[Hypothesis], alpha: float = 0.05) -> pd.DataFrame:
-    """hypothesis, path, beta, p, supported (+ model, step, b, se_b, t, n) from the regression table.
+    """Verdicts on the hypotheses from the regression table: supported when beta > 0 and p < alpha.
 
-    ValueError when a hypothesis names a model/step/predictor the regressions do not contain.
+    Parameters
+    ----------
+    regressions : DataFrame
+        The hierarchical regressions (columns model, step, dv, predictor, b, se_b, beta, t, p, n).
+    hypotheses : list of Hypothesis
+        Each names the predictor, dv, model and step whose coefficient it reads.
+    alpha : float
+        Significance level, default .05 (strict: p = alpha is not significant).
+
+    Returns
+    -------
+    DataFrame
+        hypothesis, path, beta, p, supported, model, step, b, se_b, t, n; one row per hypothesis.
+
+    Raises
+    ------
+    ValueError
+        A hypothesis names a model/step/predictor the regressions do not contain, or the model's dv differs.
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> from analysis.hypotheses import Hypothesis, judge_hypotheses
+    >>> reg = pd.DataFrame({"model": ["1", "1"], "step": [1, 1], "dv": ["PU", "PU"],
+    ...                     "predictor": ["(Constant)", "PEoU"], "b": [2.06, 0.48], "se_b": [0.73, 0.18],
+    ...                     "beta": [float("nan"), 0.40], "t": [2.83, 2.70], "p": [0.008, 0.010], "n": [40, 40]})
+    >>> h1 = Hypothesis("H1", "PEoU -> PU", predictor="PEoU", dv="PU", model="1", step=1)
+    >>> judge_hypotheses(reg, [h1])[["hypothesis", "path", "beta", "p", "supported"]]
+      hypothesis        path  beta     p  supported
+    0         H1  PEoU -> PU   0.4  0.01       True
+    >>> bool(judge_hypotheses(reg, [h1], alpha=0.01).loc[0, "supported"])      # p = .01 is not < .01
+    False
     """
     rows = []
     for h in hypotheses:

@@ -21,7 +21,17 @@ CONSTANT = "(Constant)"
 
 @dataclass(frozen=True)
 class ModelSpec:
-    """A hierarchical model: `dv` and the predictor `steps` (blocks added cumulatively)."""
+    """A hierarchical model: `dv` and the predictor `steps` (blocks added cumulatively).
+
+    Examples
+    --------
+    >>> from analysis.regression import ModelSpec
+    >>> m = ModelSpec.from_dict({"name": "4", "dv": "BI", "steps": ["ATT", "SN", "PBC"]})
+    >>> m.steps
+    (('ATT',), ('SN',), ('PBC',))
+    >>> m.predictors(2)
+    ['ATT', 'SN']
+    """
 
     name: str
     dv: str
@@ -58,7 +68,35 @@ def validate_models(models: list[ModelSpec], available) -> None:
 
 
 def ols(y: np.ndarray, X: np.ndarray) -> dict:
-    """OLS with intercept. X (n, k) without constant. Returns b, se, t, p, r2, adj_r2, df_resid (b[0] = constant)."""
+    """Ordinary least squares with an intercept.
+
+    Parameters
+    ----------
+    y : ndarray, shape (n,)
+        Dependent variable.
+    X : ndarray, shape (n, k)
+        Predictors, without the constant column.
+
+    Returns
+    -------
+    dict
+        b, se, t, p (arrays of k + 1, the constant first; p two-tailed on df_resid), r2, adj_r2 =
+        1 - (1 - r2)(n - 1)/df_resid, df_resid = n - k - 1. Equal to statsmodels' OLS.
+
+    Examples
+    --------
+    x = 1..4, y = 1, 3, 2, 4: Sxy = 4, Sxx = Syy = 5, so b = 4/5 = .8, intercept 2.5 - .8 x 2.5 = .5,
+    R^2 = 4^2/(5 x 5) = .64, adjusted 1 - .36 x 3/2 = .46; SSE = 5 x .36 = 1.8, SE(b) = sqrt(1.8/2/5) = .424,
+    t = .8/.424 = 1.886 on 2 df, whose two-tailed p is 1 - t/sqrt(2 + t^2) = .2:
+
+    >>> import numpy as np
+    >>> from analysis.regression import ols
+    >>> fit = ols(np.array([1.0, 3.0, 2.0, 4.0]), np.array([[1.0], [2.0], [3.0], [4.0]]))
+    >>> np.round(fit["b"], 3).tolist(), round(fit["r2"], 3), round(fit["adj_r2"], 3), fit["df_resid"]
+    ([0.5, 0.8], 0.64, 0.46, 2)
+    >>> round(float(fit["se"][1]), 3), round(float(fit["t"][1]), 3), round(float(fit["p"][1]), 3)
+    (0.424, 1.886, 0.2)
+    """
     n, k = X.shape
     Xc = np.column_stack([np.ones(n), X])
     b, *_ = np.linalg.lstsq(Xc, y, rcond=None)
@@ -76,7 +114,32 @@ def ols(y: np.ndarray, X: np.ndarray) -> dict:
 
 
 def f_change(r2_new: float, r2_old: float, df1: int, df2: int) -> tuple[float, float]:
-    """SPSS F change of a nested pair and its p: ((Delta R^2/df1) / ((1 - R^2_new)/df2))."""
+    """SPSS's F change of a nested pair of models and its p.
+
+    F = (Delta R^2 / df1) / ((1 - R^2_new) / df2), p from F(df1, df2).
+
+    Parameters
+    ----------
+    r2_new, r2_old : float
+        R^2 of the larger model and of the nested one (0 for the first step).
+    df1 : int
+        Number of predictors added.
+    df2 : int
+        Residual degrees of freedom of the larger model, n - k - 1.
+
+    Returns
+    -------
+    f, p : float
+
+    Examples
+    --------
+    R^2 from .2 to .5 by one predictor with 20 residual df: F = (.3/1)/(.5/20) = 12 (= t^2, t = 3.46 on 20 df):
+
+    >>> from analysis.regression import f_change
+    >>> f, p = f_change(0.5, 0.2, 1, 20)
+    >>> round(f, 3), round(p, 4)
+    (12.0, 0.0025)
+    """
     f = ((r2_new - r2_old) / df1) / ((1.0 - r2_new) / df2)
     return float(f), float(stats.f.sf(f, df1, df2))
 
@@ -85,6 +148,35 @@ def bootstrap_coefs(y: np.ndarray, X: np.ndarray, n_boot: int, rng: np.random.Ge
     """(n_boot, k+1) OLS coefficients on case resamples, solved as one stacked batch.
 
     Resamples whose design is singular (e.g. a predictor constant in the resample) give NaN rows.
+
+    Parameters
+    ----------
+    y : ndarray, shape (n,)
+    X : ndarray, shape (n, k)
+        Predictors without the constant.
+    n_boot : int
+        Number of resamples.
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    ndarray, shape (n_boot, k + 1)
+        The constant first, NaN rows for singular resamples.
+
+    Examples
+    --------
+    y = 1 + 2x exactly: every resample with two distinct x values finds (1, 2); a resample that draws one x
+    value four times cannot and is NaN:
+
+    >>> import numpy as np
+    >>> from analysis.regression import bootstrap_coefs
+    >>> x = np.array([[0.0], [1.0], [2.0], [3.0]])
+    >>> coefs = bootstrap_coefs(1 + 2 * x[:, 0], x, 200, np.random.default_rng(1))
+    >>> coefs.shape
+    (200, 2)
+    >>> ok = np.isfinite(coefs).all(axis=1)
+    >>> bool(np.allclose(coefs[ok], [1.0, 2.0])), bool(np.isnan(coefs[~ok]).all())
+    (True, True)
     """
     n, k = X.shape
     Xc = np.column_stack([np.ones(n), X])
@@ -115,7 +207,37 @@ def _jackknife(y: np.ndarray, X: np.ndarray) -> np.ndarray:
 
 def bootstrap_ci(boot: np.ndarray, est: np.ndarray, level: float = 0.95, method: str = "percentile",
                  jack: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Per-coefficient CI from bootstrap draws `boot` (B, k): percentile, or BCa (Efron 1987) with `jack`."""
+    """Per-coefficient confidence interval from bootstrap draws.
+
+    Parameters
+    ----------
+    boot : ndarray, shape (B, k)
+        Bootstrap estimates, one row per resample; rows with a NaN (singular resamples) are left out.
+    est : ndarray, shape (k,)
+        The estimates on the full sample (BCa's bias correction).
+    level : float
+        Confidence level, default 0.95.
+    method : {"percentile", "bca"}
+        Percentile interval, or BCa (Efron 1987), which needs `jack`.
+    jack : ndarray, shape (n, k), optional
+        Leave-one-out estimates (BCa's acceleration).
+
+    Returns
+    -------
+    low, high : ndarray, shape (k,)
+
+    Examples
+    --------
+    Draws 0, 1, ..., 100: the 2.5th and 97.5th percentiles are 2.5 and 97.5 (linear interpolation), and a NaN
+    draw changes nothing:
+
+    >>> import numpy as np
+    >>> from analysis.regression import bootstrap_ci
+    >>> boot = np.vstack([np.arange(101.0).reshape(-1, 1), [[np.nan]]])
+    >>> low, high = bootstrap_ci(boot, np.array([50.0]))
+    >>> np.round(low, 3).tolist(), np.round(high, 3).tolist()
+    ([2.5], [97.5])
+    """
     a = (1.0 - level) / 2.0
     ok = boot[np.all(np.isfinite(boot), axis=1)]
     if method == "percentile":
@@ -145,6 +267,20 @@ def hierarchical_regression(data: pd.DataFrame, model: ModelSpec, *, n_boot: int
     Returns one row per step and term (the constant included): model, step, dv, predictor, r2, adj_r2, delta_r2,
     f_change, df1, df2, p_change, b, se_b, beta, t, p, ci_low, ci_high, boot_ci_low, boot_ci_high, n, label.
     Bootstrap draws are seeded per (seed, model_index, step), so a model's CIs do not depend on the others.
+
+    Examples
+    --------
+    One step, one predictor (the data of :func:`ols`): Delta R^2 = R^2 = .64, F change = (.64/1)/(.36/2) = 3.556
+    = t^2 with the t-test's p = .2, and beta = B sd(x)/sd(y) = .8 (equal SDs):
+
+    >>> import pandas as pd
+    >>> from analysis.regression import ModelSpec, hierarchical_regression
+    >>> data = pd.DataFrame({"x": [1, 2, 3, 4], "y": [1, 3, 2, 4]})
+    >>> out = hierarchical_regression(data, ModelSpec("1", "y", (("x",),)), n_boot=0)
+    >>> out["predictor"].tolist()
+    ['(Constant)', 'x']
+    >>> out.loc[1, ["delta_r2", "f_change", "p_change", "b", "beta", "p"]].astype(float).round(3).tolist()
+    [0.64, 3.556, 0.2, 0.8, 0.8, 0.2]
     """
     allp = model.predictors(len(model.steps))
     d = data[[model.dv] + allp].dropna()

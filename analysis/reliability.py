@@ -16,7 +16,45 @@ from scipy import stats
 
 
 def cronbach_alpha(items: pd.DataFrame, ci: float = 0.95) -> tuple[float, float, float]:
-    """(alpha, ci_low, ci_high) of the item columns (complete rows), Feldt CI at level `ci`."""
+    """Cronbach's alpha of the item columns with the Feldt (1965) confidence interval.
+
+    alpha = k/(k-1) (1 - sum var_i / var_sum) with sample variances (n - 1) of the k items and of their sum;
+    interval [1 - (1-alpha) F(1-g/2; n-1, (n-1)(k-1)), 1 - (1-alpha) F(g/2; n-1, (n-1)(k-1))], g = 1 - ci
+    (as pingouin's ``cronbach_alpha``).
+
+    Parameters
+    ----------
+    items : DataFrame
+        One column per item, one row per respondent; rows with a missing answer are left out.
+    ci : float
+        Confidence level of the interval, default 0.95.
+
+    Returns
+    -------
+    alpha, ci_low, ci_high : float
+
+    Raises
+    ------
+    ValueError
+        Fewer than 2 items or 2 complete rows, or a sum score without variance.
+
+    Examples
+    --------
+    Two identical items: each has variance 2.5, their sum 2x has variance 10, so alpha = 2 (1 - 5/10) = 1, and
+    the interval of a perfect alpha is the point 1:
+
+    >>> import pandas as pd
+    >>> from analysis.reliability import cronbach_alpha
+    >>> same = pd.DataFrame({"a": [1, 2, 3, 4, 5], "b": [1, 2, 3, 4, 5]})
+    >>> tuple(round(v, 3) for v in cronbach_alpha(same))
+    (1.0, 1.0, 1.0)
+
+    Item variances 1 and 1, sum scores 2, 5, 5 with variance 3: alpha = 2 (1 - 2/3) = 2/3:
+
+    >>> items = pd.DataFrame({"a": [1, 2, 3], "b": [1, 3, 2]})
+    >>> round(cronbach_alpha(items)[0], 3)
+    0.667
+    """
     x = items.dropna().to_numpy(float)
     n, k = x.shape
     if k < 2:
@@ -36,20 +74,86 @@ def cronbach_alpha(items: pd.DataFrame, ci: float = 0.95) -> tuple[float, float,
 
 
 def composite_reliability(std_loadings) -> float:
-    """Hair CR = (sum lambda)^2 / ((sum lambda)^2 + sum(1 - lambda^2)) from standardized loadings."""
+    """Composite reliability (Hair et al. 2014) from standardized loadings.
+
+    CR = (sum lambda)^2 / ((sum lambda)^2 + sum(1 - lambda^2)): the error variance of a standardized item is
+    1 - lambda^2.
+
+    Parameters
+    ----------
+    std_loadings : array_like
+        The standardized loadings (lavaan ``std.all``) of one construct's items.
+
+    Returns
+    -------
+    float
+
+    Examples
+    --------
+    Two loadings .8: (1.6)^2 = 2.56 over 2.56 + 2 (1 - .64) = 3.28, CR = .780:
+
+    >>> from analysis.reliability import composite_reliability
+    >>> round(composite_reliability([0.8, 0.8]), 3)
+    0.78
+    """
     lam = np.asarray(std_loadings, float)
     s2 = lam.sum() ** 2
     return float(s2 / (s2 + np.sum(1.0 - lam ** 2)))
 
 
 def average_variance_extracted(std_loadings) -> float:
-    """AVE = mean of squared standardized loadings (Fornell & Larcker 1981; Hair 2014)."""
+    """Average variance extracted: the mean squared standardized loading (Fornell & Larcker 1981; Hair 2014).
+
+    Parameters
+    ----------
+    std_loadings : array_like
+        The standardized loadings of one construct's items.
+
+    Returns
+    -------
+    float
+        AVE; its square root is what Fornell-Larcker sets against the correlations.
+
+    Examples
+    --------
+    >>> from analysis.reliability import average_variance_extracted
+    >>> round(average_variance_extracted([0.8, 0.8]), 3)        # .8^2
+    0.64
+    >>> round(average_variance_extracted([0.6, 0.8]), 3)        # (.36 + .64) / 2, the .5 threshold
+    0.5
+    """
     lam = np.asarray(std_loadings, float)
     return float(np.mean(lam ** 2))
 
 
 def omega_semtools(unstd_loadings, latent_var: float, S_items) -> float:
-    """semTools compRelSEM omega (obs.var=TRUE): (sum lambda)^2 psi / (1' S 1), S = observed item covariance."""
+    """McDonald's omega as semTools ``compRelSEM`` computes it by default (``obs.var = TRUE``).
+
+    omega = (sum lambda)^2 psi / (1' S 1): the model's common variance of the unit-weighted sum of the items
+    over the observed variance of that sum.
+
+    Parameters
+    ----------
+    unstd_loadings : array_like
+        Unstandardized loadings of the construct's items.
+    latent_var : float
+        Variance psi of the latent factor.
+    S_items : array_like
+        Observed covariance matrix of the items (k x k).
+
+    Returns
+    -------
+    float
+
+    Examples
+    --------
+    Loadings 1 and 1 on a factor of variance 1 give a common variance of the sum of (1 + 1)^2 = 4; with item
+    variances 2 and covariance 1 the sum has variance 2 + 2 + 2 x 1 = 6, so omega = 4/6:
+
+    >>> from analysis.reliability import omega_semtools
+    >>> round(omega_semtools([1.0, 1.0], 1.0, [[2.0, 1.0], [1.0, 2.0]]), 3)
+    0.667
+    """
     lam = np.asarray(unstd_loadings, float)
     S = np.asarray(S_items, float)
     return float(lam.sum() ** 2 * latent_var / S.sum())

@@ -46,7 +46,16 @@ def save_figure(fig, out_dir: str | Path, stem: str, dpi: int = 150) -> list[Pat
 # ---------------------------------------------------------------------------------------------- cells
 def fmt_cell(x, digits: int = 3, missing: str = "") -> str:
     """One table cell as text: floats to `digits` decimals, integers as integers, booleans as yes/no,
-    None / NaN / infinite as `missing`, anything else as `str(x)`."""
+    None / NaN / infinite as `missing`, anything else as `str(x)`.
+
+    Examples
+    --------
+    >>> from analysis.render import fmt_cell
+    >>> fmt_cell(0.12345), fmt_cell(3), fmt_cell(True), fmt_cell(float("nan")), fmt_cell("PU1")
+    ('0.123', '3', 'yes', '', 'PU1')
+    >>> fmt_cell(-0.0004)                  # Python's format keeps the sign of a negative number
+    '-0.000'
+    """
     if x is None or x is pd.NA or x is pd.NaT:
         return missing
     if isinstance(x, str):
@@ -70,7 +79,14 @@ _MD_ALIGN = {"l": "---", "r": "---:", "c": ":---:"}
 
 
 def md_cell(x) -> str:
-    """A Markdown table cell: `|` escaped and line breaks flattened, so that a cell never splits the row."""
+    r"""A Markdown table cell: `|` escaped and line breaks flattened, so that a cell never splits the row.
+
+    Examples
+    --------
+    >>> from analysis.render import md_cell
+    >>> print(md_cell("a|b\nc"))
+    a\|b c
+    """
     return str(x).replace("|", r"\|").replace("\r", " ").replace("\n", " ")
 
 
@@ -81,7 +97,22 @@ def markdown_table(header: Sequence[str], rows: Sequence[Sequence[str]], title: 
 
     `align`: one letter l/r/c per column (as in LaTeX), default unaligned. `title_style`: "heading" (`### title`)
     or "bold" (`**title**`, the paper-table look). `notes_style`: "italic" (one `_note_` line each) or "plain"
-    (verbatim, hard line breaks between notes; for notes that contain `*` marks)."""
+    (verbatim, hard line breaks between notes; for notes that contain `*` marks).
+
+    Examples
+    --------
+    >>> from analysis.render import markdown_table
+    >>> print(markdown_table(["Item", "λ"], [["PU1", "0.737"], ["ATT1", "0.410*"]], "Loadings",
+    ...                      ["* omitted item"], title_style="bold", notes_style="plain"), end="")
+    **Loadings**
+    <BLANKLINE>
+    | Item | λ |
+    |---|---|
+    | PU1 | 0.737 |
+    | ATT1 | 0.410* |
+    <BLANKLINE>
+    * omitted item
+    """
     if align is not None and len(align) != len(header):
         raise ValueError(f"align {align!r} has {len(align)} letters for {len(header)} columns")
     out = []
@@ -110,7 +141,14 @@ TEX_SYMBOLS = {"λ": r"$\lambda$", "α": r"$\alpha$", "β": r"$\beta$", "Δ": r"
 
 
 def tex_escape(s: str) -> str:
-    """Plain text -> LaTeX: special characters escaped (in one pass), then the symbols of :data:`TEX_SYMBOLS`."""
+    r"""Plain text -> LaTeX: special characters escaped (in one pass), then the symbols of :data:`TEX_SYMBOLS`.
+
+    Examples
+    --------
+    >>> from analysis.render import tex_escape
+    >>> print(tex_escape("R² & β_1 (50%)"))
+    R$^2$ \& $\beta$\_1 (50\%)
+    """
     s = _TEX_SPECIALS_RE.sub(lambda m: _TEX_SPECIALS[m.group(0)], str(s))
     for k, v in TEX_SYMBOLS.items():
         s = s.replace(k, v)
@@ -127,8 +165,26 @@ def tex_cell(c) -> str:
 
 def latex_table(header: Sequence[str], rows: Sequence[Sequence[str]], title: str = "", notes: Sequence[str] = (),
                 label: str = "", align: str | None = None) -> str:
-    """A booktabs `table` environment: caption, label, toprule/midrule/bottomrule, the notes in one footnote-size
-    paragraph below (one line each). `align` defaults to a left text column and right-aligned numbers."""
+    r"""A booktabs `table` environment: caption, label, toprule/midrule/bottomrule, the notes in one footnote-size
+    paragraph below (one line each). `align` defaults to a left text column and right-aligned numbers.
+
+    Examples
+    --------
+    >>> from analysis.render import latex_table
+    >>> print(latex_table(["Item", "λ"], [["**PU**", ""], ["PU1", "0.737"]], "Loadings"), end="")
+    \begin{table}[t]
+    \centering
+    \caption{Loadings}
+    \begin{tabular}{lr}
+    \toprule
+    Item & $\lambda$ \\
+    \midrule
+    \textbf{PU} &  \\
+    PU1 & 0.737 \\
+    \bottomrule
+    \end{tabular}
+    \end{table}
+    """
     align = align or "l" + "r" * (len(header) - 1)
     out = [r"\begin{table}[t]", r"\centering"]
     if title:

@@ -153,7 +153,7 @@ BAND_RED = "red stops reduced by 40-80 %"
 
 
 def reproduction_bands(summary: pd.DataFrame) -> pd.DataFrame:
-    """The issue's reproduction bands for a (simulated) cohort beside the paper's numbers: band, paper_value,
+    """The reproduction bands of docs/contracts.md for a (simulated) cohort beside the paper's numbers: band, paper_value,
     our_value, holds (bool), note. Paper values come from ``analysis.paper.published`` (NaN when absent)."""
     def ours(metric, stat="mean", style="all"):
         hit = summary[(summary["style"] == style) & (summary["metric"] == metric)]

@@ -1,7 +1,7 @@
 """Scoring of the acceptance survey: validation of the wide answer frame, reverse scoring from the instrument,
 the listwise analysis sample and construct composites.
 
-Conventions (DESIGN.md "Machine-readable analysis outputs"): answers are raw 1-5 as ticked; reverse-scored items
+Conventions (docs/contracts.md "Analysis outputs"): answers are raw 1-5 as ticked; reverse-scored items
 (PEoU3) are mapped x -> min + max - x using the instrument's scale; a composite is the mean of a construct's
 *retained* items after reverse scoring. Missing data: listwise deletion over all scaled items by default, so
 every table is computed on the same participants and reports that n.
@@ -19,7 +19,15 @@ ID_COL = "participant_id"
 
 
 def resolve_instrument(instrument=None) -> Instrument:
-    """An :class:`Instrument`, from an instance, a codebook name, or the default codebook when None."""
+    """An :class:`Instrument`, from an instance, a codebook name, or the default codebook when None.
+
+    Examples
+    --------
+    >>> from analysis.scoring import resolve_instrument
+    >>> inst = resolve_instrument()
+    >>> inst.name, inst.reverse_items, inst.scale("PEoU3")
+    ('pedas_acceptance_v1', ['PEoU3'], (1, 5))
+    """
     if instrument is None:
         return load_instrument()
     if isinstance(instrument, str):
@@ -47,8 +55,37 @@ class ScoredSurvey:
 def score_responses(responses: pd.DataFrame, instrument=None, *, listwise: bool = True) -> ScoredSurvey:
     """Validate the wide survey frame and return the reverse-scored analysis sample.
 
-    Raises ValueError (one line) for a missing item column, answers outside the item's scale, duplicate
-    participants, or an empty sample.
+    Parameters
+    ----------
+    responses : DataFrame
+        participant_id (optional) + one column per scaled item of the instrument, raw answers as ticked.
+    instrument : Instrument or str, optional
+        Codebook (default ``pedas_acceptance_v1``).
+    listwise : bool
+        Leave out participants with any missing scaled answer (default).
+
+    Returns
+    -------
+    ScoredSurvey
+
+    Raises
+    ------
+    ValueError
+        (one line) A missing item column, answers outside the item's scale or not integers, duplicate
+        participants, or an empty sample.
+
+    Examples
+    --------
+    The reference survey: PEoU3 is reverse scored x -> 1 + 5 - x, so raw and scored answers add up to 6:
+
+    >>> import pandas as pd
+    >>> from analysis.scoring import score_responses
+    >>> from pedas.paths import REFERENCE_DIR
+    >>> s = score_responses(pd.read_csv(REFERENCE_DIR / "survey.csv"))
+    >>> s.n, s.reverse_items, list(s.constructs)
+    (40, ['PEoU3'], ['PU', 'PEoU', 'ATT', 'PBC', 'SN', 'BI'])
+    >>> bool(((s.raw["PEoU3"] + s.scored["PEoU3"]) == 6).all())
+    True
     """
     inst = resolve_instrument(instrument)
     items = inst.scaled_items
@@ -90,7 +127,17 @@ def score_responses(responses: pd.DataFrame, instrument=None, *, listwise: bool 
 
 
 def check_not_constant(frame: pd.DataFrame, what: str = "item") -> None:
-    """ValueError naming the first column of `frame` without variance (correlations, CFA and alpha need it)."""
+    """ValueError naming the first column of `frame` without variance (correlations, CFA and alpha need it).
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> from analysis.scoring import check_not_constant
+    >>> check_not_constant(pd.DataFrame({"SN1": [1, 2, 3], "SN2": [4, 4, 4]}))
+    Traceback (most recent call last):
+    ...
+    ValueError: item SN2 is constant (every answer = 4); it has no variance to analyse
+    """
     for col in frame.columns:
         vals = frame[col].dropna()
         if len(vals) and vals.nunique() < 2:
@@ -102,6 +149,18 @@ def composites(scored: pd.DataFrame, retained: dict[str, list[str]]) -> pd.DataF
     """Participant x construct: mean of each construct's retained (already reverse-scored) items.
 
     With missing answers (``listwise=False``) the mean is over the items a participant answered.
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> from analysis.scoring import composites
+    >>> scored = pd.DataFrame({"PU1": [1.0, 4.0], "PU2": [3.0, None], "BI1": [5.0, 2.0], "BI2": [4.0, 2.0]},
+    ...                       index=pd.Index(["P001", "P002"], name="participant_id"))
+    >>> composites(scored, {"PU": ["PU1", "PU2"], "BI": ["BI1", "BI2"]})
+                     PU   BI
+    participant_id
+    P001            2.0  4.5
+    P002            4.0  2.0
     """
     out = {}
     for construct, items in retained.items():

@@ -108,21 +108,45 @@ TITLES = {"item_flags": "Item deletion rules of the initial measurement model",
           "table5": "Hierarchical regression analysis on TAM and TPB models"}
 
 
+# the paper's tables in print order, then the item flags; each builder returns (header, rows, notes)
+TABLES = {"table3": table3_rows, "table4": table4_rows, "table5": table5_rows, "item_flags": item_flags_rows}
+PAPER_TABLES = ("table3", "table4", "table5")
+FORMATS = ("md", "tex", "csv")
+
+
+def _format(name: str, header, rows, notes, fmt: str) -> str:
+    if fmt == "md":
+        # bold title and verbatim notes (they carry the * significance marks) as the paper prints them
+        return markdown_table(header, rows, TITLES[name], notes, title_style="bold", notes_style="plain")
+    if fmt == "tex":
+        return latex_table(header, rows, TITLES[name], notes, align="l" + "c" * (len(header) - 1))
+    if fmt == "csv":
+        import csv
+        import io
+
+        buf = io.StringIO()
+        csv.writer(buf, lineterminator="\n").writerows([header] + [[c.replace("**", "") for c in r] for r in rows])
+        return buf.getvalue()
+    raise ValueError(f"unknown table format {fmt!r} (one of {', '.join(FORMATS)})")
+
+
+def render_table(res, name: str, fmt: str = "md") -> str:
+    """One table of `res` (a :class:`analysis.acceptance.SurveyAnalysis`) as text: `name` one of :data:`TABLES`
+    (table3, table4, table5, item_flags), `fmt` "md", "tex" or "csv" -- the text `write` saves as
+    ``<name>.<fmt>``."""
+    if name not in TABLES:
+        raise ValueError(f"unknown table {name!r} (one of {', '.join(TABLES)})")
+    if fmt not in FORMATS:
+        raise ValueError(f"unknown table format {fmt!r} (one of {', '.join(FORMATS)})")
+    return _format(name, *TABLES[name](res), fmt)
+
+
 def render_all(res) -> dict[str, str]:
     """file name -> text for table3/4/5 (and the item flags) in Markdown (.md), LaTeX booktabs (.tex) and CSV (.csv:
     the cells as printed, one header row; the notes are in the .md and .tex)."""
-    import csv
-    import io
-
     out = {}
-    for name, fn in (("table3", table3_rows), ("table4", table4_rows), ("table5", table5_rows),
-                     ("item_flags", item_flags_rows)):
+    for name, fn in TABLES.items():
         header, rows, notes = fn(res)
-        # bold title and verbatim notes (they carry the * significance marks) as the paper prints them
-        out[f"{name}.md"] = markdown_table(header, rows, TITLES[name], notes, title_style="bold",
-                                           notes_style="plain")
-        out[f"{name}.tex"] = latex_table(header, rows, TITLES[name], notes, align="l" + "c" * (len(header) - 1))
-        buf = io.StringIO()
-        csv.writer(buf, lineterminator="\n").writerows([header] + [[c.replace("**", "") for c in r] for r in rows])
-        out[f"{name}.csv"] = buf.getvalue()
+        for fmt in FORMATS:
+            out[f"{name}.{fmt}"] = _format(name, header, rows, notes, fmt)
     return out

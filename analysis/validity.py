@@ -22,14 +22,49 @@ HTMT_STRICT, HTMT_LIBERAL = 0.85, 0.90
 
 def stars(p: float, levels: tuple[float, float] = (0.05, 0.01)) -> str:
     """The paper's significance marks: '**' p < levels[1], '*' p < levels[0], '' otherwise (also for a missing p).
-    Table 4 uses the default (.05, .01); Table 5 marks beta at (.05, .001)."""
+    Table 4 uses the default (.05, .01); Table 5 marks beta at (.05, .001).
+
+    Examples
+    --------
+    >>> from analysis.validity import stars
+    >>> stars(0.03), stars(0.005), stars(0.05), stars(float("nan"))
+    ('*', '**', '', '')
+    >>> stars(0.005, (0.05, 0.001))                     # Table 5: ** only below .001
+    '*'
+    """
     if not np.isfinite(p):
         return ""
     return "**" if p < levels[1] else "*" if p < levels[0] else ""
 
 
 def pearson_p(r: float, n: int) -> float:
-    """Two-tailed p of a Pearson correlation r on n pairs (t = r sqrt((n-2)/(1-r^2)), n - 2 df)."""
+    """Two-tailed p of a Pearson correlation.
+
+    t = r sqrt((n - 2) / (1 - r^2)) on n - 2 degrees of freedom (as scipy's ``pearsonr``).
+
+    Parameters
+    ----------
+    r : float
+        The correlation.
+    n : int
+        Number of pairs.
+
+    Returns
+    -------
+    float
+        p; NaN for n < 3 or a missing r, 0 for |r| = 1.
+
+    Examples
+    --------
+    r = .5 on 3 pairs: t = .5 sqrt(1/.75) = 1/sqrt(3) on 1 df, where t is Cauchy:
+    p = 2 (1/2 - atan(1/sqrt(3))/pi) = 2 (1/2 - 1/6) = 2/3:
+
+    >>> from analysis.validity import pearson_p
+    >>> round(pearson_p(0.5, 3), 3)
+    0.667
+    >>> pearson_p(0.0, 10), pearson_p(1.0, 10)
+    (1.0, 0.0)
+    """
     if n < 3 or not np.isfinite(r):
         return float("nan")
     if abs(r) >= 1.0:
@@ -39,7 +74,28 @@ def pearson_p(r: float, n: int) -> float:
 
 
 def composite_correlations(comp: pd.DataFrame) -> pd.DataFrame:
-    """Long table a, b, r, p, n, stars for every pair of composite columns (a before b in column order)."""
+    """Pearson correlations of every pair of composite columns (Table 4), pairwise complete rows.
+
+    Parameters
+    ----------
+    comp : DataFrame
+        Participant x construct composites.
+
+    Returns
+    -------
+    DataFrame
+        a, b, r, p (:func:`pearson_p`), n, stars (:func:`stars`); one row per pair, a before b in column order.
+
+    Examples
+    --------
+    Deviations (-1, 0, 1) and (-1, 1, 0): r = 1 / sqrt(2 x 2) = .5, and p = 2/3 as in :func:`pearson_p`:
+
+    >>> import pandas as pd
+    >>> from analysis.validity import composite_correlations
+    >>> composite_correlations(pd.DataFrame({"X": [1, 2, 3], "Y": [1, 3, 2]})).round(3)
+       a  b    r      p  n stars
+    0  X  Y  0.5  0.667  3
+    """
     rows = []
     for a, b in combinations(comp.columns, 2):
         pair = comp[[a, b]].dropna()
@@ -51,7 +107,35 @@ def composite_correlations(comp: pd.DataFrame) -> pd.DataFrame:
 
 def fornell_larcker(corr: pd.DataFrame, reliability: pd.DataFrame, latent_corr: pd.DataFrame | None = None
                     ) -> pd.DataFrame:
-    """Per pair: a, b, r, sqrt_ave_a, sqrt_ave_b, pass (|r| < both sqrt(AVE)), r_latent, pass_latent."""
+    """The Fornell-Larcker criterion per construct pair: pass when |r| is below the sqrt(AVE) of both constructs.
+
+    Parameters
+    ----------
+    corr : DataFrame
+        Columns a, b, r (as :func:`composite_correlations`).
+    reliability : DataFrame
+        Columns construct, sqrt_ave.
+    latent_corr : DataFrame, optional
+        Construct x construct latent (CFA) correlations, judged beside the composite ones.
+
+    Returns
+    -------
+    DataFrame
+        a, b, r, sqrt_ave_a, sqrt_ave_b, pass, r_latent, pass_latent (NaN / False without `latent_corr`).
+
+    Examples
+    --------
+    X-Y: .60 < min(.8, .7) passes; X-Z: |-.85| >= min(.8, .9) fails (the sign does not matter):
+
+    >>> import pandas as pd
+    >>> from analysis.validity import fornell_larcker
+    >>> corr = pd.DataFrame({"a": ["X", "X"], "b": ["Y", "Z"], "r": [0.6, -0.85]})
+    >>> rel = pd.DataFrame({"construct": ["X", "Y", "Z"], "sqrt_ave": [0.8, 0.7, 0.9]})
+    >>> fornell_larcker(corr, rel)[["a", "b", "r", "sqrt_ave_a", "sqrt_ave_b", "pass"]]
+       a  b     r  sqrt_ave_a  sqrt_ave_b   pass
+    0  X  Y  0.60         0.8         0.7   True
+    1  X  Z -0.85         0.8         0.9  False
+    """
     sq = reliability.set_index("construct")["sqrt_ave"]
     rows = []
     for _, c in corr.iterrows():
@@ -65,7 +149,45 @@ def fornell_larcker(corr: pd.DataFrame, reliability: pd.DataFrame, latent_corr: 
 
 
 def htmt(scored: pd.DataFrame, constructs: dict[str, list[str]], absolute: bool = True) -> pd.DataFrame:
-    """Long table a, b, htmt, above_085, above_090 for every construct pair (items of `scored`)."""
+    """Heterotrait-monotrait ratio (Henseler, Ringle & Sarstedt 2015) of every construct pair.
+
+    HTMT = mean heterotrait-heteromethod item correlation / sqrt(mean monotrait correlation of a x that of b),
+    on absolute correlations by default (semTools ``htmt(absolute = TRUE)``).
+
+    Parameters
+    ----------
+    scored : DataFrame
+        Participant x item answers (after reverse scoring).
+    constructs : dict
+        Construct -> its items (the retained ones).
+    absolute : bool
+        Use |r| (default True).
+
+    Returns
+    -------
+    DataFrame
+        a, b, htmt, above_085 (> 0.85, strict), above_090 (> 0.90, liberal).
+
+    Examples
+    --------
+    Items that agree perfectly within each construct (monotrait correlations 1) and correlate .5 across: HTMT is
+    that correlation, .5:
+
+    >>> import pandas as pd
+    >>> from analysis.validity import htmt
+    >>> items = pd.DataFrame({"x1": [1, 2, 3], "x2": [1, 2, 3], "y1": [1, 3, 2], "y2": [1, 3, 2]})
+    >>> htmt(items, {"X": ["x1", "x2"], "Y": ["y1", "y2"]}).round(3)
+       a  b  htmt  above_085  above_090
+    0  X  Y   0.5      False      False
+
+    The same two items (r = .8) under two names: heterotrait mean (1 + .8 + .8 + 1)/4 = .9 over
+    sqrt(.8 x .8) = .8 gives 1.125, flagged:
+
+    >>> items = pd.DataFrame({"x1": [1, 2, 3, 4], "x2": [1, 3, 2, 4]}).assign(y1=lambda d: d.x1, y2=lambda d: d.x2)
+    >>> htmt(items, {"X": ["x1", "x2"], "Y": ["y1", "y2"]}).round(3)
+       a  b   htmt  above_085  above_090
+    0  X  Y  1.125       True       True
+    """
     items = [i for its in constructs.values() for i in its]
     R = scored[items].corr().to_numpy()
     if absolute:

@@ -25,10 +25,6 @@ import pandas as pd
 from pedas.paths import NETWORK_DIR, REPO_ROOT
 
 _SUMO_LOCK = threading.Lock()  # one libsumo simulation per process
-_CODE_FILES = ("constants.py", "params.py", "vehicle.py", "power.py", "route.py", "dp.py", "greenwave.py", "mpc.py",
-               "mpc_rt.py", "mpc_cf.py", "speed_correction.py", "hud.py", "controller.py", "network.py",
-               "route_study.py", "traffic.py", "drivers.py", "drive.py", "exact_lstsq.py", "fitted.py",
-               "fitted_coefficients.json")
 _NETWORK_FILES = ("study.nod.xml", "study.edg.xml", "study.con.xml", "study.tll.xml", "study.netccfg",
                   "study.rou.xml", "vtypes.add.xml", "demand.json")
 
@@ -55,10 +51,10 @@ def code_version() -> str:
     """Hash of everything a simulated drive depends on: the simulation modules and the network/traffic sources."""
     h = hashlib.sha256()
     pkg = Path(__file__).resolve().parent
-    for name in _CODE_FILES:
-        p = pkg / name
-        h.update(name.encode())
-        h.update(p.read_bytes() if p.exists() else b"")
+    # every module and data file of the simulation core: a list of names would miss the next new module
+    for p in sorted([*pkg.glob("*.py"), *pkg.glob("*.json")]):
+        h.update(p.name.encode())
+        h.update(p.read_bytes())
     for name in _NETWORK_FILES:
         p = NETWORK_DIR / name
         h.update(name.encode())

@@ -1,51 +1,44 @@
 """The pEDAS controller (Sec. 3.1, 3.5-3.8): switching between the two MPCs, speed correction, fallback, HUD.
 
-``PedasController(route, params, v_dp).step(t, s, v, leader) -> Advisory`` once per sample (DT = 0.2 s):
+``PedasController(route, params, v_dp, settings=CONTROLLER).step(t, s, v, leader) -> Advisory`` once per sample
+(DT = 0.2 s). Every tuning value comes from ``settings``, a :class:`pedas.params.ControllerParams`; ``step`` runs
+these stages in order:
 
-1. the horizon is laid out along the route with the previous plan (shifted one step) as prediction of the
-   positions s_k, which also serves as linearisation point of the power term (see :mod:`pedas.mpc`);
-2. leader within SENSOR_RANGE -> car-following MPC eq. (10), else reference-tracking MPC eq. (9) with v_ref from
-   the green wave (eq. 1) when a green window of the next light is reachable within [v_min, v_max], else v_DP;
-3. stop logic: a red (or non-passable yellow) light and every stop sign constrain d_ITS >= 0 (eq. 8c) at the
-   horizon steps where the light is not green (all steps for a stop sign); the stop sign is released after the
-   vehicle has stood STOP_DWELL s inside the stop-line band [0, d_s,ITS] before the line;
-4. psi = d_rel - d_s < 0 -> the MPC is not solved (eq. 7a cannot hold) and the advice is v + v_corr(psi) (eq. 11);
-5. every solve's status is checked; a failed/infeasible solve yields a fallback plan flagged ``fallback=True``;
-6. after a switch rt <-> cf the new MPC is warm-started from the old plan and the advised speed is rate-limited to
-   BLEND_MAX_STEP per sample for BLEND_STEPS samples (the documented bound on the hand-over jump);
-7. the HUD record comes from the pure :func:`pedas.hud.advisory`.
+1. ``_measure``: measured acceleration and real sample time for the HUD and the stop-sign dwell;
+2. ``_predict``: the horizon is laid out along the route with the previous plan (shifted one step) as prediction
+   of the positions s_k, which also serves as linearisation point of the power term (see :mod:`pedas.mpc`);
+   route profiles (grade, v_max, v_min, v_DP, curve envelope) are looked up there;
+3. ``_objects_ahead``: the next light and stop sign; the stop-sign state machine (released after the vehicle has
+   stood STOP_DWELL s inside the stop-line band [0, d_s,ITS] before the line, counted as missed when passed
+   without it); a red (or non-passable yellow) light and every stop sign constrain d_ITS >= 0 (eq. 8c) at the
+   horizon steps where the light is not green (all steps for a stop sign);
+4. ``_reference``: v_ref from the green wave (eq. 1) when a green window of the next light is reachable within
+   [v_min, v_max], else v_DP; capped by the curve and stop envelopes; the speed bounds and the d_ITS rows;
+5. ``_solve``: leader within SENSOR_RANGE -> car-following MPC eq. (10), else reference-tracking MPC eq. (9);
+   after a switch rt <-> cf the new MPC is warm-started from the old plan; every solve's status is checked and a
+   failed/infeasible solve yields a fallback plan flagged ``fallback=True``;
+6. ``_advise``: psi = d_rel - d_s < 0 -> the advice is at most v + v_corr(psi) (eq. 11); after a switch the advised
+   speed is rate-limited to blend_max_step per sample for blend_steps samples (the documented bound on the
+   hand-over jump); the plan is kept for the next step's prediction and warm start;
+7. ``_hud``: the HUD record from the pure :func:`pedas.hud.advisory`.
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
 from pedas.constants import DT, N_HORIZON, SENSOR_RANGE, STOP_DWELL
-from pedas.greenwave import SPAT_RANGE, green_wave_band
-from pedas.hud import HudContext, HudState, advisory, update_unfollowed
+from pedas.greenwave import green_wave_band
+from pedas.hud import HudAdvice, HudContext, HudState, advisory, update_unfollowed
 from pedas.mpc import INF, MpcPlan, vehicle_model
-from pedas.mpc_cf import CF_WEIGHTS, SAFE_BACKOFF, CarFollowingMpc
-from pedas.mpc_rt import RT_WEIGHTS, ReferenceTrackingMpc
-from pedas.params import LEAF, VehicleParams
-from pedas.route import braking_envelope
+from pedas.mpc_cf import CarFollowingMpc
+from pedas.mpc_rt import ReferenceTrackingMpc
+from pedas.params import CONTROLLER, LEAF, ControllerParams, VehicleParams
+from pedas.route import StopSign, TrafficLight, braking_envelope
 from pedas.speed_correction import corrected_speed
-
-A_STOP = 1.0  # m/s^2, deceleration of the stop / curve approach envelope of v_ref (early and gentle)
-STOP_AIM = 0.9  # the stop envelope ends 0.9 d_s,ITS before the stop line: a lagging driver still stops in the band
-A_DEPART = 1.0  # m/s^2, acceleration of the departure ramp of v_ref (matches the DP's a_max)
-A_REACH = 3.0  # m/s^2, a speed limit below the current speed is imposed no faster than this (keeps the QP feasible)
-CRUISE_LOOK = 100.0  # m, v_DP is floored by its maximum over this look-ahead (forced DP zeros at served stops)
-GW_RANGE = SPAT_RANGE  # m, the green wave (and the red-light logic) considers lights within this distance
-GW_MIN_FRACTION = 0.6  # eq. (1) lower road speed where the route has v_min = 0 (town): 0.6 x limit (30 of 50 km/h)
-YELLOW_GO_DECEL = 3.0  # m/s^2, at yellow the vehicle goes when stopping would need more than this
-FALLBACK_DECEL = 3.0  # m/s^2, deceleration of the safe braking fallback plan
-V_STOPPED = 0.3  # m/s, below this the vehicle counts as standing (stop-sign dwell)
-BAND_TOL = 0.5  # m, tolerance on the stop-line band when counting the dwell
-SS_PASSED = 1.0  # m past the stop sign after which it counts as passed (missed if the dwell was not served)
-PSI_RECOVERY = 0.2  # m per sample: rate at which the planned safe-distance margin may recover to SAFE_BACKOFF
-BLEND_STEPS = 10  # samples (2 s) of rate-limited advice after a controller switch
-BLEND_MAX_STEP = 0.4  # m/s per sample (2 m/s^2): bound on the advised-speed change during a hand-over
 
 
 @dataclass(frozen=True)
@@ -74,16 +67,77 @@ class Advisory:
     plan_v: tuple
 
 
-class PedasController:
-    """pEDAS for one route: both MPCs built once, then :meth:`step` per sample."""
+class _Prediction(NamedTuple):
+    """Stage ``_predict``: linearisation trajectory (k = 0..N-1) and route profiles at the predicted positions."""
 
-    def __init__(self, route, params: VehicleParams = LEAF, v_dp=None, n: int = N_HORIZON, dt: float = DT,
-                 rt_weights=RT_WEIGHTS, cf_weights=CF_WEIGHTS, osqp_settings: dict | None = None) -> None:
+    v_lin: np.ndarray    # m/s, speeds at k = 0..N-1 (previous plan shifted, v_0 measured)
+    ft_lin: np.ndarray   # N, traction forces at k = 0..N-1 (previous plan shifted)
+    s_pred: np.ndarray   # m, predicted positions at k = 1..N
+    grade: np.ndarray    # rad, at k = 0..N-1
+    vmax: np.ndarray     # m/s, v_max at k = 1..N
+    vmin: np.ndarray     # m/s, v_min at k = 1..N
+    vdp: np.ndarray      # m/s, v_DP at k = 1..N
+    venv: np.ndarray     # m/s, curve envelope at k = 1..N
+
+
+class _Objects(NamedTuple):
+    """Stage ``_objects_ahead``: the next light and stop sign and the stop line that constrains d_ITS."""
+
+    tl: TrafficLight | None   # the next light (or None)
+    d_tl: float | None        # m to its stop line
+    ss: StopSign | None       # the next unserved stop sign (or None)
+    d_ss: float | None        # m to its stop line
+    tl_near: bool             # the light is within spat_range (green wave and red-light logic apply)
+    go: bool                  # the light will be passed (green long enough, or yellow too close to stop)
+    stop_d: float | None      # m to the stop line that constrains d_ITS (None: no stop required)
+    d_hard: np.ndarray | None  # k = 1..N: 0 where d_ITS >= 0 is enforced, -inf elsewhere
+    stop_kind: str | None     # 'ss' | 'tl' | None
+
+
+class _Reference(NamedTuple):
+    """Stage ``_reference``: mode, v_ref and the bounds handed to the MPC."""
+
+    mode: str                 # 'green_wave' | 'dp' | 'stop'
+    v_ref: np.ndarray         # m/s, k = 1..N
+    v_lo: np.ndarray          # m/s, k = 1..N
+    v_hi: np.ndarray          # m/s, k = 1..N
+    reach: np.ndarray         # m/s, k = 1..N: the current speed reduced at a_reach (lowest admissible v_hi)
+    d_hard: np.ndarray | None  # as _Objects.d_hard, None when the stop line is beyond the horizon's reach
+    d_its0: float             # m, initial d_ITS state (0 when unbounded)
+    d_sits: float             # m, soft stop-line approach d_s,ITS (inf unless mode 'stop')
+
+
+class _Solution(NamedTuple):
+    """Stage ``_solve``: the controller used and its (possibly fallback) plan."""
+
+    ctrl: str                 # 'rt' | 'cf'
+    mode: str                 # the reference mode, or 'follow'
+    plan: MpcPlan
+    status: str               # OSQP status, or 'fallback:<status>'
+    fallback: bool
+    psi: float | None         # m, d_rel - d_s (car following only)
+
+
+class PedasController:
+    """pEDAS for one route: both MPCs built once, then :meth:`step` per sample.
+
+    ``settings`` (:class:`pedas.params.ControllerParams`, default :data:`pedas.params.CONTROLLER`) holds the MPC
+    weights, OSQP settings and every threshold of the controller, HUD and green wave. ``osqp_settings`` (a mapping
+    of OSQP options) overrides ``settings.osqp`` for solver experiments (``pedas-study bench mpc``).
+    """
+
+    def __init__(self, route, params: VehicleParams = LEAF, v_dp=None, n: int = N_HORIZON, dt: float = DT, *,
+                 settings: ControllerParams = CONTROLLER, osqp_settings: Mapping | None = None) -> None:
         self.route, self.params, self.n, self.dt = route, params, n, dt
+        self.settings = settings
         self.model = vehicle_model(params)
-        self.rt = ReferenceTrackingMpc(self.model, rt_weights, n=n, dt=dt, settings=osqp_settings)
-        self.cf = CarFollowingMpc(self.model, cf_weights, n=n, dt=dt, settings=osqp_settings)
-        self.h_s, self.d_min = cf_weights.h_s, cf_weights.d_min
+        osqp = {**settings.osqp.as_dict(), **osqp_settings} if osqp_settings else settings.osqp
+        self.rt = ReferenceTrackingMpc(self.model, settings.rt_weights, n=n, dt=dt, settings=osqp)
+        self.cf = CarFollowingMpc(self.model, settings.cf_weights, n=n, dt=dt, settings=osqp)
+        self.h_s, self.d_min = settings.cf_weights.h_s, settings.cf_weights.d_min
+        self._hud_kw = dict(arrow_full_scale=settings.arrow_full_scale, icon_range=settings.icon_range,
+                            warn_delay=settings.warn_delay, standstill=settings.standstill,
+                            start_min=settings.start_min)
         if v_dp is None:
             from pedas.dp import dp_reference
             v_dp = dp_reference(route, params)
@@ -97,8 +151,8 @@ class PedasController:
         self._vmin = np.asarray(route.v_min, float)
         self._grade = np.asarray(route.grade, float)
         self._limit = np.asarray(route.speed_limit, float)
-        # curve envelope: the highest speed from which every later v_max is reachable at A_STOP (backward pass)
-        self._venv = braking_envelope(self._s, self._vmax, A_STOP)
+        # curve envelope: the highest speed from which every later v_max is reachable at a_stop (backward pass)
+        self._venv = braking_envelope(self._s, self._vmax, settings.a_stop)
         # starts of curves whose limit is below the legal limit (for the HUD curve icon)
         curvy = np.asarray(route.v_curve, float) < self._limit - 1e-9
         starts = np.flatnonzero(curvy & ~np.r_[False, curvy[:-1]])
@@ -134,27 +188,40 @@ class PedasController:
                       "switches": 0, "stops_served": 0, "stops_missed": 0}
 
     # ------------------------------------------------------------------------------------------------------
-    def _nongreen(self, tl, t: float) -> np.ndarray:
-        """Mask over k=1..N: the light is not green at t + k dt."""
-        tk = t + self.dt * self._k
-        state = tl.state_at(t)
-        mask = np.full(self.n, state != "green")
-        for tc, st in tl.next_phase_starts(t, self.n * self.dt):
-            mask[tk >= tc] = st != "green"
-        return mask
-
     def step(self, t: float, s: float, v: float, leader: tuple[float, float] | None = None) -> Advisory:
         """Advice for the measured state: time t (s), route position s (m), speed v (m/s), leader = (gap d_rel m,
         its speed v_p m/s) or None."""
-        N, dt = self.n, self.dt
         v = max(float(v), 0.0)
-        st = self.stats
-        st["steps"] += 1
+        self.stats["steps"] += 1
+        a_meas, dt_real = self._measure(t, v)
+        pred = self._predict(s, v)
+        obj = self._objects_ahead(t, s, v, dt_real, pred.s_pred)
+        ref = self._reference(t, s, v, leader, pred, obj)
+        sol = self._solve(v, leader, pred, ref)
+        v_adv, status = self._advise(v, sol)
+        plan = sol.plan
+        plan_v = (v_adv,) + tuple(plan.v[2:].tolist())
+        hud = self._hud(t, s, v, a_meas, dt_real, obj, sol, plan_v)
+        # forces within solver tolerance of 0 are reported as 0 (the QP bounds are F >= 0)
+        return Advisory(v_advice=v_adv, controller=sol.ctrl, mode=sol.mode, ft=max(float(plan.ft[0]), 0.0),
+                        fb=max(float(plan.fb[0]), 0.0),
+                        hud_arrow=hud.hud_arrow, arrow_len=hud.arrow_len, hud_in_band=hud.hud_in_band,
+                        warning=hud.warning, tl_countdown=hud.tl_countdown, icon=hud.icon, solve_status=status,
+                        fallback=sol.fallback, plan_v=plan_v)
+
+    # ---- stages of step, in order ---------------------------------------------------------------------------
+    def _measure(self, t: float, v: float) -> tuple[float, float]:
+        """Measured acceleration (m/s^2) and the real time since the previous step (s; DT at the first step)."""
+        dt = self.dt
         a_meas = (v - self._v_prev) / (t - self._t_prev) if self._t_prev is not None and t > self._t_prev else 0.0
         dt_real = (t - self._t_prev) if self._t_prev is not None and t > self._t_prev else dt
         self._t_prev, self._v_prev = t, v
+        return a_meas, dt_real
 
-        # linearisation / prediction trajectory: previous plan shifted by one sample
+    def _predict(self, s: float, v: float) -> _Prediction:
+        """Linearisation / prediction trajectory (the previous plan shifted by one sample) and the route profiles
+        at the predicted positions."""
+        N, dt = self.n, self.dt
         prev = self._prev
         if prev is not None:
             v_lin = self._vlin
@@ -175,8 +242,12 @@ class PedasController:
         vmin = np.interp(s_pred, self._s, self._vmin)
         vdp = np.interp(s_pred, self._dp_s, self._dp_v)
         venv = np.interp(s_pred, self._s, self._venv)
+        return _Prediction(v_lin, ft_lin, s_pred, grade, vmax, vmin, vdp, venv)
 
-        # ---- objects ahead: lights and stop signs -------------------------------------------------------
+    def _objects_ahead(self, t: float, s: float, v: float, dt_real: float, s_pred: np.ndarray) -> _Objects:
+        """The next light and stop sign, the stop-sign dwell state machine, and which stop line constrains d_ITS
+        at which horizon steps (eq. 8c)."""
+        cfg, N, st = self.settings, self.n, self.stats
         lights, stops = self._lights, self._stops
         while self._tl_i < len(lights) and lights[self._tl_i].s < s - 0.5:
             self._tl_i += 1
@@ -184,7 +255,7 @@ class PedasController:
         d_tl = tl.s - s if tl is not None else None
         ss = stops[self._ss_i] if self._ss_i < len(stops) else None
         d_ss = ss.s - s if ss is not None else None
-        if ss is not None and d_ss < -SS_PASSED:  # passed without completing the dwell
+        if ss is not None and d_ss < -cfg.ss_passed:  # passed without completing the dwell
             st["stops_missed"] += 1
             self._ss_i += 1
             self._dwell = 0.0
@@ -192,7 +263,7 @@ class PedasController:
             d_ss = ss.s - s if ss is not None else None
         # a standstill anywhere short of "passed" serves the stop; a narrower window would leave a car that crept
         # just past the line waiting for an advice of 0 km/h forever
-        if ss is not None and v < V_STOPPED and -SS_PASSED <= d_ss <= self._d_sits + BAND_TOL:
+        if ss is not None and v < cfg.v_stopped and -cfg.ss_passed <= d_ss <= self._d_sits + cfg.band_tol:
             self._dwell += dt_real
             if self._dwell >= STOP_DWELL - 1e-9:
                 st["stops_served"] += 1
@@ -203,12 +274,11 @@ class PedasController:
 
         stop_d = None          # distance to the stop line that constrains d_ITS
         d_hard = None
-        tl_stop_expected = False
-        v_gw = None
-        if tl is not None and d_tl <= GW_RANGE:
+        go = False
+        tl_near = tl is not None and d_tl <= cfg.spat_range
+        if tl_near:
             mask = self._nongreen(tl, t)
             state = tl.state_at(t)
-            go = False
             if state == "green":
                 if mask.any():
                     k_r = int(np.argmax(mask))          # index of the first non-green step (time k_r + 1)
@@ -216,96 +286,123 @@ class PedasController:
                 else:
                     go = True
             elif state == "yellow":
-                go = d_tl < v * v / (2 * YELLOW_GO_DECEL)
+                go = d_tl < v * v / (2 * cfg.yellow_go_decel)
             if not go and mask.any():
                 stop_d, d_hard = d_tl, np.where(mask, 0.0, -INF)
-            # eq. (1) with v_max the lowest limit up to the line and v_min >= GW_MIN_FRACTION x speed limit
-            v_hi_gw = float(np.interp(s + max(d_tl, 0.0) * self._frac8, self._s, self._vmax).min())
-            v_lo_gw = max(float(np.interp(s, self._s, self._vmin)),
-                          GW_MIN_FRACTION * float(np.interp(s, self._s, self._limit)))
-            gw_ok = d_tl > 0 and (ss is None or ss.s > tl.s)            # a stop sign before the light goes first
-            band = green_wave_band(d_tl, t, tl, min(v_lo_gw, v_hi_gw), v_hi_gw) if gw_ok else None
-            v_gw = band[0] if band is not None else None                # v_ref,min
-            tl_stop_expected = v_gw is None and not go              # eq. (1) empty: stopping is unavoidable
         if ss is not None and (stop_d is None or d_ss < stop_d):
             stop_d, d_hard = d_ss, np.zeros(N)
             stop_kind = "ss"
         else:
             stop_kind = "tl" if stop_d is not None else None
+        return _Objects(tl, d_tl, ss, d_ss, tl_near, go, stop_d, d_hard, stop_kind)
+
+    def _green_wave(self, t: float, s: float, obj: _Objects) -> tuple[float | None, bool]:
+        """(v_ref,min of eq. (1) or None, stop at the light expected) for the light within spat_range."""
+        if not obj.tl_near:
+            return None, False
+        cfg, tl, d_tl, ss = self.settings, obj.tl, obj.d_tl, obj.ss
+        # eq. (1) with v_max the lowest limit up to the line and v_min >= gw_min_fraction x speed limit
+        v_hi_gw = float(np.interp(s + max(d_tl, 0.0) * self._frac8, self._s, self._vmax).min())
+        v_lo_gw = max(float(np.interp(s, self._s, self._vmin)),
+                      cfg.gw_min_fraction * float(np.interp(s, self._s, self._limit)))
+        gw_ok = d_tl > 0 and (ss is None or ss.s > tl.s)            # a stop sign before the light goes first
+        band = green_wave_band(d_tl, t, tl, min(v_lo_gw, v_hi_gw), v_hi_gw, cfg.gw_horizon, cfg.gw_margin,
+                               v_floor=cfg.gw_v_floor) if gw_ok else None
+        v_gw = band[0] if band is not None else None                # v_ref,min
+        return v_gw, v_gw is None and not obj.go                    # eq. (1) empty: stopping is unavoidable
+
+    def _reference(self, t: float, s: float, v: float, leader, pred: _Prediction, obj: _Objects) -> _Reference:
+        """v_ref (green wave, else v_DP with a departure ramp; curve and stop envelopes), the speed bounds and the
+        d_ITS rows."""
+        cfg, N, dt = self.settings, self.n, self.dt
+        v_gw, tl_stop_expected = self._green_wave(t, s, obj)
         # the stop envelope of v_ref: at a stop sign, and at a light when eq. (1) has no band (stop unavoidable);
         # with a green-wave band the hard d_ITS rows alone keep the plan out of the red phases
         envelope_d = None
-        if stop_kind == "ss":
-            envelope_d = d_ss
-        elif tl is not None and tl_stop_expected:
-            envelope_d = d_tl
+        if obj.stop_kind == "ss":
+            envelope_d = obj.d_ss
+        elif obj.tl is not None and tl_stop_expected:
+            envelope_d = obj.d_tl
 
-        # ---- reference and speed bounds ---------------------------------------------------------------
         if v_gw is not None:
             v_ref = np.full(N, v_gw)
             mode = "green_wave"
         else:
             # v_DP floored by its look-ahead maximum, reached with a departure ramp (zeros at served stops)
-            j0, j1 = np.searchsorted(self._dp_s, [s, s + CRUISE_LOOK])
+            j0, j1 = np.searchsorted(self._dp_s, [s, s + cfg.cruise_look])
             cruise = float(self._dp_v[j0:max(j1, j0 + 1)].max()) if j0 < self._dp_v.size else float(self._dp_v[-1])
-            v_ref = np.maximum(vdp, np.minimum(v + A_DEPART * dt * self._k, cruise))
+            v_ref = np.maximum(pred.vdp, np.minimum(v + cfg.a_depart * dt * self._k, cruise))
             mode = "dp"
-        v_ref = np.minimum(v_ref, venv)
+        v_ref = np.minimum(v_ref, pred.venv)
         if envelope_d is not None:
-            d_target = envelope_d - STOP_AIM * self._d_sits - (s_pred - s)   # aim inside the stop-line band
-            stop_env = np.sqrt(2 * A_STOP * np.maximum(d_target, 0.0))
-            if stop_env[-1] < v_ref[-1] or (stop_kind == "tl" and tl_stop_expected):
+            d_target = envelope_d - cfg.stop_aim * self._d_sits - (pred.s_pred - s)   # aim inside the stop-line band
+            stop_env = np.sqrt(2 * cfg.a_stop * np.maximum(d_target, 0.0))
+            if stop_env[-1] < v_ref[-1] or (obj.stop_kind == "tl" and tl_stop_expected):
                 mode = "stop"
             v_ref = np.minimum(v_ref, stop_env)
-        reach = v - A_REACH * dt * self._k
-        v_hi = np.maximum(vmax, reach)
+        reach = v - cfg.a_reach * dt * self._k
+        v_hi = np.maximum(pred.vmax, reach)
         if mode in ("green_wave", "dp") and leader is None:
-            v_lo = np.minimum(vmin, v)
+            v_lo = np.minimum(pred.vmin, v)
         else:
             v_lo = np.zeros(N)
         v_lo = np.minimum(v_lo, v_hi)
         d_sits = self._d_sits if mode == "stop" else INF
+        d_hard, stop_d = obj.d_hard, obj.stop_d
         if d_hard is None or stop_d > float(v_hi.max()) * N * dt + 5.0:
             # no stop object within reach of the horizon: the d_ITS rows cannot bind; unbounding them and keeping the
             # state at 0 also keeps OSQP's relative tolerance from scaling with a distance of several hundred m
             d_hard, d_its0, d_sits = None, 0.0, INF
         else:
             d_its0 = stop_d
+        return _Reference(mode, v_ref, v_lo, v_hi, reach, d_hard, d_its0, d_sits)
 
-        # ---- controller choice -------------------------------------------------------------------------
+    def _solve(self, v: float, leader, pred: _Prediction, ref: _Reference) -> _Solution:
+        """Controller choice, warm start at a hand-over, the MPC solve and the fallback plan on failure."""
+        cfg, dt, st = self.settings, self.dt, self.stats
         use_cf = leader is not None and leader[0] <= SENSOR_RANGE
         ctrl = "cf" if use_cf else "rt"
         st[ctrl] += 1
+        prev = self._prev
         if self._prev_ctrl is not None and ctrl != self._prev_ctrl:
             st["switches"] += 1
-            self._blend = BLEND_STEPS
+            self._blend = cfg.blend_steps
             if prev is not None:
                 (self.cf if use_cf else self.rt).warm_start_from(prev.v, prev.ft, prev.fb)
         psi = None
         fallback = False
+        mode = ref.mode
         if use_cf:
             d_rel, v_p = float(leader[0]), float(leader[1])
             psi = d_rel - (self.d_min + self.h_s * v)
             mode = "follow"
-            v_hi_cf = np.minimum(v_hi, np.maximum(np.maximum(vdp, np.minimum(v + A_DEPART * dt * self._k,
-                                                                              vmax)), reach))
-            # back-off SAFE_BACKOFF above d_s, approached from the current margin psi at PSI_RECOVERY m per sample
+            v_hi_cf = np.minimum(ref.v_hi, np.maximum(np.maximum(pred.vdp, np.minimum(v + cfg.a_depart * dt * self._k,
+                                                                                      pred.vmax)), ref.reach))
+            # back-off safe_backoff above d_s, approached from the current margin psi at psi_recovery m per sample
             # (with psi < 0 eq. (7a) cannot hold at k=1; eq. (11) then sets the advice)
-            margin = np.minimum(SAFE_BACKOFF, psi + PSI_RECOVERY * self._k)
-            plan = self.cf.plan(v, d_rel, v_p, v_lo, v_hi_cf, grade, d_its0=d_its0, d_hard_lo=d_hard,
-                                d_s_its=d_sits, ft_prev=self._prev_ft, v_lin=v_lin, ft_lin=ft_lin,
-                                safe_margin=margin)
+            margin = np.minimum(cfg.safe_backoff, psi + cfg.psi_recovery * self._k)
+            plan = self.cf.plan(v, d_rel, v_p, ref.v_lo, v_hi_cf, pred.grade, d_its0=ref.d_its0,
+                                d_hard_lo=ref.d_hard, d_s_its=ref.d_sits, ft_prev=self._prev_ft, v_lin=pred.v_lin,
+                                ft_lin=pred.ft_lin, safe_margin=margin)
         else:
-            plan = self.rt.plan(v, v_ref, v_lo, v_hi, grade, d_its0=d_its0, d_hard_lo=d_hard, d_s_its=d_sits,
-                                ft_prev=self._prev_ft, v_lin=v_lin, ft_lin=ft_lin)
+            plan = self.rt.plan(v, ref.v_ref, ref.v_lo, ref.v_hi, pred.grade, d_its0=ref.d_its0,
+                                d_hard_lo=ref.d_hard, d_s_its=ref.d_sits, ft_prev=self._prev_ft, v_lin=pred.v_lin,
+                                ft_lin=pred.ft_lin)
         status = plan.status
         if plan.ok:
             st["solved"] += 1
         else:
             st["fallbacks"] += 1
             fallback = True
-            plan = self._fallback_plan(v, mode, status, v_hi)
+            plan = self._fallback_plan(v, mode, status, ref.v_hi)
             status = "fallback:" + status
+        return _Solution(ctrl, mode, plan, status, fallback, psi)
+
+    def _advise(self, v: float, sol: _Solution) -> tuple[float, str]:
+        """(advised speed, solve status): the first planned speed, the speed correction eq. (11) when psi < 0 and
+        the rate limit after a hand-over; remembers the plan for the next step."""
+        cfg, st = self.settings, self.stats
+        plan, psi, status, fallback = sol.plan, sol.psi, sol.status, sol.fallback
         v_adv = float(plan.v[1])
         if psi is not None and psi < 0.0:
             v_c = corrected_speed(v, psi)   # eq. (11)
@@ -314,41 +411,52 @@ class PedasController:
                 v_adv = v_c
                 status = "speed_correction" if not fallback else status
         if self._blend > 0 and self._prev_advice is not None and not (psi is not None and psi < 0.0):
-            v_adv = float(np.clip(v_adv, self._prev_advice - BLEND_MAX_STEP, self._prev_advice + BLEND_MAX_STEP))
+            v_adv = float(np.clip(v_adv, self._prev_advice - cfg.blend_max_step,
+                                  self._prev_advice + cfg.blend_max_step))
             self._blend -= 1
         self._prev = plan if (plan.ok and not fallback) else None
         self._prev_ft = float(plan.ft[0]) if self._prev is not None else None
-        self._prev_ctrl = ctrl
+        self._prev_ctrl = sol.ctrl
         self._prev_advice = v_adv
+        return v_adv, status
 
-        # ---- HUD -----------------------------------------------------------------------------------------
-        self._unfollowed = update_unfollowed(self._unfollowed, self._last_arrow, a_meas, dt_real)
+    def _hud(self, t: float, s: float, v: float, a_meas: float, dt_real: float, obj: _Objects, sol: _Solution,
+             plan_v: tuple) -> HudAdvice:
+        """The HUD record (pedas.hud.advisory) and the unfollowed-advice timer behind its warning tone."""
+        cfg = self.settings
+        self._unfollowed = update_unfollowed(self._unfollowed, self._last_arrow, a_meas, dt_real,
+                                             not_decel=cfg.not_decel)
         curve_d = None
         if self._curve_s.size:
             j = int(np.searchsorted(self._curve_s, s))
             if j < self._curve_s.size and self._curve_v[j] < v:
                 curve_d = float(self._curve_s[j] - s)
-        ctx = HudContext(mode=mode, tl_distance=d_tl, tl_remaining=tl.remaining(t) if tl is not None else None,
-                         stop_distance=d_ss, curve_distance=curve_d, psi=psi,
+        tl = obj.tl
+        ctx = HudContext(mode=sol.mode, tl_distance=obj.d_tl, tl_remaining=tl.remaining(t) if tl is not None else None,
+                         stop_distance=obj.d_ss, curve_distance=curve_d, psi=sol.psi,
                          speed_limit=float(np.interp(s, self._s, self._limit)))
-        plan_v = (v_adv,) + tuple(plan.v[2:].tolist())
-        hud = advisory(HudState(v=v, a=a_meas, slow_unfollowed=self._unfollowed), plan_v, ctx)
+        hud = advisory(HudState(v=v, a=a_meas, slow_unfollowed=self._unfollowed), plan_v, ctx, **self._hud_kw)
         self._last_arrow = hud.hud_arrow
-        # forces within solver tolerance of 0 are reported as 0 (the QP bounds are F >= 0)
-        return Advisory(v_advice=v_adv, controller=ctrl, mode=mode, ft=max(float(plan.ft[0]), 0.0),
-                        fb=max(float(plan.fb[0]), 0.0),
-                        hud_arrow=hud.hud_arrow, arrow_len=hud.arrow_len, hud_in_band=hud.hud_in_band,
-                        warning=hud.warning, tl_countdown=hud.tl_countdown, icon=hud.icon, solve_status=status,
-                        fallback=fallback, plan_v=plan_v)
+        return hud
+
+    # ------------------------------------------------------------------------------------------------------
+    def _nongreen(self, tl, t: float) -> np.ndarray:
+        """Mask over k=1..N: the light is not green at t + k dt."""
+        tk = t + self.dt * self._k
+        state = tl.state_at(t)
+        mask = np.full(self.n, state != "green")
+        for tc, st in tl.next_phase_starts(t, self.n * self.dt):
+            mask[tk >= tc] = st != "green"
+        return mask
 
     # ------------------------------------------------------------------------------------------------------
     def _fallback_plan(self, v0: float, mode: str, status: str, v_hi: np.ndarray) -> MpcPlan:
-        """Safe braking plan (FALLBACK_DECEL) when stopping/following or infeasible; otherwise hold the speed,
-        capped by the speed limit envelope."""
-        N, k = self.n, self._k
+        """Safe braking plan (settings.fallback_decel) when stopping/following or infeasible; otherwise hold the
+        speed, capped by the speed limit envelope."""
+        N, k, decel = self.n, self._k, self.settings.fallback_decel
         if mode in ("stop", "follow") or "infeasible" in status:
-            v = np.r_[v0, np.maximum(v0 - FALLBACK_DECEL * self.dt * k, 0.0)]
-            fb = np.full(N, min(self.model.F_b_max, self.model.m_eq * FALLBACK_DECEL))
+            v = np.r_[v0, np.maximum(v0 - decel * self.dt * k, 0.0)]
+            fb = np.full(N, min(self.model.F_b_max, self.model.m_eq * decel))
             fb[v[:-1] <= 0.0] = 0.0
             ft = np.zeros(N)
         else:

@@ -1,7 +1,7 @@
 """The drive loop: one virtual participant drives the study route once, in SUMO traffic, with or without pEDAS.
 
-:func:`drive` returns the drive log in the DESIGN.md columns, one row every DT = 0.2 s from the ego's insertion
-to its arrival at the end of the route. Every step checks the safety invariants and raises
+:func:`drive` returns the drive log in the columns of docs/contracts.md, one row every DT = 0.2 s from the ego's
+insertion to its arrival at the end of the route. Every step checks the safety invariants and raises
 :class:`SafetyViolation` when one fails — SUMO's own safety checks are switched off for the ego vehicle
 (:mod:`pedas.traffic`), so a bug in the driver model or the controller cannot be hidden by the simulator:
 
@@ -169,7 +169,7 @@ def _setup(net_file: str):
 def drive(participant_seed: int, style: str, condition: str, *, traffic_seed: int | None = None,
           driver: DriverParams | None = None, net_file: str | Path | None = None,
           max_duration: float = MAX_DURATION) -> pd.DataFrame:
-    """Drive the study route once; the drive log (DESIGN.md columns, every DT s) as a DataFrame.
+    """Drive the study route once; the drive log (docs/contracts.md columns, every DT s) as a DataFrame.
 
     participant_seed: the virtual person (driver parameters, :func:`pedas.drivers.sample_driver`); style:
     cautious|normal|sporty; condition: baseline (own style) | pedas (tracking the HUD advisory). traffic_seed:

@@ -16,26 +16,25 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from pedas.params import CONTROLLER
 from pedas.route import Route, TrafficLight
 
-SPAT_RANGE = 500.0  # m: SPaT of a light is used from this distance on (V2I range; not printed in the paper)
-HORIZON = 120.0  # s: green windows considered ahead (about two signal cycles)
-V_FLOOR = 1.0  # m/s: in town (v_min = 0) a band below this is treated as "crawl" -> stop unavoidable
-MARGIN = 1.5  # s: arrive at least this long after green starts / before it ends (tracking error, reaction)
-
-__all__ = ["GreenWave", "green_wave_band", "green_wave_reference", "SPAT_RANGE", "HORIZON", "MARGIN"]
+__all__ = ["GreenWave", "green_wave_band", "green_wave_reference"]
 
 
 def green_wave_band(d_tl: float, t: float, light: TrafficLight, v_min: float, v_max: float,
-                    horizon: float = HORIZON, margin: float = MARGIN) -> tuple[float, float] | None:
+                    horizon: float = CONTROLLER.gw_horizon, margin: float = CONTROLLER.gw_margin, *,
+                    v_floor: float = CONTROLLER.gw_v_floor) -> tuple[float, float] | None:
     """Eq. (1): the speed band (m/s) to reach the stop line `d_tl` m ahead within a green window, or None.
 
-    Windows are scanned from the earliest; the first one whose band intersects [max(v_min, V_FLOOR), v_max] is
-    returned. A window open now (g <= t) has no upper bound from the SPaT (v_ref,max = v_max). Each window is
-    shrunk by `margin` s at both ends (a future start only) so the arrival is not on the edge of red. At the stop
-    line (d_tl <= 0) the band is [v_min, v_max] if the light is green now, else None.
+    Windows up to `horizon` s ahead are scanned from the earliest; the first one whose band intersects
+    [max(v_min, v_floor), v_max] is returned (a band below `v_floor` m/s is "crawl": stop unavoidable). A window
+    open now (g <= t) has no upper bound from the SPaT (v_ref,max = v_max). Each window is shrunk by `margin` s at
+    both ends (a future start only) so the arrival is not on the edge of red. At the stop line (d_tl <= 0) the band
+    is [v_min, v_max] if the light is green now, else None. Defaults: the gw_* fields of
+    :data:`pedas.params.CONTROLLER`.
     """
-    lo_road = max(v_min, V_FLOOR)
+    lo_road = max(v_min, v_floor)
     if v_max < lo_road:
         return None
     if d_tl <= 0:
@@ -67,8 +66,9 @@ class GreenWave:
     band: tuple[float, float] | None
 
 
-def green_wave_reference(route: Route, s: float, t: float, v_dp_at_s: float, spat_range: float = SPAT_RANGE,
-                         horizon: float = HORIZON, margin: float = MARGIN) -> GreenWave:
+def green_wave_reference(route: Route, s: float, t: float, v_dp_at_s: float,
+                         spat_range: float = CONTROLLER.spat_range, horizon: float = CONTROLLER.gw_horizon,
+                         margin: float = CONTROLLER.gw_margin, *, v_floor: float = CONTROLLER.gw_v_floor) -> GreenWave:
     """The reference speed at route position s (m) and time t (s) given the DP speed v_DP(s) (m/s).
 
     The next traffic light within `spat_range` m gets eq. (1) with v_min at s and v_max the smallest allowed
@@ -84,7 +84,7 @@ def green_wave_reference(route: Route, s: float, t: float, v_dp_at_s: float, spa
     d_tl = tl.s - s
     v_min = route.at(s, "v_min")
     v_max = route.min_over(s, tl.s, "v_max")
-    band = green_wave_band(d_tl, t, tl, v_min, v_max, horizon, margin)
+    band = green_wave_band(d_tl, t, tl, v_min, v_max, horizon, margin, v_floor=v_floor)
     if band is None:
         return GreenWave(float(v_dp_at_s), "dp", tl.tl_id, None)
     return GreenWave(float(band[0]), "green_wave", tl.tl_id, band)

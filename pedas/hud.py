@@ -5,35 +5,34 @@ Labs can drive a real head-up display from :func:`advisory`; the controller call
 - optimal speed v_opt = the first planned speed of the MPC plan;
 - arrow up (green) when v < v_opt - HUD_BAND, down (red) when v > v_opt + HUD_BAND, none inside the +-2 km/h band,
   where the digits turn black and the driver is advised to coast (no pedal);
-- at standstill (v < STANDSTILL) the band does not apply: a standing car cannot coast, so an optimal speed more
-  than START_MIN above v shows the arrow up ("drive off"). Without this, a plan that leaves standstill gently
+- at standstill (v < standstill) the band does not apply: a standing car cannot coast, so an optimal speed more
+  than start_min above v shows the arrow up ("drive off"). Without this, a plan that leaves standstill gently
   (v_opt = v_1, one sample ahead, rises by F_t,max/m_eq x 0.2 s, which can be < 2 km/h) would show black digits,
   and a driver who coasts as instructed would stand at a green light forever;
-- arrow length proportional to |v - v_opt|, full length at ARROW_FULL_SCALE, capped at 1;
+- arrow length proportional to |v - v_opt|, full length at arrow_full_scale, capped at 1;
 - the remaining time of the next traffic light's phase when it is below HUD_TL_COUNTDOWN and the light is within
-  ICON_RANGE;
+  icon_range;
 - one icon: stop sign > curve > green wave (the most safety-relevant first);
 - warning tone when the safe distance is violated (psi < 0) or a slow-down advice has not been followed for
-  WARN_DELAY s (the driver kept a >= -NOT_DECEL m/s^2 while the arrow pointed down).
+  warn_delay s (the driver kept a >= -not_decel m/s^2 while the arrow pointed down).
+
+HUD_BAND and HUD_TL_COUNTDOWN are printed in the paper (pedas.constants); the lower-case thresholds are design
+choices, fields of :class:`pedas.params.ControllerParams`, taken as keyword arguments defaulting to
+:data:`pedas.params.CONTROLLER`.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 from typing import Sequence
 
-from pedas.constants import HUD_BAND, HUD_TL_COUNTDOWN, KMH
-
-ARROW_FULL_SCALE = 10.0 * KMH  # m/s, |v - v_opt| at which the arrow has full length (design choice)
-ICON_RANGE = 150.0  # m, look-ahead for TL countdown / stop-sign / curve icons (design choice)
-WARN_DELAY = 2.0  # s, a slow-down advice ignored this long triggers the warning tone (design choice)
-NOT_DECEL = 0.3  # m/s^2, a deceleration weaker than this does not count as following a slow-down advice
-STANDSTILL = 0.1  # m/s, below this the car stands (the drive loop's halt threshold)
-START_MIN = 0.3 * KMH  # m/s, v_opt this far above a standing car's speed means "drive off" (design choice)
+from pedas.constants import HUD_BAND, HUD_TL_COUNTDOWN
+from pedas.params import CONTROLLER
 
 
-def wants_start(v: float, v_target: float) -> bool:
-    """A standing car (v < STANDSTILL m/s) is advised to drive off: v_target exceeds v by more than START_MIN."""
-    return v < STANDSTILL and v_target - v > START_MIN
+def wants_start(v: float, v_target: float, *, standstill: float = CONTROLLER.standstill,
+                start_min: float = CONTROLLER.start_min) -> bool:
+    """A standing car (v < standstill m/s) is advised to drive off: v_target exceeds v by more than start_min m/s."""
+    return v < standstill and v_target - v > start_min
 
 
 @dataclass(frozen=True)
@@ -82,38 +81,44 @@ class HudAdvice:
     speed_limit: float | None
 
 
-def update_unfollowed(prev: float, arrow: int, a: float, dt: float) -> float:
+def update_unfollowed(prev: float, arrow: int, a: float, dt: float, *,
+                      not_decel: float = CONTROLLER.not_decel) -> float:
     """Seconds a slow-down advice (arrow -1) has gone unfollowed: grows by dt while the arrow points down and the
-    driver decelerates less than NOT_DECEL m/s^2, resets to 0 otherwise."""
-    if arrow < 0 and a > -NOT_DECEL:
+    driver decelerates less than not_decel m/s^2, resets to 0 otherwise."""
+    if arrow < 0 and a > -not_decel:
         return prev + dt
     return 0.0
 
 
-def advisory(state: HudState, plan: Sequence[float], context: HudContext) -> HudAdvice:
-    """The HUD record for a measured state, a plan of predicted speeds v_1..v_N (m/s) and the route context."""
+def advisory(state: HudState, plan: Sequence[float], context: HudContext, *,
+             arrow_full_scale: float = CONTROLLER.arrow_full_scale, icon_range: float = CONTROLLER.icon_range,
+             warn_delay: float = CONTROLLER.warn_delay, standstill: float = CONTROLLER.standstill,
+             start_min: float = CONTROLLER.start_min) -> HudAdvice:
+    """The HUD record for a measured state, a plan of predicted speeds v_1..v_N (m/s) and the route context.
+
+    Keyword arguments: the HUD fields of :class:`pedas.params.ControllerParams` (m/s, m, s, m/s, m/s)."""
     v_opt = float(plan[0])
     dv = v_opt - state.v
-    if dv > HUD_BAND or wants_start(state.v, v_opt):
+    if dv > HUD_BAND or wants_start(state.v, v_opt, standstill=standstill, start_min=start_min):
         arrow, color = 1, "green"
     elif dv < -HUD_BAND:
         arrow, color = -1, "red"
     else:
         arrow, color = 0, "black"
-    arrow_len = 0.0 if arrow == 0 else min(abs(dv) / ARROW_FULL_SCALE, 1.0)
+    arrow_len = 0.0 if arrow == 0 else min(abs(dv) / arrow_full_scale, 1.0)
     countdown = None
     if (context.tl_distance is not None and context.tl_remaining is not None
-            and 0.0 <= context.tl_distance <= ICON_RANGE and context.tl_remaining < HUD_TL_COUNTDOWN):
+            and 0.0 <= context.tl_distance <= icon_range and context.tl_remaining < HUD_TL_COUNTDOWN):
         countdown = float(context.tl_remaining)
-    if context.stop_distance is not None and 0.0 <= context.stop_distance <= ICON_RANGE:
+    if context.stop_distance is not None and 0.0 <= context.stop_distance <= icon_range:
         icon = "stop_sign"
-    elif context.curve_distance is not None and 0.0 <= context.curve_distance <= ICON_RANGE:
+    elif context.curve_distance is not None and 0.0 <= context.curve_distance <= icon_range:
         icon = "curve"
-    elif context.mode == "green_wave" and context.tl_distance is not None and context.tl_distance <= ICON_RANGE:
+    elif context.mode == "green_wave" and context.tl_distance is not None and context.tl_distance <= icon_range:
         icon = "green_wave"
     else:
         icon = None
-    warning = (context.psi is not None and context.psi < 0.0) or state.slow_unfollowed >= WARN_DELAY
+    warning = (context.psi is not None and context.psi < 0.0) or state.slow_unfollowed >= warn_delay
     return HudAdvice(v_opt=v_opt, hud_arrow=arrow, arrow_len=float(arrow_len), hud_in_band=arrow == 0,
                      color=color, warning=bool(warning), tl_countdown=countdown, icon=icon,
                      speed_limit=context.speed_limit)

@@ -27,6 +27,7 @@ convexification; it is exact on the nominal trajectory and keeps ``P`` constant.
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -34,32 +35,14 @@ import osqp
 import scipy.sparse as sp
 
 from pedas.constants import DT, N_HORIZON
+from pedas.params import CONTROLLER, LEAF, MpcWeights, OsqpSettings
 from pedas.power import PowerMap
 
-SHIFT_WARM_START = False  # warm start from the previous solution shifted by one sample (measured: no gain)
 KN = 1000.0  # N per kN: forces inside the QP are in kN
 LU = 1.0  # m per length unit of distances inside the QP (10 m and 0.1 m were tried: more iterations)
 KW = 1000.0  # W per kW: the power cost inside the QP is in kW
 INF = np.inf
 BIG = 1e30  # OSQP's infinity: the bound vectors hold +-BIG for unbounded rows, so no per-step clipping
-
-# OSQP settings used by both MPCs (tuned with `pedas-study bench mpc`; see docs/controller.md)
-OSQP_SETTINGS = dict(
-    verbose=False,
-    warm_starting=True,
-    polishing=False,
-    eps_abs=2e-5,
-    eps_rel=2e-5,
-    eps_prim_inf=1e-5,
-    eps_dual_inf=1e-5,
-    max_iter=4000,
-    check_termination=10,
-    adaptive_rho=True,
-    adaptive_rho_interval=25,  # fixed interval: the default (0) adapts on wall-clock time, i.e. not reproducibly
-    adaptive_rho_tolerance=2.0,  # adapt rho on a factor-2 change (default 5): ~10 fewer iterations per step
-    scaling=10,
-)
-
 
 @dataclass(frozen=True)
 class MpcModel:
@@ -80,26 +63,6 @@ class MpcModel:
     power: PowerMap
     F_b_max: float
     g: float = 9.81
-
-
-@dataclass(frozen=True)
-class MpcWeights:
-    """Weights and limits the paper leaves open (docs/controller.md gives the reasoning).
-
-    zeta1: kW/(m/s)^2 (rt: speed tracking) or kW/m^2 (cf: comfort slack e3); zeta2: kW/kN^2 (braking force);
-    zeta3: kW/m^2 (stop-line slack e1); zeta4: kW/kN^2 (jerk slack e2). h_s, h_c in s, d_min in m (eq. 7),
-    dFt_max in N per step (eq. 8 / constraints on F_t,k+1 - F_t,k).
-    """
-
-    zeta1: float
-    zeta2: float = 0.5
-    zeta3: float = 0.02
-    zeta4: float = 5.0
-    h_s: float = 1.0
-    h_c: float = 2.5
-    d_min: float = 3.0
-    dFt_max: float = 700.0
-    zeta_v: float = 0.0  # kW/(m/s)^2, cf only: speed matching (v_{k+1} - v_p)^2, a regulariser beyond eq. (10)
 
 
 def power_hessian_eigs(m: MpcModel) -> np.ndarray:
@@ -138,7 +101,7 @@ class SparseMpc:
     """
 
     def __init__(self, model: MpcModel, weights: MpcWeights, follow: bool, n: int = N_HORIZON, dt: float = DT,
-                 settings: dict | None = None) -> None:
+                 settings: OsqpSettings | Mapping | None = None) -> None:
         self.model, self.w, self.follow, self.n, self.dt = model, weights, follow, n, dt
         N = n
         # ---- variable layout -------------------------------------------------------------------------------
@@ -299,8 +262,12 @@ class SparseMpc:
             self.l[R["safe"]] = w.d_min / LU
             self.u[R["comfort"]] = w.d_min / LU
         self.dFt = w.dFt_max / KN
-        self.settings = {**OSQP_SETTINGS, **(settings or {})}
-        self.shift_warm_start = bool(self.settings.pop("shift_warm_start", SHIFT_WARM_START))
+        # settings: complete OsqpSettings, or a mapping of OSQP options overriding CONTROLLER.osqp (`bench mpc`)
+        if isinstance(settings, OsqpSettings):
+            self.settings = settings.as_dict()
+        else:
+            self.settings = {**CONTROLLER.osqp.as_dict(), **(settings or {})}
+        self.shift_warm_start = bool(self.settings.pop("shift_warm_start"))
         self.solver = osqp.OSQP()
         self.solver.setup(P=self.P, q=self.q, A=self.A, l=self.l, u=self.u, **self.settings)
         core = getattr(self.solver, "_solver", None)
@@ -442,7 +409,6 @@ class SparseMpc:
 def vehicle_model(params=None) -> MpcModel:
     """The QP's numbers for a vehicle: linearised aero and traction limit (pedas.vehicle), power map eq. (5)
     (pedas.power), mass and rolling resistance (pedas.params). Defaults to the Nissan Leaf."""
-    from pedas.params import LEAF
     from pedas.power import power_map
     from pedas.vehicle import linear_model
 

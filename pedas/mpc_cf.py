@@ -8,23 +8,21 @@ from __future__ import annotations
 
 import numpy as np
 
-from pedas.mpc import INF, MpcModel, MpcPlan, MpcWeights, SparseMpc
+from pedas.mpc import INF, MpcModel, MpcPlan, SparseMpc
+from pedas.params import CONTROLLER, MpcWeights
 
-# zeta1 here weighs e3 (kW/m^2); h_s, h_c s; d_min m (docs/controller.md)
-SAFE_BACKOFF = 1.0  # m, the planned gap keeps this margin above d_s (constraint tightening vs solver tolerance)
-CF_WEIGHTS = MpcWeights(zeta1=0.3, zeta2=0.5, zeta3=0.02, zeta4=5.0, h_s=1.0, h_c=2.5, d_min=3.0, zeta_v=5.0)
 
 
 class CarFollowingMpc(SparseMpc):
     """Eq. (10) as a sparse OSQP problem built once; :meth:`plan` updates the vectors and solves."""
 
-    def __init__(self, model: MpcModel, weights: MpcWeights = CF_WEIGHTS, **kw) -> None:
+    def __init__(self, model: MpcModel, weights: MpcWeights = CONTROLLER.cf_weights, **kw) -> None:
         super().__init__(model, weights, follow=True, **kw)
 
     def plan(self, v0: float, d_rel0: float, v_p: float, v_lo: np.ndarray, v_hi: np.ndarray, grade: np.ndarray,
              d_its0: float = 0.0, d_hard_lo: np.ndarray | None = None, d_s_its: float = INF,
              ft_prev: float | None = None, v_lin: np.ndarray | None = None,
-             ft_lin: np.ndarray | None = None, safe_margin=SAFE_BACKOFF) -> MpcPlan:
+             ft_lin: np.ndarray | None = None, safe_margin=CONTROLLER.safe_backoff) -> MpcPlan:
         """Solve one step. d_rel0 m gap to the leader, v_p m/s its (frozen) speed; other arguments as
         :meth:`pedas.mpc_rt.ReferenceTrackingMpc.plan`; safe_margin m: back-off of the safe distance eq. (7a)."""
         self.set_step(v0=v0, v_lo=v_lo, v_hi=v_hi, grade=grade, d_its0=d_its0, d_hard_lo=d_hard_lo,

@@ -8,16 +8,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from pedas.mpc import INF, MpcModel, MpcPlan, MpcWeights, SparseMpc
-
-# zeta1 kW/(m/s)^2, zeta2 kW/kN^2, zeta3 kW/m^2, zeta4 kW/kN^2 (docs/controller.md)
-RT_WEIGHTS = MpcWeights(zeta1=8.0, zeta2=0.5, zeta3=0.02, zeta4=5.0)
+from pedas.mpc import INF, MpcModel, MpcPlan, SparseMpc
+from pedas.params import CONTROLLER, MpcWeights
 
 
 class ReferenceTrackingMpc(SparseMpc):
     """Eq. (9) as a sparse OSQP problem built once; :meth:`plan` updates the vectors and solves."""
 
-    def __init__(self, model: MpcModel, weights: MpcWeights = RT_WEIGHTS, **kw) -> None:
+    def __init__(self, model: MpcModel, weights: MpcWeights = CONTROLLER.rt_weights, **kw) -> None:
         super().__init__(model, weights, follow=False, **kw)
 
     def plan(self, v0: float, v_ref: np.ndarray, v_lo: np.ndarray, v_hi: np.ndarray, grade: np.ndarray,

@@ -4,10 +4,17 @@ The paper names the Leaf as host vehicle and takes its vehicle and battery model
 printing the numbers. Every value below therefore comes from public manufacturer data or is a documented
 engineering assumption; the source is written next to each value and collected in docs/vehicle_and_references.md.
 Constants the paper prints (DT, N, alphas, ...) live in `pedas.constants`, not here.
+
+The second half holds the controller's tuning: :class:`ControllerParams` (weights of both MPCs, OSQP settings, the
+thresholds of the pEDAS logic, the HUD and the green wave), one settings object per controller in the manner of
+do-mpc's settings dict, with the default :data:`CONTROLLER`. docs/controller.md gives the reasoning of each value.
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
+
+from pedas.constants import KMH
 
 
 @dataclass(frozen=True)
@@ -71,7 +78,7 @@ LEAF = VehicleParams(
     r_wheel=0.307,
     # Single reduction gear 7.9377:1 (Nissan Leaf service manual / press kit, EM61 motor + RE1F61A reducer).
     i_gear=7.9377,
-    # EM61 synchronous motor: 80 kW, 280 Nm, 10,390 rpm maximum (Nissan press kit); the issue fixes 80 kW/280 Nm.
+    # EM61 synchronous motor: 80 kW, 280 Nm, 10,390 rpm maximum (Nissan press kit).
     P_max=80_000.0,
     T_max=280.0,
     omega_max=10_390 * 2 * 3.141592653589793 / 60,
@@ -103,3 +110,134 @@ LEAF = VehicleParams(
     R_int=0.08,
     E_batt=24_000.0,
 )
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# Controller tuning (pEDAS, Sec. 3.1-3.8): values the paper leaves open. pedas.constants keeps the ones it prints.
+
+
+@dataclass(frozen=True)
+class MpcWeights:
+    """Weights and limits of one MPC the paper leaves open (docs/controller.md gives the reasoning).
+
+    zeta1: kW/(m/s)^2 (rt: speed tracking) or kW/m^2 (cf: comfort slack e3); zeta2: kW/kN^2 (braking force);
+    zeta3: kW/m^2 (stop-line slack e1); zeta4: kW/kN^2 (jerk slack e2). h_s, h_c in s, d_min in m (eq. 7),
+    dFt_max in N per step (eq. 8 / constraints on F_t,k+1 - F_t,k).
+    """
+
+    zeta1: float
+    zeta2: float = 0.5
+    zeta3: float = 0.02
+    zeta4: float = 5.0
+    h_s: float = 1.0
+    h_c: float = 2.5
+    d_min: float = 3.0
+    dFt_max: float = 700.0
+    zeta_v: float = 0.0  # kW/(m/s)^2, cf only: speed matching (v_{k+1} - v_p)^2, a regulariser beyond eq. (10)
+
+
+@dataclass(frozen=True)
+class OsqpSettings:
+    """OSQP settings used by both MPCs (tuned with `pedas-study bench mpc`; see docs/controller.md).
+
+    :meth:`as_dict` gives the keyword arguments of ``OSQP.setup`` plus ``shift_warm_start``, which
+    :class:`pedas.mpc.SparseMpc` takes out before the setup.
+    """
+
+    verbose: bool = False
+    warm_starting: bool = True
+    polishing: bool = False
+    eps_abs: float = 2e-5
+    eps_rel: float = 2e-5
+    eps_prim_inf: float = 1e-5
+    eps_dual_inf: float = 1e-5
+    max_iter: int = 4000
+    check_termination: int = 10
+    adaptive_rho: bool = True
+    adaptive_rho_interval: int = 25  # fixed interval: the default (0) adapts on wall-clock time, i.e. not reproducibly
+    adaptive_rho_tolerance: float = 2.0  # adapt rho on a factor-2 change (default 5): ~10 fewer iterations per step
+    scaling: int = 10
+    shift_warm_start: bool = False  # warm start from the previous solution shifted by one sample (measured: no gain)
+
+    def as_dict(self) -> dict:
+        """The settings as a plain dict (field order), for ``OSQP.setup``."""
+        return dataclasses.asdict(self)
+
+
+@dataclass(frozen=True)
+class ControllerParams:
+    """Every tuning value of :class:`pedas.controller.PedasController`, frozen and hashable.
+
+    Tune with ``dataclasses.replace(CONTROLLER, blend_max_step=0.2)`` and pass it as
+    ``PedasController(route, settings=...)``; the pure functions of :mod:`pedas.hud` and :mod:`pedas.greenwave`
+    take the fields they use as keyword arguments defaulting to :data:`CONTROLLER`.
+    """
+
+    # ---- the two MPCs (pedas.mpc_rt, pedas.mpc_cf, pedas.mpc) ----------------------------------------------------
+    # zeta1 kW/(m/s)^2, zeta2 kW/kN^2, zeta3 kW/m^2, zeta4 kW/kN^2 (docs/controller.md)
+    rt_weights: MpcWeights = MpcWeights(zeta1=8.0, zeta2=0.5, zeta3=0.02, zeta4=5.0)
+    # zeta1 here weighs e3 (kW/m^2); h_s, h_c s; d_min m (docs/controller.md)
+    cf_weights: MpcWeights = MpcWeights(zeta1=0.3, zeta2=0.5, zeta3=0.02, zeta4=5.0, h_s=1.0, h_c=2.5, d_min=3.0,
+                                        zeta_v=5.0)
+    # m, the planned gap keeps this margin above d_s (constraint tightening vs solver tolerance)
+    safe_backoff: float = 1.0
+    # OSQP settings of both MPCs (see OsqpSettings)
+    osqp: OsqpSettings = OsqpSettings()
+
+    # ---- reference speed and stop logic (pedas.controller) -------------------------------------------------------
+    # m/s^2, deceleration of the stop / curve approach envelope of v_ref (early and gentle)
+    a_stop: float = 1.0
+    # -, the stop envelope ends 0.9 d_s,ITS before the stop line: a lagging driver still stops in the band
+    stop_aim: float = 0.9
+    # m/s^2, acceleration of the departure ramp of v_ref (matches the DP's a_max)
+    a_depart: float = 1.0
+    # m/s^2, a speed limit below the current speed is imposed no faster than this (keeps the QP feasible)
+    a_reach: float = 3.0
+    # m, v_DP is floored by its maximum over this look-ahead (forced DP zeros at served stops)
+    cruise_look: float = 100.0
+    # -, eq. (1) lower road speed where the route has v_min = 0 (town): 0.6 x limit (30 of 50 km/h)
+    gw_min_fraction: float = 0.6
+    # m/s^2, at yellow the vehicle goes when stopping would need more than this
+    yellow_go_decel: float = 3.0
+    # m/s^2, deceleration of the safe braking fallback plan
+    fallback_decel: float = 3.0
+    # m/s, below this the vehicle counts as standing (stop-sign dwell)
+    v_stopped: float = 0.3
+    # m, tolerance on the stop-line band when counting the dwell
+    band_tol: float = 0.5
+    # m past the stop sign after which it counts as passed (missed if the dwell was not served)
+    ss_passed: float = 1.0
+    # m per sample: rate at which the planned safe-distance margin may recover to safe_backoff
+    psi_recovery: float = 0.2
+    # samples (2 s) of rate-limited advice after a controller switch
+    blend_steps: int = 10
+    # m/s per sample (2 m/s^2): bound on the advised-speed change during a hand-over
+    blend_max_step: float = 0.4
+
+    # ---- HUD (pedas.hud, Sec. 3.8) -------------------------------------------------------------------------------
+    # m/s, |v - v_opt| at which the arrow has full length (design choice)
+    arrow_full_scale: float = 10.0 * KMH
+    # m, look-ahead for TL countdown / stop-sign / curve icons (design choice)
+    icon_range: float = 150.0
+    # s, a slow-down advice ignored this long triggers the warning tone (design choice)
+    warn_delay: float = 2.0
+    # m/s^2, a deceleration weaker than this does not count as following a slow-down advice
+    not_decel: float = 0.3
+    # m/s, below this the car stands (the drive loop's halt threshold)
+    standstill: float = 0.1
+    # m/s, v_opt this far above a standing car's speed means "drive off" (design choice)
+    start_min: float = 0.3 * KMH
+
+    # ---- green wave, eq. (1) (pedas.greenwave) -------------------------------------------------------------------
+    # m: SPaT of a light is used from this distance on (V2I range; not printed in the paper); the controller's
+    # green wave and red-light logic consider lights within this distance
+    spat_range: float = 500.0
+    # s: green windows considered ahead (about two signal cycles)
+    gw_horizon: float = 120.0
+    # m/s: in town (v_min = 0) a band below this is treated as "crawl" -> stop unavoidable
+    gw_v_floor: float = 1.0
+    # s: arrive at least this long after green starts / before it ends (tracking error, reaction)
+    gw_margin: float = 1.5
+
+
+CONTROLLER = ControllerParams()

@@ -11,4 +11,3 @@ REFERENCE_DIR = DATA_DIR / "reference"
 NETWORK_DIR = DATA_DIR / "network"
 # generated SUMO artefacts (net.xml, routes); never committed
 NETWORK_BUILD_DIR = NETWORK_DIR / "build"
-SEED_PAPER = REPO_ROOT.parent / "shared" / "seeds" / "000_40f57331ffd813b2.txt"

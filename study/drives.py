@@ -1,6 +1,6 @@
 """Drive logs: validation and import of simulator logs (CSV or Parquet) and of simulated drives (DataFrames).
 
-A drive log has one row per sample with SI units (see docs/store.md and the project design):
+A drive log has one row per sample with SI units (see docs/contracts.md and docs/store.md):
 required ``t`` s, ``s`` m, ``v`` m/s, ``segment`` urban|highway, ``speed_limit`` m/s; optional ``a``, ``grade``,
 ``ft``, ``fb``, ``p_batt``, ``tl_id``, ``tl_state``, ``d_tl``, ``leader_gap``, ``leader_v``, ``v_advice``,
 ``controller``, ``hud_arrow``, ``hud_in_band``, ``warning``. Optional columns that can be computed from the

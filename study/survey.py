@@ -457,7 +457,7 @@ def _eq(a: pd.Series, b: pd.Series) -> pd.Series:
 
 
 def final_responses(st, instrument: str = DEFAULT_INSTRUMENT) -> pd.DataFrame:
-    """The final survey answers, wide, in the DESIGN.md survey format.
+    """The final survey answers, wide, in the survey CSV format of docs/contracts.md.
 
     Columns: participant_id, then every scaled item of the instrument (float, NaN = missing; raw answers as
     ticked, reverse-scored items NOT reversed), then the free-text items (str or None). One row per participant

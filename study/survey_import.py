@@ -1,4 +1,4 @@
-"""`survey import FILE [--entry 1|2]`: a wide survey CSV (DESIGN.md format) into the store, all or nothing.
+"""`survey import FILE [--entry 1|2]`: a wide survey CSV (docs/contracts.md) into the store, all or nothing.
 
 Format: ``participant_id`` then one column per item id (PU1..BI2 required, Q1..Q3 optional), raw answers as
 ticked (reverse-scored items not reversed), empty cell = missing (stored as NULL). Without ``--entry`` the file

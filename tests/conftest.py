@@ -31,7 +31,7 @@ def tmp_db(tmp_path) -> Path:
 @pytest.fixture
 def cli(tmp_db, capsys):
     """Run `pedas-study --db tmp_db ARGS...` in-process; returns CliResult(code, out, err)."""
-    from study.cli import main
+    from pedas_study.cli import main
 
     def run(*args: str, db: Path | None = tmp_db) -> CliResult:
         argv = ([f"--db={db}"] if db is not None else []) + [str(a) for a in args]
@@ -50,7 +50,8 @@ def cli(tmp_db, capsys):
 def cli_proc(tmp_db):
     """Run `pedas-study --db tmp_db ARGS...` as a separate process (for kill/concurrency tests)."""
     def run(*args: str, db: Path | None = tmp_db, timeout: float = 600, **kw) -> CliResult:
-        argv = [sys.executable, "-m", "study.cli"] + ([f"--db={db}"] if db is not None else []) + [str(a) for a in args]
+        argv = [sys.executable, "-m", "pedas_study.cli"] + ([f"--db={db}"] if db is not None else []) \
+            + [str(a) for a in args]
         env = {**os.environ, **kw.pop("env", {})}
         p = subprocess.run(argv, capture_output=True, text=True, timeout=timeout, env=env, cwd=REPO, **kw)
         return CliResult(p.returncode, p.stdout, p.stderr)

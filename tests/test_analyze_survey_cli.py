@@ -1,4 +1,5 @@
-"""`analyze_survey` and `pedas-study analyze survey`: outputs as DESIGN.md, determinism, bad input, the store path."""
+"""`analyze_survey` and `pedas-study analyze survey`: outputs per docs/contracts.md, determinism, bad input, the store
+path."""
 from __future__ import annotations
 
 import json
@@ -7,10 +8,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.bench_survey import simulate_responses
+from analysis.testing import simulate_responses
 from analysis.acceptance import COLUMNS, analyze_survey
 
-DESIGN_FILES = ["descriptives", "loadings", "fit", "reliability", "correlations", "htmt", "regressions", "hypotheses"]
+CONTRACT_FILES = ["descriptives", "loadings", "fit", "reliability", "correlations", "htmt", "regressions", "hypotheses"]
 
 
 @pytest.fixture(scope="module")
@@ -23,8 +24,8 @@ def res(data):
     return analyze_survey(data, n_boot=300, seed=5)
 
 
-def test_frames_follow_the_design_columns(res):
-    for name in DESIGN_FILES:
+def test_frames_follow_the_contract_columns(res):
+    for name in CONTRACT_FILES:
         frame = getattr(res, name)
         assert list(frame.columns[:len(COLUMNS[name])]) == COLUMNS[name], name
     assert set(res.fit["stage"]) == {"initial", "final"}
@@ -66,7 +67,7 @@ def test_reliability_uses_final_items(res):
 
 def test_same_seed_same_output(data, res):
     again = analyze_survey(data, n_boot=300, seed=5)
-    for name in DESIGN_FILES:
+    for name in CONTRACT_FILES:
         pd.testing.assert_frame_equal(getattr(res, name), getattr(again, name))
 
 
@@ -105,7 +106,7 @@ def test_cli_writes_the_design_files(cli, data, tmp_path):
     r = cli("analyze", "survey", "--responses", csv, "--out", out, "--bootstrap", "200", "--seed", "3")
     assert r.code == 0, r.err
     assert "H7" in r.out and "40 participants" in r.out
-    for name in DESIGN_FILES:
+    for name in CONTRACT_FILES:
         frame = pd.read_csv(out / f"{name}.csv")
         assert list(frame.columns[:len(COLUMNS[name])]) == COLUMNS[name]
     for t in ("table3", "table4", "table5"):

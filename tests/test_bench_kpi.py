@@ -7,7 +7,7 @@ import duckdb
 import pandas as pd
 import pytest
 
-from analysis.bench_kpi import run_bench, synthetic_sql
+from pedas_study.bench.kpi import run_bench, synthetic_sql
 
 
 def test_synthetic_table_is_seeded_and_plausible():

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import json
 
-from pedas.bench_mpc import run_bench
+from pedas_study.bench.mpc import run_bench
 
 
 def test_run_bench_small():

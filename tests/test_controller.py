@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from pedas.constants import DT, N_HORIZON, SENSOR_RANGE, STOP_DWELL
-from pedas.controller import BLEND_MAX_STEP, BLEND_STEPS, FALLBACK_DECEL, Advisory, PedasController
+from pedas.controller import Advisory, PedasController
+from pedas.params import CONTROLLER, ControllerParams, MpcWeights, OsqpSettings
 from pedas.route import Route, StopSign, TrafficLight
 from pedas.speed_correction import corrected_speed
 
@@ -95,29 +96,33 @@ def test_green_wave_crosses_two_lights_in_green_without_stopping():
     assert any(r["adv"].mode == "green_wave" and r["adv"].icon == "green_wave" for r in rows)
 
 
-def test_switching_at_sensor_range_with_bounded_advice_jump():
-    route = Route.synthetic(length=2500.0)
-    ctrl = PedasController(route)
+def leader_escaping():
+    """leader(t, s): drives 8 m/s for 40 s from 150 m ahead, then 20 m/s (it escapes the sensor range)."""
     lead = {"s": 150.0, "t": 0.0}
 
     def leader(t, s):
-        # the leader drives 8 m/s for 40 s, then 20 m/s (it escapes the sensor range)
         v_p = 8.0 if t < 40.0 else 20.0
         lead["s"] += v_p * (t - lead["t"])
         lead["t"] = t
         gap = lead["s"] - s
         return (gap, v_p) if gap <= 150.0 else None
 
-    rows = drive(ctrl, s=0.0, v=13.0, t_end=120.0, leader=leader)
+    return leader
+
+
+def test_switching_at_sensor_range_with_bounded_advice_jump():
+    route = Route.synthetic(length=2500.0)
+    ctrl = PedasController(route)
+    rows = drive(ctrl, s=0.0, v=13.0, t_end=120.0, leader=leader_escaping())
     ctrls = [r["adv"].controller for r in rows]
     for r in rows:   # cf exactly when the leader is within the sensor range
         assert (r["adv"].controller == "cf") == (r["lead"] is not None and r["lead"][0] <= SENSOR_RANGE)
     switches = [i for i in range(1, len(rows)) if ctrls[i] != ctrls[i - 1]]
     assert len(switches) == 2 and ctrls[switches[0]] == "cf" and ctrls[switches[1]] == "rt"
     for i in switches:
-        for j in range(i, min(i + BLEND_STEPS, len(rows))):
+        for j in range(i, min(i + CONTROLLER.blend_steps, len(rows))):
             jump = abs(rows[j]["adv"].v_advice - rows[j - 1]["adv"].v_advice)
-            assert jump <= BLEND_MAX_STEP + 1e-9, (i, j, jump)
+            assert jump <= CONTROLLER.blend_max_step + 1e-9, (i, j, jump)
     assert not any(r["adv"].fallback for r in rows)
     assert ctrl.stats["switches"] == 2
     # car following never advises a state inside the safe distance here (psi stays >= 0)
@@ -143,7 +148,7 @@ def test_infeasible_solve_falls_back_to_a_flagged_braking_plan():
     adv = ctrl.step(0.0, 296.0, 20.0, None)     # 4 m before a red light at 20 m/s: no feasible stop
     assert adv.fallback and adv.solve_status.startswith("fallback:")
     assert "infeasible" in adv.solve_status
-    assert np.allclose(np.diff((20.0,) + adv.plan_v), -FALLBACK_DECEL * DT)
+    assert np.allclose(np.diff((20.0,) + adv.plan_v), -CONTROLLER.fallback_decel * DT)
     assert adv.fb > 0 and adv.ft == 0.0
     assert ctrl.stats["fallbacks"] == 1
 
@@ -165,3 +170,62 @@ def test_curve_is_taken_at_its_safe_speed_with_early_advice():
     assert max(in_curve) <= np.sqrt(2.0 * 40.0) + 0.05
     slowing = [r for r in rows if r["s"] < 500.0 and r["adv"].icon == "curve" and r["adv"].v_advice < r["v"] - 0.1]
     assert slowing and min(r["s"] for r in slowing) < 470.0       # slow-down advice well before the curve
+
+
+def test_settings_are_frozen_and_hashable():
+    assert isinstance(CONTROLLER, ControllerParams) and CONTROLLER == ControllerParams()
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        CONTROLLER.blend_max_step = 1.0
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        CONTROLLER.osqp.eps_abs = 1.0
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        CONTROLLER.rt_weights.zeta1 = 1.0
+    tuned = dataclasses.replace(CONTROLLER, blend_max_step=0.1)
+    assert len({CONTROLLER: 0, tuned: 1, ControllerParams(): 2}) == 2
+    assert hash(tuned) == hash(dataclasses.replace(CONTROLLER, blend_max_step=0.1))
+
+
+def test_settings_reach_both_mpcs_and_osqp():
+    rt_w = MpcWeights(zeta1=4.0)
+    cf_w = dataclasses.replace(CONTROLLER.cf_weights, h_s=1.5, d_min=4.0)
+    settings = dataclasses.replace(CONTROLLER, rt_weights=rt_w, cf_weights=cf_w,
+                                   osqp=OsqpSettings(eps_abs=1e-4, max_iter=2000))
+    ctrl = PedasController(Route.synthetic(length=600.0), settings=settings)
+    assert ctrl.rt.w is rt_w and ctrl.cf.w is cf_w and (ctrl.h_s, ctrl.d_min) == (1.5, 4.0)
+    for mpc in (ctrl.rt, ctrl.cf):
+        assert (mpc.settings["eps_abs"], mpc.settings["max_iter"], mpc.settings["eps_rel"]) == (1e-4, 2000, 2e-5)
+        assert "shift_warm_start" not in mpc.settings and not mpc.shift_warm_start
+    # OSQP overrides for solver experiments (bench mpc) go on top of settings.osqp
+    ctrl = PedasController(Route.synthetic(length=600.0), settings=settings, osqp_settings={"eps_rel": 1e-4})
+    assert (ctrl.rt.settings["eps_abs"], ctrl.rt.settings["eps_rel"]) == (1e-4, 1e-4)
+
+
+def test_tuning_the_hand_over_rate_limit_without_monkeypatching():
+    """blend_max_step bounds the advice change after a switch; the default bound is not binding that tightly."""
+    route = Route.synthetic(length=2500.0)
+
+    def jumps_after_switches(settings):
+        rows = drive(PedasController(route, settings=settings), s=0.0, v=13.0, t_end=120.0,
+                     leader=leader_escaping())
+        ctrls = [r["adv"].controller for r in rows]
+        switches = [i for i in range(1, len(rows)) if ctrls[i] != ctrls[i - 1]]
+        assert len(switches) == 2
+        return [abs(rows[j]["adv"].v_advice - rows[j - 1]["adv"].v_advice)
+                for i in switches for j in range(i, min(i + settings.blend_steps, len(rows)))]
+
+    slow = dataclasses.replace(CONTROLLER, blend_max_step=0.05)
+    assert max(jumps_after_switches(slow)) <= 0.05 + 1e-9
+    assert max(jumps_after_switches(CONTROLLER)) > 0.05
+
+
+def test_tuning_the_fallback_and_the_hud_without_monkeypatching():
+    tl = TrafficLight("TL1", 300.0, (("red", 60.0), ("green", 30.0)))
+    route = Route.synthetic(length=600.0, speed_limit=25.0, lights=[tl])
+    settings = dataclasses.replace(CONTROLLER, fallback_decel=2.0)
+    adv = PedasController(route, settings=settings).step(0.0, 296.0, 20.0, None)   # infeasible: fallback
+    assert adv.fallback and np.allclose(np.diff((20.0,) + adv.plan_v), -2.0 * DT)
+    # the stop-sign icon appears within icon_range of the sign
+    route = Route.synthetic(length=700.0, stops=[StopSign("SS1", 300.0)])
+    assert PedasController(route).step(0.0, 180.0, 10.0, None).icon == "stop_sign"          # 120 m < 150 m
+    near = dataclasses.replace(CONTROLLER, icon_range=100.0)
+    assert PedasController(route, settings=near).step(0.0, 180.0, 10.0, None).icon is None

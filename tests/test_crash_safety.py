@@ -35,7 +35,8 @@ def log(tmp_path_factory) -> Path:
 
 def kill_during(db: Path, log: Path, marker: str, delay: float) -> int:
     """Start `drive import` in a subprocess, SIGKILL it `delay` s after stderr shows `marker`; its exit code."""
-    argv = [sys.executable, "-m", "study.cli", f"--db={db}", "drive", "import", "P001", "baseline", str(log), "-v"]
+    argv = [sys.executable, "-m", "pedas_study.cli", f"--db={db}", "drive", "import", "P001", "baseline", str(log),
+            "-v"]
     p = subprocess.Popen(argv, cwd=REPO, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True)
     try:
         for line in p.stderr:

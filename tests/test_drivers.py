@@ -22,7 +22,7 @@ def test_same_seed_same_person_and_bounds():
             if name in a.as_dict():
                 assert dist.lo <= a.as_dict()[name] <= dist.hi
         assert a.hud_delay > a.reaction  # reading the HUD adds a glance
-        assert 0.7 <= a.reaction <= 1.5  # perception-reaction time range of the issue / Green (2000)
+        assert 0.7 <= a.reaction <= 1.5  # perception-reaction time range of Green (2000), docs/drivers.md
 
 
 def test_unknown_style_is_refused():
@@ -38,7 +38,7 @@ def test_styles_are_ordered_as_documented():
     assert mean["cautious"]["a_max"] < mean["normal"]["a_max"] < mean["sporty"]["a_max"]
     assert mean["cautious"]["headway"] > mean["normal"]["headway"] > mean["sporty"]["headway"]
     assert mean["cautious"]["a_lat"] < mean["sporty"]["a_lat"]
-    # comfortable accelerations ~1-2 m/s^2 (issue), means within the documented bands
+    # comfortable accelerations ~1-2 m/s^2 (docs/drivers.md), means within the documented bands
     assert 0.9 <= mean["cautious"]["a_max"] and mean["sporty"]["a_max"] <= 2.2
 
 

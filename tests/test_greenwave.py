@@ -32,6 +32,21 @@ def test_margin_shrinks_the_window():
     assert (lo, hi) == (pytest.approx(300 / 63.5), pytest.approx(300 / 46.5))
 
 
+def test_parameters_default_to_the_controller_settings():
+    from pedas.params import CONTROLLER
+
+    default = green_wave_band(300.0, 10.0, TL, 0.0, V50)
+    assert default == green_wave_band(300.0, 10.0, TL, 0.0, V50, CONTROLLER.gw_horizon, CONTROLLER.gw_margin,
+                                      v_floor=CONTROLLER.gw_v_floor)
+    assert green_wave_band(300.0, 10.0, TL, 0.0, V50, horizon=30.0) is None    # next window starts at 55 s
+    # v_max below v_floor is "crawl": no band
+    assert green_wave_band(30.0, 0.0, TL, 0.0, 1.5) is not None
+    assert green_wave_band(30.0, 0.0, TL, 0.0, 1.5, v_floor=2.0) is None
+    road = Route.synthetic(3000.0, lights=[TrafficLight("far", 2500.0, TL.phases)])
+    assert green_wave_reference(road, 0.0, 0.0, 12.0).tl_id is None
+    assert green_wave_reference(road, 0.0, 0.0, 12.0, spat_range=3000.0).tl_id == "far"
+
+
 def test_v_min_empties_the_band_and_the_reference_falls_back_to_dp():
     assert green_wave_band(300.0, 10.0, TL, 8.0, V50) is None
     road = Route.synthetic(600.0, v_min=8.0, lights=[TL])

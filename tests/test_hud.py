@@ -4,8 +4,8 @@ from __future__ import annotations
 import pytest
 
 from pedas.constants import HUD_BAND, KMH
-from pedas.hud import (ARROW_FULL_SCALE, ICON_RANGE, NOT_DECEL, WARN_DELAY, HudContext, HudState, advisory,
-                       update_unfollowed)
+from pedas.hud import HudContext, HudState, advisory, update_unfollowed, wants_start
+from pedas.params import CONTROLLER
 
 
 def test_band_arrow_and_length():
@@ -14,7 +14,7 @@ def test_band_arrow_and_length():
     assert (inside.hud_arrow, inside.hud_in_band, inside.color, inside.arrow_len) == (0, True, "black", 0.0)
     up = advisory(HudState(v=10.0), [10.0 + 1.0], ctx)
     assert (up.hud_arrow, up.hud_in_band, up.color) == (1, False, "green")
-    assert up.arrow_len == pytest.approx(1.0 / ARROW_FULL_SCALE)
+    assert up.arrow_len == pytest.approx(1.0 / CONTROLLER.arrow_full_scale)
     down = advisory(HudState(v=10.0), [10.0 - 20 * KMH, 5.0], ctx)
     assert (down.hud_arrow, down.color, down.arrow_len) == (-1, "red", 1.0)     # capped
     assert down.v_opt == pytest.approx(10.0 - 20 * KMH)                         # first planned speed
@@ -25,7 +25,7 @@ def test_tl_countdown_only_below_10_s_and_in_range():
     st = HudState(v=10.0)
     assert advisory(st, [10.0], HudContext(tl_distance=80.0, tl_remaining=7.5)).tl_countdown == 7.5
     assert advisory(st, [10.0], HudContext(tl_distance=80.0, tl_remaining=12.0)).tl_countdown is None
-    assert advisory(st, [10.0], HudContext(tl_distance=ICON_RANGE + 1, tl_remaining=5.0)).tl_countdown is None
+    assert advisory(st, [10.0], HudContext(tl_distance=CONTROLLER.icon_range + 1, tl_remaining=5.0)).tl_countdown is None
     assert advisory(st, [10.0], HudContext()).tl_countdown is None
 
 
@@ -36,15 +36,15 @@ def test_icons_priority():
     assert advisory(st, [10.0], HudContext(mode="dp", tl_distance=120.0)).icon is None
     assert advisory(st, [10.0], HudContext(mode="green_wave", tl_distance=120.0, curve_distance=60.0)).icon == "curve"
     assert advisory(st, [10.0], HudContext(stop_distance=90.0, curve_distance=60.0)).icon == "stop_sign"
-    assert advisory(st, [10.0], HudContext(stop_distance=ICON_RANGE + 5)).icon is None
+    assert advisory(st, [10.0], HudContext(stop_distance=CONTROLLER.icon_range + 5)).icon is None
 
 
 def test_warning_on_safe_distance_violation_or_ignored_slow_down():
     ctx = HudContext(psi=-0.5)
     assert advisory(HudState(v=10.0), [10.0], ctx).warning
     assert not advisory(HudState(v=10.0), [10.0], HudContext(psi=0.5)).warning
-    assert advisory(HudState(v=10.0, slow_unfollowed=WARN_DELAY), [8.0], HudContext()).warning
-    assert not advisory(HudState(v=10.0, slow_unfollowed=WARN_DELAY - 0.2), [8.0], HudContext()).warning
+    assert advisory(HudState(v=10.0, slow_unfollowed=CONTROLLER.warn_delay), [8.0], HudContext()).warning
+    assert not advisory(HudState(v=10.0, slow_unfollowed=CONTROLLER.warn_delay - 0.2), [8.0], HudContext()).warning
 
 
 def test_update_unfollowed():
@@ -52,5 +52,24 @@ def test_update_unfollowed():
     for _ in range(10):                       # arrow down, driver keeps speed: accumulates
         t = update_unfollowed(t, -1, 0.0, 0.2)
     assert t == pytest.approx(2.0)
-    assert update_unfollowed(t, -1, -NOT_DECEL - 0.1, 0.2) == 0.0    # decelerates: reset
+    assert update_unfollowed(t, -1, -CONTROLLER.not_decel - 0.1, 0.2) == 0.0    # decelerates: reset
     assert update_unfollowed(t, 0, 0.0, 0.2) == 0.0                  # no slow-down advice: reset
+
+
+def test_thresholds_are_keyword_arguments():
+    """The design thresholds are keyword arguments (defaults: pedas.params.CONTROLLER), not module constants."""
+    st, ctx = HudState(v=10.0), HudContext(stop_distance=120.0)
+    assert advisory(st, [10.0], ctx).icon == "stop_sign"
+    assert advisory(st, [10.0], ctx, icon_range=100.0).icon is None
+    assert advisory(st, [11.0], HudContext()).arrow_len == pytest.approx(1.0 / CONTROLLER.arrow_full_scale)
+    assert advisory(st, [11.0], HudContext(), arrow_full_scale=2.0).arrow_len == pytest.approx(0.5)
+    slow = HudState(v=10.0, slow_unfollowed=1.0)
+    assert not advisory(slow, [8.0], HudContext()).warning
+    assert advisory(slow, [8.0], HudContext(), warn_delay=1.0).warning
+    assert update_unfollowed(0.0, -1, -0.2, 0.2) == pytest.approx(0.2)
+    assert update_unfollowed(0.0, -1, -0.2, 0.2, not_decel=0.1) == 0.0
+    # the drive-off rule keeps its two-argument form for the driver model (pedas.drivers)
+    assert wants_start(0.0, 0.26) and not wants_start(0.0, 0.26, start_min=0.5)
+    standing = advisory(HudState(v=0.0), [0.26], HudContext())
+    assert standing.hud_arrow == 1
+    assert advisory(HudState(v=0.0), [0.26], HudContext(), start_min=0.5).hud_arrow == 0

@@ -5,7 +5,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.bench_kpi import kpis_pandas, synthetic_sql
+from analysis.testing import kpis_pandas
+from pedas_study.bench.kpi import synthetic_sql
 from analysis.kpis import KPI_FIELDS, KpiParams, kpis_from_frame, kpis_from_relation
 from pedas.constants import KMH
 

@@ -74,7 +74,7 @@ def test_a_stalled_driver_model_is_caught_and_the_real_one_drives_on(flat_tracti
     # the stalled model: coasting inside the band even when standing (the behaviour before wants_start)
     with monkeypatch.context() as m:
         m.setattr(pedas.drivers, "wants_start", lambda v, target: False)
-        m.setattr(pedas.hud, "wants_start", lambda v, target: False)
+        m.setattr(pedas.hud, "wants_start", lambda v, target, **kw: False)
         with pytest.raises(LivenessViolation) as info:
             drive(1005, "cautious", "pedas")
     msg = str(info.value)

@@ -1,4 +1,4 @@
-"""requirements.lock agrees with pyproject.toml: each dependency (runtime + `test` extra) is pinned inside its range."""
+"""requirements.lock agrees with pyproject.toml: each dependency (runtime + every extra) is pinned inside its range."""
 from __future__ import annotations
 
 import functools
@@ -28,7 +28,8 @@ TARGET = {
 
 def declared() -> list[Requirement]:
     project = tomllib.loads((REPO / "pyproject.toml").read_text(encoding="utf-8"))["project"]
-    reqs = [Requirement(r) for r in project["dependencies"] + project["optional-dependencies"]["test"]]
+    extras = [r for group in project["optional-dependencies"].values() for r in group]
+    reqs = list({str(r): r for r in map(Requirement, project["dependencies"] + extras)}.values())
     return [r for r in reqs if r.marker is None or r.marker.evaluate(TARGET)]
 
 

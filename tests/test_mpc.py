@@ -7,8 +7,9 @@ import scipy.sparse as sp
 
 from pedas.constants import DT, N_HORIZON
 from pedas.mpc import KN, power_hessian_eigs, vehicle_model
-from pedas.mpc_cf import CF_WEIGHTS, SAFE_BACKOFF, CarFollowingMpc
-from pedas.mpc_rt import RT_WEIGHTS, ReferenceTrackingMpc
+from pedas.mpc_cf import CarFollowingMpc
+from pedas.mpc_rt import ReferenceTrackingMpc
+from pedas.params import CONTROLLER
 
 N = N_HORIZON
 TOL_V = 2e-2   # m/s, m: solver tolerance (eps_abs = eps_rel = 1e-4 on rows of magnitude <= ~100)
@@ -112,12 +113,12 @@ def test_reference_tracking_plans_satisfy_all_constraints(rt):
         plan = rt.plan(v0, v_ref, v_lo, v_hi, grade, d_its0=d0, d_hard_lo=d_hard, d_s_its=d_s, ft_prev=ft_prev,
                        v_lin=v_lin, ft_lin=ft_lin)
         assert plan.ok, plan.status
-        _check_common(plan, v0, v_lo, v_hi, grade, ft_prev, d_hard, d0, d_s, RT_WEIGHTS)
+        _check_common(plan, v0, v_lo, v_hi, grade, ft_prev, d_hard, d0, d_s, CONTROLLER.rt_weights)
 
 
 def test_car_following_plans_satisfy_all_constraints_and_never_enter_d_s(cf):
     rng = np.random.default_rng(7)
-    w = CF_WEIGHTS
+    w = CONTROLLER.cf_weights
     k = np.arange(1, N + 1)
     for _ in range(150):
         v0, v_lo, v_hi, grade, ft_prev, v_lin, ft_lin, d0, d_hard, d_s = _random_common(rng)
@@ -125,7 +126,7 @@ def test_car_following_plans_satisfy_all_constraints_and_never_enter_d_s(cf):
         psi0 = rng.uniform(0.0, 60.0)
         d_rel0 = w.d_min + w.h_s * v0 + psi0
         v_p = rng.uniform(max(0.0, v0 - 6.0), v0 + 4.0)
-        margin = np.minimum(SAFE_BACKOFF, psi0 + 0.2 * k)
+        margin = np.minimum(CONTROLLER.safe_backoff, psi0 + 0.2 * k)
         plan = cf.plan(v0, d_rel0, v_p, v_lo, v_hi, grade, d_its0=d0, d_hard_lo=d_hard, d_s_its=d_s,
                        ft_prev=ft_prev, v_lin=v_lin, ft_lin=ft_lin, safe_margin=margin)
         assert plan.ok, plan.status

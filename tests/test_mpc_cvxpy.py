@@ -6,7 +6,8 @@ import scipy.sparse as sp
 
 from pedas.constants import DT, N_HORIZON
 from pedas.mpc import solve_qp_cvxpy, vehicle_model
-from pedas.mpc_cf import SAFE_BACKOFF, CarFollowingMpc
+from pedas.mpc_cf import CarFollowingMpc
+from pedas.params import CONTROLLER
 from pedas.mpc_rt import ReferenceTrackingMpc
 
 N = N_HORIZON
@@ -46,7 +47,7 @@ def test_200_random_instances_match_clarabel_within_1e_3():
             psi0 = rng.uniform(0.0, 60.0)
             plan = cf.plan(v0, 3.0 + v0 + psi0, rng.uniform(max(0.0, v0 - 5.0), v0 + 4.0), np.zeros(N), v_hi, grade,
                            d_its0=d0, d_hard_lo=d_hard, d_s_its=d_s, ft_prev=ft_prev, v_lin=v_lin, ft_lin=ft_lin,
-                           safe_margin=np.minimum(SAFE_BACKOFF, psi0 + 0.2 * k))
+                           safe_margin=np.minimum(CONTROLLER.safe_backoff, psi0 + 0.2 * k))
         assert plan.ok, plan.status
         P, q, A, l, u, _ = mpc.qp_data()
         status, f_peer, _ = solve_qp_cvxpy(P, q, A, l, u)

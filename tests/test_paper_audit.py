@@ -1,4 +1,4 @@
-"""The consistency audit: hand-worked formulas and the findings the issue requires."""
+"""The consistency audit: hand-worked formulas and the findings of docs/paper_reproduction.md."""
 from __future__ import annotations
 
 import numpy as np
@@ -68,7 +68,7 @@ def test_adj_r2_hand():
     assert A.adj_r2(0.161, 40, 1) == pytest.approx(1 - 0.839 * 39 / 38)
 
 
-# ---- the findings the issue requires, with their numbers
+# ---- the findings of docs/paper_reproduction.md, with their numbers
 
 def test_finds_n_40_from_item_means(audit):
     r = audit[audit["check"].str.startswith("N implied by item means")].iloc[0]

@@ -1,4 +1,5 @@
-"""The transcription in data/paper/published.csv against the LaTeX source of the paper."""
+"""The transcription in data/paper/published.csv against the paper's LaTeX source (the cited lines, committed as
+data/paper/source_lines.txt)."""
 from __future__ import annotations
 
 import re
@@ -7,16 +8,14 @@ from collections import Counter
 import pytest
 
 from analysis.paper import published as P
-from pedas.paths import SEED_PAPER
 
 NUM = re.compile(r"(?<![\w{])-?\d*\.?\d+")
 
 
 @pytest.fixture(scope="module")
-def latex() -> list[str]:
-    if not SEED_PAPER.exists():
-        pytest.skip(f"the paper's LaTeX source is not in this checkout ({SEED_PAPER.name} missing)")
-    return SEED_PAPER.read_text(encoding="utf-8").split("\n")
+def latex() -> dict[int, str]:
+    """Line number in the paper's LaTeX source -> that line (the committed excerpt)."""
+    return P.load_source_lines()
 
 
 @pytest.fixture(scope="module")
@@ -49,7 +48,7 @@ def test_table3_cells_match_latex(latex, pub):
     t = pub[pub["table"] == "table3"]
     assert len(t) == 25 * 3 + 6 * 3
     for r in t.itertuples():
-        cells = _cells(latex[r.line - 1])
+        cells = _cells(latex[r.line])
         assert r.row in cells[0], r
         assert _clean(cells[cols[r.quantity]]).replace("\\tnote{*}", "*") == r.printed, r
 
@@ -59,7 +58,7 @@ def test_table4_cells_match_latex(latex, pub):
     t = pub[pub["table"] == "table4"]
     assert len(t) == 15 + 6
     for r in t.itertuples():
-        cells = _cells(latex[r.line - 1])
+        cells = _cells(latex[r.line])
         assert cells[0] == r.row
         assert _clean(cells[1 + order.index(r.column)]) == r.printed, r
 
@@ -68,7 +67,7 @@ def test_table5_cells_match_latex(latex, pub):
     cols = {"r2": 1, "adj_r2": 2, "delta_r2": 3, "b": 4, "se_b": 5, "beta": 6}
     t = pub[pub["table"] == "table5"]
     for r in t.itertuples():
-        cells = _cells(latex[r.line - 1])
+        cells = _cells(latex[r.line])
         if r.column:
             assert cells[0].endswith(f"- {r.column}"), r
         if r.quantity in cols:
@@ -78,11 +77,16 @@ def test_table5_cells_match_latex(latex, pub):
             assert (lo if r.quantity == "ci_low" else hi) == r.printed, r
 
 
-@pytest.mark.parametrize("first,last,table", [(509, 541, "table3"), (559, 564, "table4"), (586, 619, "table5")])
-def test_every_number_of_the_tables_is_transcribed(latex, pub, first, last, table):
+def test_the_excerpt_holds_the_cited_lines_and_the_table_bodies(latex, pub):
+    assert sorted(latex) == P.excerpt_lines(pub)
+    assert all(latex[ln].strip() for ln in set(pub["line"]))
+
+
+@pytest.mark.parametrize("table,first,last", [(t, *span) for t, span in P.TABLE_BODIES.items()])
+def test_every_number_of_the_tables_is_transcribed(latex, pub, table, first, last):
     """No number printed in a table body is missing (counted per line, item labels like PU1 excluded)."""
     for ln in range(first, last + 1):
-        text = re.sub(r"\\tnote\{[^}]*\}|\\textwidth|p\{[^}]*\}|\\multi\w+\{[^}]*\}\{[^}]*\}", "", latex[ln - 1])
+        text = re.sub(r"\\tnote\{[^}]*\}|\\textwidth|p\{[^}]*\}|\\multi\w+\{[^}]*\}\{[^}]*\}", "", latex[ln])
         cells = _cells(text)
         body = cells[1:] if len(cells) > 1 and "same as model" not in text else []
         found = Counter(n for c in body for n in NUM.findall(_clean(c)))
@@ -94,7 +98,7 @@ def test_text_values_appear_on_their_line(latex, pub):
     t = pub[pub["table"].isin(["cohort", "kpi"])]
     assert len(t) >= 35
     for r in t.itertuples():
-        line = latex[r.line - 1]
+        line = latex[r.line]
         pattern = r"(?<![\d.])" + re.escape(r.printed) + r"(?![\d])"
         assert re.search(pattern, line), r
 

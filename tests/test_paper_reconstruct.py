@@ -1,4 +1,4 @@
-"""The reconstructed survey: exact marginals, Table 5 within the issue's tolerances, determinism."""
+"""The reconstructed survey: exact marginals, Table 5 within the tolerances of docs/contracts.md, determinism."""
 from __future__ import annotations
 
 import numpy as np

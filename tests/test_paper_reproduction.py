@@ -86,7 +86,7 @@ def test_reference_dataset_has_no_miss(reproduction):
     s = RP.summary(reproduction).set_index("status")["count"]
     assert s["miss"] == 0, reproduction[reproduction["status"] == "miss"].to_string()
     assert s["match"] + s["within tolerance"] >= 150
-    # Table 5 (apart from the two non-t CIs) is reproduced within the tolerances
+    # Table 5 (apart from the two non-t CIs) is reproduced within the tolerances of docs/contracts.md
     t5 = reproduction[(reproduction["table"] == "table5")]
     assert (t5["status"].isin(["match", "within tolerance"])).sum() == len(t5) - 4
 

@@ -6,7 +6,7 @@ import time
 import pandas as pd
 import pytest
 
-from pedas.bench_robustness import (COLUMNS, SweepTask, robustness_sweep, run_one, summarise, sweep_tasks,
+from pedas_study.bench.robustness import (COLUMNS, SweepTask, robustness_sweep, run_one, summarise, sweep_tasks,
                                     traffic_design, wall_time)
 from pedas.drive import DriveError, LivenessViolation, SafetyViolation
 
@@ -96,7 +96,7 @@ def test_cli_prints_failures_by_kind_and_exits_1(cli, monkeypatch, tmp_path):
     """The command's output and exit code, with the fake drive in place of SUMO."""
     import json
 
-    import pedas.bench_robustness as br
+    import pedas_study.bench.robustness as br
 
     real = br.robustness_sweep
     monkeypatch.setattr(br, "robustness_sweep", lambda *a, **k: real(*a, **{**k, "drive_fn": fake_drive}))

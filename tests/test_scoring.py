@@ -5,7 +5,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.bench_survey import simulate_responses
+from analysis.testing import simulate_responses
 from analysis.descriptives import item_descriptives
 from analysis.scoring import check_not_constant, composites, score_responses
 

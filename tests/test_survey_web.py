@@ -262,7 +262,8 @@ def test_survey_serve_process(tmp_db):
     Store.open(tmp_db, actor="lab").close()
     port = free_port()
     env = {**os.environ, "PEDAS_SURVEY_PASSWORD": ""}
-    proc = subprocess.Popen([sys.executable, "-m", "study.cli", f"--db={tmp_db}", "survey", "serve", "--port", str(port)],
+    proc = subprocess.Popen([sys.executable, "-m", "pedas_study.cli", f"--db={tmp_db}", "survey", "serve",
+                             "--port", str(port)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     try:
         lines = [proc.stdout.readline() for _ in range(2)]

@@ -9,7 +9,7 @@ Conventions the checks rely on (stated in docs/paper_reproduction.md):
 - Table 3 means and SDs are printed with trailing zeros dropped: "4.35" is 4.350 (3 decimals), unless fewer than
   3 digits survive where SD values show 2 decimals ("1.21") - we take the printed digit count for SDs.
 - Standardized loadings imply inter-item correlations r_ij = λ_i λ_j (one-factor congeneric model).
-- Composite = mean of a construct's retained items (DESIGN.md).
+- Composite = mean of a construct's retained items (docs/contracts.md).
 """
 from __future__ import annotations
 
@@ -581,7 +581,8 @@ def check_cohort(pub: pd.DataFrame) -> list[Check]:
         out.append(Check(name, f"Section 4.2 (line {line})", f"{rhs:g}", f"{txt} = {lhs:g}",
                          "ok" if lhs == rhs else "inconsistent", "agrees" if lhs == rhs else "differs", ""))
     n_obj = v("objective_n")
-    counts = {"cautious": 7, "normal": 20, "sporty": 7}  # the issue's split; shares checked against it
+    # the style counts of the 34 objective participants (data/reference/README.md); the printed shares are checked
+    counts = {"cautious": 7, "normal": 20, "sporty": 7}
     for style, c in counts.items():
         rep = v("style_share", style, "percent")
         rec = 100 * c / n_obj

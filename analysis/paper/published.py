@@ -3,10 +3,15 @@
 One row per printed number with its provenance: ``table`` (table3 | table4 | table5 | cohort | kpi), ``section``,
 ``line`` (1-based line of the LaTeX source), ``quantity``, ``row``, ``column``, ``printed`` (the string as printed,
 stars kept, e.g. ``0.450**``), ``value`` (the parsed number), ``decimals`` (digits after the point as printed),
-``unit`` and ``note``. The accessors below reshape it into tidy frames keyed like the analysis outputs of DESIGN.md.
+``unit`` and ``note``. The accessors below reshape it into tidy frames keyed like the analysis outputs of
+docs/contracts.md.
+
+The lines of the LaTeX source that these values cite are kept beside them (``data/paper/source_lines.txt``,
+:func:`load_source_lines`), so the transcription stays checkable from the repository alone.
 """
 from __future__ import annotations
 
+import hashlib
 from functools import lru_cache
 from pathlib import Path
 
@@ -15,6 +20,10 @@ import pandas as pd
 from pedas.paths import PAPER_DIR
 
 PUBLISHED_CSV = "published.csv"
+SOURCE_LINES = "source_lines.txt"
+# first and last line of each table body in the LaTeX source; the excerpt keeps them whole, so a test can check that
+# no number printed in a table is missing from published.csv
+TABLE_BODIES = {"table3": (509, 541), "table4": (559, 564), "table5": (586, 619)}
 TABLE4_ORDER = ("PU", "PEoU", "ATT", "PBC", "SN", "BI")
 
 # Table 5's four models (paper Section 5.2.2): dependent variable and the predictors entered per step.
@@ -45,6 +54,56 @@ def _load(path: str) -> pd.DataFrame:
 def load_published(path: str | Path | None = None) -> pd.DataFrame:
     """All transcribed values (a copy), one row per printed number, in source order."""
     return _load(str(Path(path) if path else PAPER_DIR / PUBLISHED_CSV)).copy()
+
+
+def excerpt_lines(published: pd.DataFrame | None = None) -> list[int]:
+    """The source lines the excerpt keeps: every line published.csv cites, and the table bodies of Tables 3-5."""
+    pub = published if published is not None else load_published()
+    lines = {int(x) for x in pub["line"]}
+    for first, last in TABLE_BODIES.values():
+        lines.update(range(first, last + 1))
+    return sorted(lines)
+
+
+_SOURCE_HEADER = """\
+# Excerpt of the LaTeX source of the paper "Evaluation of the Driving Performance and User Acceptance of a Predictive
+# Eco-Driving Assistance System for Electric Vehicles" (Chada et al.), kept for provenance: short excerpts of the
+# paper's tables and results that the reproduction compares against. It holds every line that published.csv cites
+# (its `line` column) and the whole table bodies of Tables 3-5 (lines {bodies}), nothing else.
+# Format: one row per source line, `line<TAB>text`: `line` is the 1-based line number in the full source, `text` the
+# line as it stands there (trailing whitespace removed). sha256 of the full source:
+# {digest}
+# Written by analysis.paper.published.write_source_lines; checked by tests/test_paper_published.py.
+"""
+
+
+def write_source_lines(latex_source: str | Path, out: str | Path | None = None,
+                       published: pd.DataFrame | None = None) -> Path:
+    """Write the excerpt of the paper's LaTeX source (``latex_source``) that the published values cite.
+
+    ``out`` defaults to ``data/paper/source_lines.txt``. Run once when published.csv changes its citations."""
+    raw = Path(latex_source).read_bytes()
+    src = raw.decode("utf-8").split("\n")
+    wanted = excerpt_lines(published)
+    if wanted[-1] > len(src):
+        raise ValueError(f"the source has {len(src)} lines; published.csv cites line {wanted[-1]}")
+    bodies = ", ".join(f"{a}-{b}" for a, b in TABLE_BODIES.values())
+    text = _SOURCE_HEADER.format(bodies=bodies, digest=hashlib.sha256(raw).hexdigest())
+    text += "".join(f"{n}\t{src[n - 1].rstrip()}\n" for n in wanted)
+    path = Path(out) if out else PAPER_DIR / SOURCE_LINES
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def load_source_lines(path: str | Path | None = None) -> dict[int, str]:
+    """The committed excerpt of the LaTeX source: line number in the full source -> the line's text."""
+    p = Path(path) if path else PAPER_DIR / SOURCE_LINES
+    out: dict[int, str] = {}
+    for row in p.read_text(encoding="utf-8").split("\n"):
+        if row and not row.startswith("#"):
+            number, _, text = row.partition("\t")
+            out[int(number)] = text
+    return out
 
 
 def table3(published: pd.DataFrame | None = None) -> pd.DataFrame:

@@ -283,7 +283,7 @@ class _Objective:
         return float(self.composite_loss(S)) + self.item_loss(C, sd)
 
 
-# Table 5 tolerances of the issue: ±0.01 for R², adj R², ΔR², β; ±0.02 for B and SE B
+# Table 5 tolerances (docs/contracts.md): ±0.01 for R², adj R², ΔR², β; ±0.02 for B and SE B
 TOL_R2, TOL_BETA, TOL_B = 0.01, 0.01, 0.02
 
 
@@ -450,7 +450,7 @@ def regression_table(comp: pd.DataFrame) -> pd.DataFrame:
 
 @dataclass
 class Reconstruction:
-    """The generated data (raw answers, DESIGN.md survey format), its targets and how close it came."""
+    """The generated data (raw answers, survey CSV of docs/contracts.md), its targets and how close it came."""
 
     data: pd.DataFrame
     targets: Targets

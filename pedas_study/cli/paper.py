@@ -1,4 +1,5 @@
-"""`pedas-study paper ...`: the paper as data - audit, reconstruction, reference cohort, reproduction comparison."""
+"""`pedas-study paper audit | reconstruct | cohort | reproduce`: the paper as data - audit, reconstruction,
+reference cohort, reproduction comparison."""
 from __future__ import annotations
 
 import argparse
@@ -41,6 +42,7 @@ def _cohort(args: argparse.Namespace) -> int:
 
 
 def _reproduce(args: argparse.Namespace) -> int:
+    """Exit code 1 when a published value is missed."""
     from analysis.paper.reproduction import reproduce_files
 
     table = reproduce_files(args.responses, args.out, n_boot=args.n_boot, seed=args.seed)
@@ -50,22 +52,18 @@ def _reproduce(args: argparse.Namespace) -> int:
 
 
 def register(cli) -> None:
-    """Add `paper audit | reconstruct | cohort | reproduce`."""
-    g = "paper"
-    gh = "the paper's published values: audit, reconstruction, reproduction"
-    p = cli.subcommand(g, "audit", "check the published statistics for internal consistency (audit.csv, audit.md)",
-                       _audit, group_help=gh)
+    """Declare the `paper` group."""
+    g = cli.group("paper", "the paper's published values: audit, reconstruction, reproduction")
+    p = g.command("audit", "check the published statistics for internal consistency (audit.csv, audit.md)", _audit)
     p.add_argument("--out", required=True, metavar="DIR", help="output directory")
-    p = cli.subcommand(g, "reconstruct", "generate the reconstructed survey dataset (DESIGN.md survey CSV)",
-                       _reconstruct, group_help=gh)
+    p = g.command("reconstruct", "generate the reconstructed survey dataset (survey CSV of docs/contracts.md)", _reconstruct)
     p.add_argument("--out", required=True, metavar="CSV", help="output survey CSV")
     p.add_argument("--seed", type=int, default=20240, help="random seed (default 20240)")
-    p = cli.subcommand(g, "cohort", "generate the reference cohort (participants.csv, events.csv)", _cohort,
-                       group_help=gh)
+    p = g.command("cohort", "generate the reference cohort (participants.csv, events.csv)", _cohort)
     p.add_argument("--out", required=True, metavar="DIR", help="output directory")
     p.add_argument("--seed", type=int, default=20240, help="random seed (default 20240)")
-    p = cli.subcommand(g, "reproduce", "compare our analysis of a survey CSV with Tables 3-5 (reproduction.csv/.md)",
-                       _reproduce, group_help=gh)
+    p = g.command("reproduce", "compare our analysis of a survey CSV with Tables 3-5 (reproduction.csv/.md)",
+                  _reproduce)
     p.add_argument("--responses", default=None, metavar="CSV",
                    help="survey CSV (default: the reconstructed data/reference/survey.csv)")
     p.add_argument("--out", required=True, metavar="DIR", help="output directory")

@@ -1,4 +1,5 @@
-"""Robustness sweep: many simulated drives, every failure counted by kind instead of stopping the run.
+"""Robustness sweep (`pedas-study bench robustness`): many simulated drives, every failure counted by kind instead
+of stopping the run.
 
 The design is person seeds x styles x conditions x traffic seeds; every combination is one drive of
 :func:`pedas.drive.drive` on the study route. A drive that raises :class:`pedas.drive.DriveError` is counted

@@ -1,4 +1,4 @@
-"""`pedas-study bench mpc`: controller-step time on a drive-like sequence, against cvxpy rebuilding the same QP.
+"""Time of a controller step (`pedas-study bench mpc`) on a drive-like sequence, against cvxpy rebuilding the same QP.
 
 The sequence: a synthetic urban + highway route (hills, two curves, four traffic lights, one stop sign), a
 virtual driver that follows the advice with a first-order lag (so the state deviates from the plan as with a
@@ -15,6 +15,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from pedas.constants import DT
+from pedas_study.extras import require
 
 DRIVER_LAG = 0.6  # s, first-order lag of the benchmark's virtual driver when tracking the advice
 
@@ -83,6 +84,9 @@ def run_bench(steps: int = 5000, peer_steps: int = 300, seed: int = 0, osqp_sett
 
     if steps < 1 or peer_steps < 0:
         raise ValueError("steps must be >= 1 and peer steps >= 0")
+    if peer_steps:
+        require("cvxpy", "bench", "the cvxpy peer of bench mpc")
+        require("clarabel", "bench", "the cvxpy peer of bench mpc")
     rng = np.random.default_rng(seed)
     route = bench_route()
     dp = dp_reference(route)

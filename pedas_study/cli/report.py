@@ -1,24 +1,35 @@
-"""CLI command `report`: regenerate every table and figure (see `analysis.report`)."""
+"""`pedas-study report`: regenerate every table and figure, the audit and the reproduction verdict
+(`analysis.report`). Exit code 3 when published values are missed."""
 from __future__ import annotations
 
 import os
 from pathlib import Path
 
+from pedas_study.cli.common import db_path, is_user_error
+from study.errors import UserError
+
 
 def _report(args) -> int:
+    from analysis.pipeline import StepFailed
     from analysis.report import ReportConfig, run_report
-    from study.cli import db_path
-    from study.errors import UserError
+    from pedas_study.extras import require
 
     lab_store = bool(args.db or os.environ.get("PEDAS_STUDY_DB"))
     reference = args.reference or not lab_store
     if not reference and not db_path(args).exists():
         raise UserError(f"no store at {db_path(args)} (run `pedas-study init`, or use --reference)")
+    if args.scheduler is not None:
+        require("distributed", "dask", "--scheduler")
     cfg = ReportConfig(out=Path(args.out), db=db_path(args), reference=reference,
                        compare_paper=reference or args.compare_paper, participants=args.participants,
                        workers=args.workers, scheduler=args.scheduler, seed=args.seed, n_boot=args.bootstrap,
                        force=args.force, **({"cache_dir": Path(args.cache_dir)} if args.cache_dir else {}))
-    res = run_report(cfg)
+    try:
+        res = run_report(cfg)
+    except StepFailed as exc:  # a step refused its input: bad input, not a bug
+        if exc.__cause__ is not None and is_user_error(exc.__cause__):
+            raise UserError(str(exc)) from exc
+        raise
     ran = sum(s.status == "ran" for s in res.steps)
     print(f"report written to {res.out}/ ({len(res.files)} files; {ran} steps ran, "
           f"{len(res.steps) - ran} up to date)")
@@ -32,6 +43,7 @@ def _report(args) -> int:
 
 
 def register(cli) -> None:
+    """Declare `report`."""
     p = cli.command("report", "regenerate every table and figure, the audit and the reproduction verdict", _report)
     p.add_argument("--out", default="reports", help="output folder (default reports)")
     p.add_argument("--reference", action="store_true",

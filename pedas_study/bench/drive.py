@@ -1,4 +1,5 @@
-"""Benchmark of the drive simulation: real-time factor of single drives and the cohort's worker speed-up.
+"""Time of simulated drives (`pedas-study bench drive`): real-time factor of single drives, the cohort's worker
+speed-up.
 
 A drive's wall time counts the drive loop only (SUMO start, traffic, driver, controller, invariants); the
 one-time setup per process (network build check, route, DP reference) is reported separately. The cohort

@@ -1,0 +1,138 @@
+"""`pedas-study`: the command line, a thin layer over the public functions of `study`, `pedas` and `analysis`.
+
+One module per top-level command word, listed in `COMMAND_MODULES` in the order of ``--help``. Each exposes
+``register(cli: Cli)`` and declares its command with :meth:`Cli.command` (``pedas-study init``) or its group with
+:meth:`Cli.group` (``pedas-study bench mpc``), once: a second declaration of a name is an error. Handlers take the
+parsed ``argparse.Namespace`` and return an exit code (``None`` means 0). Heavy imports stay inside the handlers
+so that ``--help`` and small commands start fast.
+
+Errors: an exception reaching :func:`main` is printed as one line ``pedas-study: error: ...``. Bad input exits 2:
+``ValueError`` (with ``study.errors.UserError``), ``FileNotFoundError`` and argparse's usage errors. Anything else
+is a bug: exit 1, ``pedas-study: error: internal error: ...``. ``PEDAS_STUDY_DEBUG=1`` shows the traceback.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import sys
+import traceback
+from typing import Callable, Sequence
+
+from pedas_study.cli.common import DEFAULT_DB, is_user_error
+
+COMMAND_MODULES: tuple[str, ...] = tuple(f"pedas_study.cli.{name}" for name in (
+    "init", "participant", "session", "exclude", "drive", "export",   # the study store
+    "survey", "schedule", "simulate",                                  # survey, appointments, virtual cohort
+    "kpi", "analyze", "paper", "report",                               # analysis
+    "bench",                                                           # benchmarks
+))
+
+Handler = Callable[[argparse.Namespace], "int | None"]
+
+
+class Group:
+    """The sub-commands of one group, ``pedas-study GROUP NAME``."""
+
+    def __init__(self, name: str, parser: argparse.ArgumentParser) -> None:
+        self.name = name
+        self.parser = parser
+        self._sub = parser.add_subparsers(dest=f"{name}_command", metavar="SUBCOMMAND")
+        self._sub.required = True
+
+    def command(self, name: str, help: str, handler: Handler | None = None) -> argparse.ArgumentParser:
+        """Add ``pedas-study GROUP NAME``."""
+        p = self._sub.add_parser(name, help=help, description=help)
+        if handler is not None:
+            p.set_defaults(func=handler)
+        return p
+
+    @property
+    def commands(self) -> dict[str, argparse.ArgumentParser]:
+        """Sub-command name -> its parser, in declaration order."""
+        return dict(self._sub.choices)
+
+
+class Cli:
+    """The registry: every top-level command and group of `pedas-study` and the module that declared it."""
+
+    def __init__(self, parser: argparse.ArgumentParser) -> None:
+        self.parser = parser
+        self._top = parser.add_subparsers(dest="command", metavar="COMMAND")
+        self._top.required = True
+        self.owners: dict[str, str] = {}     # top-level name -> module that declared it
+        self.groups: dict[str, Group] = {}
+        self._module = "?"
+
+    def register(self, module: str) -> None:
+        """Import a command module and let it declare its commands."""
+        self._module = module
+        try:
+            importlib.import_module(module).register(self)
+        finally:
+            self._module = "?"
+
+    def _add(self, name: str, help: str) -> argparse.ArgumentParser:
+        if name in self.owners:
+            raise RuntimeError(f"`pedas-study {name}` declared twice: in {self.owners[name]} and {self._module}")
+        self.owners[name] = self._module
+        return self._top.add_parser(name, help=help, description=help)
+
+    def command(self, name: str, help: str, handler: Handler | None = None) -> argparse.ArgumentParser:
+        """Declare the top-level command ``pedas-study NAME``."""
+        p = self._add(name, help)
+        if handler is not None:
+            p.set_defaults(func=handler)
+        return p
+
+    def group(self, name: str, help: str) -> Group:
+        """Declare the group ``pedas-study NAME SUBCOMMAND``; add its sub-commands with :meth:`Group.command`."""
+        group = Group(name, self._add(name, help))
+        self.groups[name] = group
+        return group
+
+
+def build_cli() -> Cli:
+    """The registry with every command module registered."""
+    parser = argparse.ArgumentParser(
+        prog="pedas-study",
+        description="Driving-simulator user studies of the pEDAS eco-driving assistance system.",
+    )
+    parser.add_argument("--db", metavar="PATH", default=None,
+                        help=f"study store (DuckDB file); default $PEDAS_STUDY_DB or {DEFAULT_DB}")
+    parser.add_argument("--actor", default=None,
+                        help="who is acting, recorded in the audit log (default $PEDAS_STUDY_ACTOR or the OS user)")
+    cli = Cli(parser)
+    for module in COMMAND_MODULES:
+        cli.register(module)
+    return cli
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The `pedas-study` argument parser."""
+    return build_cli().parser
+
+
+def error_line(exc: BaseException) -> str:
+    """The one line printed for an exception: its message for bad input, else marked as an internal error."""
+    text = " ".join(str(exc).split())
+    if is_user_error(exc):
+        return f"pedas-study: error: {text or type(exc).__name__}"
+    hint = "" if os.environ.get("PEDAS_STUDY_DEBUG") else " (PEDAS_STUDY_DEBUG=1 shows the traceback)"
+    return f"pedas-study: error: internal error: {type(exc).__name__}{': ' + text if text else ''}{hint}"
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run `pedas-study` with `argv` (default: the process arguments); the exit code."""
+    args = build_parser().parse_args(argv)
+    try:
+        code = args.func(args)
+    except KeyboardInterrupt:
+        print("pedas-study: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # one line for the user; the traceback on request
+        if os.environ.get("PEDAS_STUDY_DEBUG"):
+            traceback.print_exc()
+        print(error_line(exc), file=sys.stderr)
+        return 2 if is_user_error(exc) else 1
+    return int(code or 0)

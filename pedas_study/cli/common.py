@@ -1,0 +1,60 @@
+"""Helpers shared by the command modules: the store a command works on, tables as text, which errors are bad
+input."""
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+
+from study.errors import UserError
+
+DEFAULT_DB = Path("data") / "study.duckdb"
+LIST_FORMATS = ("table", "csv", "json")
+DRIVE_CACHE_HELP = "cache of simulated drives (default $PEDAS_DRIVE_CACHE or .report-cache/drives)"
+# the errors that mean bad input (exit code 2); UserError is a ValueError
+USER_ERRORS: tuple[type[BaseException], ...] = (ValueError, FileNotFoundError)
+
+
+def is_user_error(exc: BaseException) -> bool:
+    """True for bad input (exit code 2), False for a bug (exit code 1)."""
+    return isinstance(exc, USER_ERRORS)
+
+
+def db_path(args: argparse.Namespace) -> Path:
+    """The store chosen by ``--db``, else ``PEDAS_STUDY_DB``, else ``data/study.duckdb``."""
+    if getattr(args, "db", None):
+        return Path(args.db)
+    env = os.environ.get("PEDAS_STUDY_DB")
+    return Path(env) if env else DEFAULT_DB
+
+
+def open_store(args: argparse.Namespace, must_exist: bool = True, read_only: bool = False):
+    """The store of :func:`db_path`, opened as ``--actor``; UserError "no store at ..." when it does not exist
+    (unless ``must_exist=False``, which creates it)."""
+    from study.store import Store
+
+    path = db_path(args)
+    if must_exist and not path.exists():
+        raise UserError(f"no store at {path} (run `pedas-study init` first)")
+    return Store.open(path, actor=getattr(args, "actor", None), read_only=read_only)
+
+
+def add_format_option(p: argparse.ArgumentParser) -> None:
+    """``--format table|csv|json`` of a listing command."""
+    p.add_argument("--format", choices=LIST_FORMATS, default="table")
+
+
+def format_frame(df, fmt: str = "table") -> str:
+    """A DataFrame as text: an aligned table (missing values as "-", floats with one decimal, times to the
+    second), CSV or JSON records (ISO dates)."""
+    if fmt == "csv":
+        return df.to_csv(index=False).rstrip("\n")
+    if fmt == "json":
+        return df.to_json(orient="records", date_format="iso", indent=1)
+    if df.empty:
+        return "(none)"
+    shown = df.astype(object).where(df.notna(), "-")
+    for col in shown.columns:
+        shown[col] = shown[col].map(lambda x: f"{x:%Y-%m-%d %H:%M:%S}" if hasattr(x, "strftime") else
+                                    (f"{x:.1f}" if isinstance(x, float) else x))
+    return shown.to_string(index=False)

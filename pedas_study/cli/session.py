@@ -1,0 +1,147 @@
+"""`pedas-study session ...`: walk a participant through the protocol phases (advance, abort, complete, status)
+and book their simulator slot (schedule, reschedule, cancel, no-show, attended, assign)."""
+from __future__ import annotations
+
+import argparse
+
+from pedas_study.cli.common import add_format_option, format_frame, open_store
+
+
+# ---------------------------------------------------------------------------------------------- protocol phases
+def _advance(args) -> None:
+    from study.protocol import advance
+
+    with open_store(args) as st:
+        r = advance(st, args.id, args.phase, note=args.note, at=args.at)
+    done = f" ({r['completed']} completed)" if r["completed"] else ""
+    print(f"{args.id}: {r['started']} started{done}")
+
+
+def _abort(args) -> None:
+    from study.protocol import abort
+
+    with open_store(args) as st:
+        phase = abort(st, args.id, args.reason, at=args.at)
+    print(f"{args.id}: {phase} aborted ({args.reason})")
+
+
+def _complete(args) -> None:
+    from study.protocol import complete
+
+    with open_store(args) as st:
+        phase = complete(st, args.id, note=args.note, at=args.at)
+    print(f"{args.id}: {phase} completed")
+
+
+def _status(args) -> None:
+    import json
+
+    from study.exclusions import list_exclusions
+    from study.protocol import protocol_of, status
+
+    with open_store(args) as st:
+        proto = protocol_of(st, args.id)
+        df = status(st, args.id)
+        exc = list_exclusions(st, args.id)
+        drives = st.df("SELECT condition, source, n_samples FROM drives WHERE participant_id = ? ORDER BY condition",
+                       [args.id])
+    if args.format == "json":
+        print(json.dumps({"participant_id": args.id, "protocol": proto.name,
+                          "phases": json.loads(df.to_json(orient="records", date_format="iso")),
+                          "exclusions": json.loads(exc.to_json(orient="records", date_format="iso")),
+                          "drives": json.loads(drives.to_json(orient="records"))}, indent=1))
+        return
+    if args.format == "csv":
+        print(format_frame(df, "csv"))
+        return
+    print(f"{args.id} (protocol {proto.name})")
+    print(format_frame(df.drop(columns=["seq"]), "table"))
+    if exc.empty:
+        print("exclusions: none")
+    for r in exc.itertuples(index=False):
+        print(f"excluded: scope {r.scope}, reason {r.reason}" + (f" ({r.note})" if isinstance(r.note, str) else ""))
+    print("drives: " + (", ".join(f"{r.condition} ({r.n_samples} samples, {r.source})"
+                                  for r in drives.itertuples(index=False)) or "none"))
+
+
+# ---------------------------------------------------------------------------------------------- appointments
+def _schedule(args) -> None:
+    from study.scheduling import book
+
+    with open_store(args) as st:
+        row = book(st, args.id, args.at, simulator=args.simulator, buffer_minutes=args.buffer)
+    print(f"{args.id}: {row['simulator']} booked {row['starts_at']:%Y-%m-%d %H:%M}-{row['ends_at']:%H:%M} "
+          f"(appointment {row['appointment_id']})")
+
+
+def _reschedule(args) -> None:
+    from study.scheduling import reschedule
+
+    with open_store(args) as st:
+        row = reschedule(st, args.id, args.at, simulator=args.simulator)
+    print(f"{args.id}: moved to {row['simulator']} {row['starts_at']:%Y-%m-%d %H:%M}-{row['ends_at']:%H:%M}")
+
+
+def _close(status: str):
+    def handler(args) -> None:
+        from study.scheduling import set_status
+
+        with open_store(args) as st:
+            row = set_status(st, args.id, status, note=args.note)
+        print(f"{args.id}: appointment {row['appointment_id']} {status.replace('_', '-')}")
+    return handler
+
+
+def _assign(args) -> None:
+    from study.scheduling import assign_order
+
+    with open_store(args) as st:
+        print(f"{args.id}: order {assign_order(st, args.id)}")
+
+
+def _add_time(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--at", metavar="ISO_TIME", default=None,
+                   help="when it happened (ISO 8601, UTC unless an offset is given); default now")
+
+
+def register(cli) -> None:
+    """Declare the `session` group."""
+    from study.scheduling import DEFAULT_BUFFER_MINUTES, DEFAULT_SIMULATOR
+
+    g = cli.group("session", "walk a participant through the protocol phases")
+    p = g.command("advance", "start the next protocol phase (completes the one in progress)", _advance)
+    p.add_argument("id", metavar="ID")
+    p.add_argument("phase", metavar="PHASE", help="familiarisation, baseline_drive, pedas_intro, practice, "
+                                                   "pedas_drive, survey (in this order)")
+    p.add_argument("--note", default=None)
+    _add_time(p)
+    p = g.command("abort", "abort the phase in progress (e.g. motion sickness)", _abort)
+    p.add_argument("id", metavar="ID")
+    p.add_argument("--reason", required=True)
+    _add_time(p)
+    p = g.command("complete", "complete the phase in progress without starting another", _complete)
+    p.add_argument("id", metavar="ID")
+    p.add_argument("--note", default=None)
+    _add_time(p)
+    p = g.command("status", "each phase with start, end and outcome; exclusions; drives", _status)
+    p.add_argument("id", metavar="ID")
+    add_format_option(p)
+
+    p = g.command("schedule", "book a simulator slot for the whole protocol", _schedule)
+    p.add_argument("id")
+    p.add_argument("--at", required=True, help="local start time, ISO 8601 (e.g. 2026-05-04T09:30)")
+    p.add_argument("--simulator", default=DEFAULT_SIMULATOR)
+    p.add_argument("--buffer", type=float, default=DEFAULT_BUFFER_MINUTES,
+                   help=f"minutes added to the protocol's planned duration (default {DEFAULT_BUFFER_MINUTES:g})")
+    p = g.command("reschedule", "move a participant's booked slot", _reschedule)
+    p.add_argument("id")
+    p.add_argument("--at", required=True)
+    p.add_argument("--simulator", default=None)
+    for name, status, text in (("cancel", "cancelled", "cancel a participant's booked slot"),
+                               ("no-show", "no_show", "record that a participant did not come"),
+                               ("attended", "attended", "record that a booked session took place")):
+        p = g.command(name, text, _close(status))
+        p.add_argument("id")
+        p.add_argument("--note", default=None)
+    p = g.command("assign", "assign the condition order of a multi-order protocol (balanced)", _assign)
+    p.add_argument("id")

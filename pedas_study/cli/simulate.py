@@ -1,0 +1,48 @@
+"""`pedas-study simulate cohort`: both drives of every participant not excluded from the objective analysis,
+simulated with virtual drivers in SUMO traffic and stored (all drives are simulated before the store is written)."""
+from __future__ import annotations
+
+from pedas_study.cli.common import DRIVE_CACHE_HELP, open_store
+from study.errors import UserError
+
+
+def _cohort(args) -> None:
+    from pedas.cohort import cohort_tasks, simulate_cohort
+    from pedas_study.extras import require
+    from study.exclusions import included_participants
+    from study.simulated import participants_to_simulate, store_simulated, summary_line
+
+    if args.workers is not None and args.workers < 1:
+        raise UserError("--workers must be >= 1")
+    if args.scheduler is not None:
+        require("distributed", "dask", "--scheduler")
+    with open_store(args, read_only=True) as st:
+        ids = included_participants(st, "objective")
+        people = participants_to_simulate(st, ids) if ids else None
+    if not ids:
+        raise UserError("no participants to simulate (none registered or all excluded from objective analyses)")
+    tasks = cohort_tasks(people, base_seed=args.seed)
+    results = simulate_cohort(tasks, workers=args.workers, scheduler=args.scheduler,
+                              progress=not args.no_progress, cache_dir=args.cache_dir)
+    with open_store(args) as st:
+        stored = store_simulated(st, tasks, results, replace=args.replace)
+    for task, df, r in stored:
+        print(summary_line(task, df, r))
+    changed = sum(1 for _, _, r in stored if r.status != "unchanged")
+    people_word = "participant" if len(ids) == 1 else "participants"
+    print(f"{len(stored)} drives of {len(ids)} {people_word} ({changed} stored, {len(stored) - changed} unchanged)")
+
+
+def register(cli) -> None:
+    """Declare the `simulate` group."""
+    g = cli.group("simulate", "simulate the study with virtual participants")
+    p = g.command("cohort", "simulate both drives of every participant not excluded from the objective analysis "
+                  "and store them", _cohort)
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, default=None, help="local worker processes (default: CPU count)")
+    where.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                       help="run on a Dask distributed cluster (e.g. tcp://host:8786)")
+    p.add_argument("--seed", type=int, default=0, help="cohort seed: the virtual persons derive from (seed, ID)")
+    p.add_argument("--replace", action="store_true", help="replace different drives already stored")
+    p.add_argument("--no-progress", dest="no_progress", action="store_true", help="no progress bar")
+    p.add_argument("--cache-dir", dest="cache_dir", default=None, help=DRIVE_CACHE_HELP)

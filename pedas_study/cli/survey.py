@@ -1,0 +1,147 @@
+"""`pedas-study survey ...`: import, web form, participant links, double-entry discrepancies and resolution."""
+from __future__ import annotations
+
+import os
+
+from pedas_study.cli.common import add_format_option, format_frame, open_store
+from study.errors import UserError
+
+PASSWORD_ENV = "PEDAS_SURVEY_PASSWORD"
+
+
+def _import(args):
+    from study.survey_import import import_survey
+
+    with open_store(args) as st:
+        r = import_survey(st, args.file, entry=args.entry, instrument=args.instrument)
+    kind = f"entry round {r.entry_round} of a double entry" if r.double_entry else "single electronic entry (final)"
+    print(f"imported {r.participants} participants ({r.answers} answers, {r.missing} missing) as {kind}")
+
+
+def _link(args):
+    from study import survey as sv
+
+    try:
+        st = open_store(args)
+    except UserError as exc:
+        if "in use" in str(exc):  # `survey serve` owns the store: DuckDB allows one writing process
+            raise UserError(f"{exc} (while `survey serve` runs, issue links on its researcher page /r/)") from None
+        raise
+    with st:
+        token = sv.issue_link(st, args.participant_id, args.instrument)
+    print(f"{args.base_url.rstrip('/')}/s/{token}")
+
+
+def _status(args):
+    from study import survey as sv
+
+    with open_store(args, read_only=True) as st:
+        print(format_frame(sv.survey_status(st, args.instrument), args.format))
+
+
+def _discrepancies(args):
+    from study import survey as sv
+
+    with open_store(args, read_only=True) as st:
+        print(format_frame(sv.discrepancies(st, args.instrument), args.format))
+
+
+def _resolve(args):
+    from study import survey as sv
+
+    with open_store(args) as st:
+        a = sv.resolve(st, args.participant_id, args.item_id, args.value, args.note, args.instrument)
+    shown = a.text if a.text is not None else ("missing" if a.value is None else a.value)
+    print(f"{args.participant_id} {args.item_id}: final value {shown}")
+
+
+def _final(args):
+    from pathlib import Path
+
+    from study import survey as sv
+    from study.instrument import load_instrument
+
+    with open_store(args, read_only=True) as st:
+        df = sv.final_responses(st, args.instrument)
+    for item in load_instrument(args.instrument).scaled_items:
+        df[item] = df[item].astype("Int64")  # whole numbers as ticked: "4", not "4.0"
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    df.to_csv(out, index=False, lineterminator="\n")
+    print(f"wrote {len(df)} participants to {out}")
+
+
+def _serve(args):
+    import secrets
+    import signal
+    import threading
+
+    from study.webapp import SurveyServer, create_app
+
+    password = os.environ.get(PASSWORD_ENV)
+    generated = not password
+    if generated:
+        password = secrets.token_urlsafe(12)
+    with open_store(args) as st:
+        app = create_app(st, password, instrument=args.instrument)
+        server = SurveyServer(app, args.host, args.port)
+        print(f"survey form on {server.url}/  (researcher pages: {server.url}/r/)", flush=True)
+        if generated:
+            print(f"researcher password (set {PASSWORD_ENV} to choose one): {password}", flush=True)
+        if args.host not in ("127.0.0.1", "localhost", "::1"):
+            print(f"warning: bound to {args.host}: reachable from other machines; plain HTTP", flush=True)
+        stop = threading.Event()
+        signal.signal(signal.SIGTERM, lambda *_: stop.set())
+        server.start()
+        try:
+            stop.wait()
+        except KeyboardInterrupt:
+            pass
+        finally:
+            server.close()
+    print("survey server stopped")
+
+
+def _instrument_option(p) -> None:
+    from study.instrument import DEFAULT_INSTRUMENT
+
+    p.add_argument("--instrument", default=DEFAULT_INSTRUMENT, help="codebook name (default %(default)s)")
+
+
+def register(cli) -> None:
+    """Declare the `survey` group."""
+    g = cli.group("survey", "survey instrument, web form and data entry")
+    p = g.command("import", "import a wide survey CSV (docs/contracts.md), all or nothing", _import)
+    p.add_argument("file", metavar="FILE")
+    p.add_argument("--entry", type=int, choices=(1, 2), default=None,
+                   help="paper-form double entry round; without it the file is a single electronic entry (final)")
+    _instrument_option(p)
+
+    p = g.command("serve", "run the survey web form (participant links + researcher data entry)", _serve)
+    p.add_argument("--host", default="127.0.0.1", help="address to bind (default 127.0.0.1: this machine only)")
+    p.add_argument("--port", type=int, default=8000)
+    _instrument_option(p)
+
+    p = g.command("link", "issue a one-time survey link for a participant (revokes earlier ones)", _link)
+    p.add_argument("participant_id", metavar="ID")
+    p.add_argument("--base-url", default="http://127.0.0.1:8000", help="address of `survey serve` (default %(default)s)")
+    _instrument_option(p)
+
+    p = g.command("status", "per participant: link, entries, discrepancies, final", _status)
+    add_format_option(p)
+    _instrument_option(p)
+
+    p = g.command("discrepancies", "every item where double entry 1 and 2 differ", _discrepancies)
+    add_format_option(p)
+    _instrument_option(p)
+
+    p = g.command("resolve", "record the final value of a double-entry discrepancy (audited)", _resolve)
+    p.add_argument("participant_id", metavar="ID")
+    p.add_argument("item_id", metavar="ITEM")
+    p.add_argument("value", metavar="VALUE", help="the value on the paper form; '' = not answered")
+    p.add_argument("--note", default=None)
+    _instrument_option(p)
+
+    p = g.command("final", "write the final answers as a wide CSV (survey CSV of docs/contracts.md)", _final)
+    p.add_argument("--out", required=True, metavar="CSV")
+    _instrument_option(p)

@@ -1,0 +1,61 @@
+"""The examples in the docstrings of the acceptance statistics modules run and print the numbers they show.
+
+`doctest` on a list of modules rather than `--doctest-modules` over the tree (which would import every module,
+CLI and benchmark included). The option flags are the ones `[tool.pytest.ini_options] doctest_optionflags`
+declares, so `pytest --doctest-modules analysis/reliability.py` checks the same thing.
+"""
+from __future__ import annotations
+
+import doctest
+import importlib
+import io
+
+import pytest
+
+MODULES = ["analysis.reliability", "analysis.validity", "analysis.regression", "analysis.cfa", "analysis.hypotheses",
+           "analysis.scoring", "analysis.descriptives", "analysis.render", "analysis.acceptance"]
+
+
+def _flags(config) -> int:
+    try:
+        names = config.getini("doctest_optionflags")
+    except ValueError:  # the doctest plugin is disabled (-p no:doctest)
+        names = ["NORMALIZE_WHITESPACE", "ELLIPSIS"]
+    flags = 0
+    for name in names:
+        flags |= doctest.OPTIONFLAGS_BY_NAME[name]
+    return flags
+
+
+@pytest.mark.parametrize("name", MODULES)
+def test_docstring_examples(name, pytestconfig):
+    module = importlib.import_module(name)
+    tests = [t for t in doctest.DocTestFinder().find(module) if t.examples]
+    assert tests, f"{name} has no docstring examples"
+    out = io.StringIO()
+    runner = doctest.DocTestRunner(optionflags=_flags(pytestconfig))
+    for t in tests:
+        runner.run(t, out=out.write)
+    result = runner.summarize(verbose=False)
+    assert result.failed == 0, out.getvalue()
+
+
+def test_the_public_statistics_functions_have_examples():
+    """Each public statistics function named in the docs carries a runnable example."""
+    wanted = {"analysis.reliability": ["cronbach_alpha", "composite_reliability", "average_variance_extracted",
+                                       "omega_semtools"],
+              "analysis.validity": ["stars", "pearson_p", "composite_correlations", "fornell_larcker", "htmt"],
+              "analysis.regression": ["ols", "f_change", "bootstrap_coefs", "bootstrap_ci",
+                                      "hierarchical_regression"],
+              "analysis.cfa": ["fit_indices", "srmr", "heywood_cases", "model_description"],
+              "analysis.hypotheses": ["judge_hypotheses", "load_hypotheses"],
+              "analysis.scoring": ["composites", "score_responses", "check_not_constant"],
+              "analysis.descriptives": ["item_descriptives"],
+              "analysis.acceptance": ["SurveyAnalysis"]}
+    parser = doctest.DocTestParser()
+    for mod, names in wanted.items():
+        module = importlib.import_module(mod)
+        for n in names:
+            doc = getattr(module, n).__doc__ or ""
+            assert parser.get_examples(doc), f"{mod}.{n} has no example"
+            assert "Examples\n" in doc, f"{mod}.{n}: no numpydoc Examples section"
