@@ -17,6 +17,46 @@ import pandas as pd
 from scipy import stats
 
 CONSTANT = "(Constant)"
+SINGULAR = 1e-12  # a pivot below this share of the largest one marks a (numerically) singular design
+
+
+def _cross(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """A^T B over the cases axis (-2) of stacked arrays, by elementwise products and a sum in case order.
+
+    Not ``@``/``einsum``/LAPACK: their summation order depends on the BLAS kernel numpy picks at run time, and
+    the last bits would differ between machines (the same reason as in :mod:`pedas.exact_lstsq`).
+    """
+    return (A[..., :, :, None] * B[..., :, None, :]).sum(axis=-3)
+
+
+def _solve(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Solutions X of A X = B for stacked small systems (A: (..., m, m), B: (..., m, r)) by Gauss-Jordan
+    elimination with partial pivoting in elementwise numpy operations; (X, singular) where `singular` marks the
+    systems whose smallest pivot is below SINGULAR x their largest (their rows of X are NaN)."""
+    batch = np.broadcast_shapes(np.shape(A)[:-2], np.shape(B)[:-2])
+    m, r = np.shape(A)[-1], np.shape(B)[-1]
+    A = np.broadcast_to(np.asarray(A, dtype=float), batch + (m, m)).reshape(-1, m, m).copy()
+    X = np.broadcast_to(np.asarray(B, dtype=float), batch + (m, r)).reshape(-1, m, r).copy()
+    at = np.arange(A.shape[0])
+    piv_abs = np.empty((A.shape[0], m))
+    for c in range(m):
+        # partial pivoting: swap row c with the row of largest |A[., c]| at or below it
+        p = c + np.argmax(np.abs(A[:, c:, c]), axis=1)
+        A[at, c], A[at, p] = A[at, p].copy(), A[at, c].copy()
+        X[at, c], X[at, p] = X[at, p].copy(), X[at, c].copy()
+        piv = A[:, c, c].copy()
+        piv_abs[:, c] = np.abs(piv)
+        piv[piv == 0.0] = 1.0
+        A[:, c, :] /= piv[:, None]
+        X[:, c, :] /= piv[:, None]
+        for i in range(m):
+            if i != c:
+                f = A[:, i, c][:, None].copy()  # a copy: the next line zeroes A[:, i, c]
+                A[:, i, :] -= f * A[:, c, :]
+                X[:, i, :] -= f * X[:, c, :]
+    singular = piv_abs.min(axis=1) <= SINGULAR * piv_abs.max(axis=1)
+    X[singular] = np.nan
+    return X.reshape(batch + (m, r)), singular.reshape(batch)
 
 
 @dataclass(frozen=True)
@@ -99,15 +139,19 @@ def ols(y: np.ndarray, X: np.ndarray) -> dict:
     """
     n, k = X.shape
     Xc = np.column_stack([np.ones(n), X])
-    b, *_ = np.linalg.lstsq(Xc, y, rcond=None)
-    resid = y - Xc @ b
+    XtX = _cross(Xc, Xc)
+    # normal equations with the inverse beside them (the covariance needs it): [b | inv] = XtX^-1 [Xty | I]
+    sol, singular = _solve(XtX, np.column_stack([_cross(Xc, y[:, None]), np.eye(k + 1)]))
+    if singular:
+        raise ValueError("the regression design is singular (a predictor is constant or collinear)")
+    b, inv = sol[:, 0], sol[:, 1:]
+    resid = y - (Xc * b).sum(axis=1)
     df2 = n - k - 1
-    sse = float(resid @ resid)
+    sse = float((resid * resid).sum())
     sst = float(((y - y.mean()) ** 2).sum())
     r2 = 1.0 - sse / sst
     sigma2 = sse / df2
-    cov = sigma2 * np.linalg.inv(Xc.T @ Xc)
-    se = np.sqrt(np.diag(cov))
+    se = np.sqrt(sigma2 * np.diag(inv))
     t = b / se
     p = 2.0 * stats.t.sf(np.abs(t), df2)
     return {"b": b, "se": se, "t": t, "p": p, "r2": r2, "adj_r2": 1.0 - (1.0 - r2) * (n - 1) / df2, "df_resid": df2}
@@ -183,14 +227,8 @@ def bootstrap_coefs(y: np.ndarray, X: np.ndarray, n_boot: int, rng: np.random.Ge
     idx = rng.integers(0, n, size=(n_boot, n))
     Xb = Xc[idx]                      # (B, n, k+1)
     yb = y[idx]                       # (B, n)
-    XtX = np.einsum("bni,bnj->bij", Xb, Xb)
-    Xty = np.einsum("bni,bn->bi", Xb, yb)
-    cond = np.linalg.cond(XtX)
-    bad = ~np.isfinite(cond) | (cond > 1e12)
-    XtX[bad] = np.eye(k + 1)
-    coefs = np.linalg.solve(XtX, Xty[..., None])[..., 0]
-    coefs[bad] = np.nan
-    return coefs
+    coefs, _ = _solve(_cross(Xb, Xb), _cross(Xb, yb[..., None]))
+    return coefs[..., 0]
 
 
 def _jackknife(y: np.ndarray, X: np.ndarray) -> np.ndarray:
@@ -200,9 +238,8 @@ def _jackknife(y: np.ndarray, X: np.ndarray) -> np.ndarray:
     Xc = np.column_stack([np.ones(n), X])
     Xj = np.stack([Xc[m] for m in keep])
     yj = np.stack([y[m] for m in keep])
-    XtX = np.einsum("bni,bnj->bij", Xj, Xj)
-    Xty = np.einsum("bni,bn->bi", Xj, yj)
-    return np.linalg.solve(XtX, Xty[..., None])[..., 0]
+    coefs, _ = _solve(_cross(Xj, Xj), _cross(Xj, yj[..., None]))
+    return coefs[..., 0]
 
 
 def bootstrap_ci(boot: np.ndarray, est: np.ndarray, level: float = 0.95, method: str = "percentile",

@@ -30,7 +30,8 @@ def _save(fig, out_dir: Path, stem: str) -> list[Path]:
     paths = [out_dir / f"{stem}.png", out_dir / f"{stem}.pdf"]
     fig.tight_layout()
     fig.savefig(paths[0], dpi=150)
-    fig.savefig(paths[1])
+    # no creation date in the PDF: an unchanged figure stays byte-identical between runs and machines
+    fig.savefig(paths[1], metadata={"CreationDate": None})
     _plt().close(fig)
     return paths
 

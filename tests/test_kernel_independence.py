@@ -62,3 +62,32 @@ def test_drive_logs_and_fits_are_identical_under_every_kernel(tmp_path):
             a = (tmp_path / ref / f"{cond}.csv").read_bytes()
             b = (tmp_path / k / f"{cond}.csv").read_bytes()
             assert len(a) > 100_000 and a == b, f"{cond} drive differs between {ref} and {k}"
+
+
+SURVEY_SCRIPT = r"""
+import sys
+from analysis.acceptance import analyze_survey
+from pedas.paths import REFERENCE_DIR
+import pandas as pd
+responses = pd.read_csv(REFERENCE_DIR / "survey.csv")
+analyze_survey(responses).write(sys.argv[1])
+"""
+
+
+@pytest.mark.slow
+def test_survey_regressions_are_identical_under_every_kernel(tmp_path):
+    """The hierarchical regressions (and their bootstrap CIs) of the reference survey, written by `write`, are
+    the same bytes under every kernel: their normal equations are solved without BLAS."""
+    kernels = _kernels()
+    procs = {}
+    for k in kernels:
+        env = {**os.environ, "OPENBLAS_CORETYPE": k}
+        procs[k] = subprocess.Popen([sys.executable, "-c", SURVEY_SCRIPT, str(tmp_path / k)], cwd=REPO, env=env,
+                                    text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    for k, p in procs.items():
+        _, err = p.communicate(timeout=600)
+        assert p.returncode == 0, err[-2000:]
+    for name in ("regressions.csv", "hypotheses.csv"):
+        ref = (tmp_path / kernels[0] / name).read_bytes()
+        for k in kernels[1:]:
+            assert (tmp_path / k / name).read_bytes() == ref, f"{name} differs between {kernels[0]} and {k}"
