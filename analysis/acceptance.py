@@ -29,6 +29,7 @@ from analysis.hypotheses import judge_hypotheses, load_hypotheses
 from analysis.regression import ModelSpec, run_models, validate_models
 from analysis.reliability import reliability_table
 from analysis.scoring import check_not_constant, composites, resolve_instrument, score_responses
+from analysis.tables_survey import PAPER_TABLES
 from analysis.validity import composite_correlations, fornell_larcker, htmt
 
 SPEC_DIR = Path(__file__).with_name("specs")
@@ -211,7 +212,7 @@ class SurveyAnalysis:
             paths.append(p)
         return paths
 
-    def to_markdown(self, tables: str | Sequence[str] = ("table3", "table4", "table5")) -> str:
+    def to_markdown(self, tables: str | Sequence[str] = PAPER_TABLES) -> str:
         """The paper-shaped tables as one Markdown string.
 
         Parameters
@@ -228,7 +229,7 @@ class SurveyAnalysis:
         """
         return self._render(tables, "md")
 
-    def to_latex(self, tables: str | Sequence[str] = ("table3", "table4", "table5")) -> str:
+    def to_latex(self, tables: str | Sequence[str] = PAPER_TABLES) -> str:
         """The paper-shaped tables as one LaTeX string: booktabs ``table`` environments, each exactly as
         :meth:`write` saves it as ``<name>.tex``, joined by one blank line (`tables` as in :meth:`to_markdown`).
         The preamble needs ``\\usepackage{booktabs}``."""

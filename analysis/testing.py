@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from analysis.kpis import KPI_FIELDS, KpiParams
+from analysis.kpis import KPI_FIELDS, ROUTE_SEGMENTS, SEGMENTS, KpiParams
 
 
 def kpis_pandas(samples: pd.DataFrame, params: KpiParams | None = None) -> pd.DataFrame:
@@ -83,7 +83,7 @@ def kpis_pandas(samples: pd.DataFrame, params: KpiParams | None = None) -> pd.Da
     counts = ["violation_events", "stops", "tl_crossed", "tl_crossed_green", "tl_crossed_yellow",
               "tl_crossed_red", "red_stops", "tl_green_passes"]
     seg[counts] = seg[counts].fillna(0).astype("int64")
-    seg = seg[seg["segment"].isin(["urban", "highway"])]
+    seg = seg[seg["segment"].isin(ROUTE_SEGMENTS)]
     overall = seg.drop(columns="segment").groupby("drive_id", sort=False).sum(min_count=1).reset_index()
     overall["segment"] = "overall"
     out = pd.concat([seg, overall], ignore_index=True)
@@ -92,7 +92,7 @@ def kpis_pandas(samples: pd.DataFrame, params: KpiParams | None = None) -> pd.Da
     out["violation_share"] = out["violation_distance_m"] / out["distance_m"].replace(0, np.nan)
     out["rms_jerk"] = np.sqrt(out["jerk2_dt"] / out["jerk_time"].replace(0, np.nan))
     out["mean_abs_a"] = out["abs_a_dt"] / out["a_time"].replace(0, np.nan)
-    order = {"urban": 0, "highway": 1, "overall": 2}
+    order = {s: i for i, s in enumerate(SEGMENTS)}
     out = out.sort_values(["drive_id", "segment"], key=lambda c: c.map(order) if c.name == "segment" else c)
     return out[list(KPI_FIELDS)].reset_index(drop=True)
 

@@ -164,6 +164,10 @@ class PedasController:
         self._stops = tuple(route.stops)
         self._d_sits = float(route.d_stopline)
         self._k = np.arange(1, n + 1)
+        # the horizon ramps of the settings, once per controller (same products as (a dt) k per step)
+        self._depart = settings.a_depart * dt * self._k
+        self._reach = settings.a_reach * dt * self._k
+        self._recover = settings.psi_recovery * self._k
         self._frac8 = np.linspace(0.0, 1.0, 8)
         self._vlin = np.empty(n)
         self._ftlin = np.empty(n)
@@ -331,7 +335,7 @@ class PedasController:
             # v_DP floored by its look-ahead maximum, reached with a departure ramp (zeros at served stops)
             j0, j1 = np.searchsorted(self._dp_s, [s, s + cfg.cruise_look])
             cruise = float(self._dp_v[j0:max(j1, j0 + 1)].max()) if j0 < self._dp_v.size else float(self._dp_v[-1])
-            v_ref = np.maximum(pred.vdp, np.minimum(v + cfg.a_depart * dt * self._k, cruise))
+            v_ref = np.maximum(pred.vdp, np.minimum(v + self._depart, cruise))
             mode = "dp"
         v_ref = np.minimum(v_ref, pred.venv)
         if envelope_d is not None:
@@ -340,7 +344,7 @@ class PedasController:
             if stop_env[-1] < v_ref[-1] or (obj.stop_kind == "tl" and tl_stop_expected):
                 mode = "stop"
             v_ref = np.minimum(v_ref, stop_env)
-        reach = v - cfg.a_reach * dt * self._k
+        reach = v - self._reach
         v_hi = np.maximum(pred.vmax, reach)
         if mode in ("green_wave", "dp") and leader is None:
             v_lo = np.minimum(pred.vmin, v)
@@ -376,11 +380,11 @@ class PedasController:
             d_rel, v_p = float(leader[0]), float(leader[1])
             psi = d_rel - (self.d_min + self.h_s * v)
             mode = "follow"
-            v_hi_cf = np.minimum(ref.v_hi, np.maximum(np.maximum(pred.vdp, np.minimum(v + cfg.a_depart * dt * self._k,
+            v_hi_cf = np.minimum(ref.v_hi, np.maximum(np.maximum(pred.vdp, np.minimum(v + self._depart,
                                                                                       pred.vmax)), ref.reach))
             # back-off safe_backoff above d_s, approached from the current margin psi at psi_recovery m per sample
             # (with psi < 0 eq. (7a) cannot hold at k=1; eq. (11) then sets the advice)
-            margin = np.minimum(cfg.safe_backoff, psi + cfg.psi_recovery * self._k)
+            margin = np.minimum(cfg.safe_backoff, psi + self._recover)
             plan = self.cf.plan(v, d_rel, v_p, ref.v_lo, v_hi_cf, pred.grade, d_its0=ref.d_its0,
                                 d_hard_lo=ref.d_hard, d_s_its=ref.d_sits, ft_prev=self._prev_ft, v_lin=pred.v_lin,
                                 ft_lin=pred.ft_lin, safe_margin=margin)

@@ -157,6 +157,12 @@ class LivenessGuard:
                                     f"nothing holding the car ({ahead}, no vehicle within {LIVENESS_REACH:.0f} m)")
 
 
+def drive_name(participant_seed: int, style: str, condition: str, traffic_seed: int) -> str:
+    """How messages name a drive: "pEDAS drive of participant seed 7 (sporty, traffic seed 7)"."""
+    return (f"{'pEDAS' if condition == 'pedas' else condition} drive of participant seed {participant_seed} "
+            f"({style}, traffic seed {traffic_seed})")
+
+
 @lru_cache(maxsize=2)
 def _setup(net_file: str):
     """Route and DP reference of a network, once per process (the DP takes ~1 s)."""
@@ -192,8 +198,6 @@ def drive(participant_seed: int, style: str, condition: str, *, traffic_seed: in
         ctrl = PedasController(route, v_dp=v_dp)
     guard = SafetyGuard(route)
     alive = LivenessGuard()
-    name = (f"{'pEDAS' if assisted else 'baseline'} drive of participant seed {participant_seed} ({style}, "
-            f"traffic seed {tseed})")
     lights = tuple(route.lights)
     cols: dict[str, list] = {c: [] for c in ("t", "s", "v", "a", "tl_id", "tl_state", "d_tl", "leader_gap",
                                              "leader_v", "v_advice", "controller", "hud_arrow", "hud_in_band",
@@ -201,11 +205,12 @@ def drive(participant_seed: int, style: str, condition: str, *, traffic_seed: in
     wall0 = time.perf_counter()
     try:
         with Traffic(tseed, net_file) as tr:
-            steps, max_veh, t_ins = _loop(tr, route, lights, human, ctrl, guard, alive, cols, max_duration)
+            steps, max_veh, t_ins = _loop(tr, lights, human, ctrl, guard, alive, cols, max_duration)
     except DriveError as exc:
-        raise exc.named(name) from None
+        raise exc.named(drive_name(participant_seed, style, condition, tseed)) from None
     except Exception as exc:  # any other failure still says which drive it was
-        raise DriveError(f"{name}: {type(exc).__name__}: {exc}") from exc
+        raise DriveError(f"{drive_name(participant_seed, style, condition, tseed)}: {type(exc).__name__}: "
+                         f"{exc}") from exc
     wall = time.perf_counter() - wall0
     df = _log_frame(cols, route)
     info = DriveInfo(int(participant_seed), style, condition, tseed, drv.as_dict(), float(t_ins),
@@ -214,8 +219,8 @@ def drive(participant_seed: int, style: str, condition: str, *, traffic_seed: in
     return df
 
 
-def _loop(tr: Traffic, route, lights, human: HumanDriver, ctrl, guard: SafetyGuard, alive: LivenessGuard,
-          cols: dict, max_duration: float) -> tuple[int, int, float]:
+def _loop(tr: Traffic, lights, human: HumanDriver, ctrl, guard: SafetyGuard, alive: LivenessGuard, cols: dict,
+          max_duration: float) -> tuple[int, int, float]:
     """Step the drive until the ego arrives; fills `cols`; returns (steps, max vehicles, SUMO insertion time)."""
     steps = 0
     max_veh = 0
@@ -231,7 +236,8 @@ def _loop(tr: Traffic, route, lights, human: HumanDriver, ctrl, guard: SafetyGua
             tl_i += 1
         tl = lights[tl_i] if tl_i < len(lights) else None
         tl_state = tl.state_at(t) if tl is not None else None
-        alive.check(t - t_ins, s, v, gap, tl_state, tl.s - s if tl is not None else None)
+        d_tl = tl.s - s if tl is not None else None
+        alive.check(t - t_ins, s, v, gap, tl_state, d_tl)
         adv = None
         if ctrl is not None:
             adv = ctrl.step(t, s, v, (lead.gap, lead.v) if lead is not None else None)
@@ -248,7 +254,7 @@ def _loop(tr: Traffic, route, lights, human: HumanDriver, ctrl, guard: SafetyGua
         cols["a"].append(a)
         cols["tl_id"].append(tl.tl_id if tl is not None else None)
         cols["tl_state"].append(tl_state)
-        cols["d_tl"].append(tl.s - s if tl is not None else math.nan)
+        cols["d_tl"].append(d_tl if d_tl is not None else math.nan)
         cols["leader_gap"].append(gap if gap is not None else math.nan)
         cols["leader_v"].append(lead.v if lead is not None else math.nan)
         cols["v_advice"].append(adv.v_advice if adv is not None else math.nan)

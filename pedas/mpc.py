@@ -333,16 +333,16 @@ class SparseMpc:
             # a11 v F ~ a11 (vbar F + Fbar v - vbar Fbar): first-order Taylor at the previous trajectory
             q[sv0] += self.pa11 * fb_
             q[sft] += self.pa11 * vb
-            const -= self.pa11 * float(np.sum(vb * fb_))
+            const -= self.pa11 * float((vb * fb_).sum())
             if self.lin_v2:
                 q[sv0] += 2.0 * self.pa20 * vb
-                const -= self.pa20 * float(np.sum(vb * vb))
+                const -= self.pa20 * float((vb * vb).sum())
             if self.lin_f2:
                 q[sft] += 2.0 * self.pa02 * fb_
-                const -= self.pa02 * float(np.sum(fb_ * fb_))
+                const -= self.pa02 * float((fb_ * fb_).sum())
         if not self.follow:
             q[sv1] -= 2.0 * self.w.zeta1 * v_ref                       # zeta1 (v_{k+1} - v_ref,k)^2, eq. (9a)
-            const += self.w.zeta1 * float(np.sum(v_ref * v_ref))
+            const += self.w.zeta1 * float((v_ref * v_ref).sum())
         elif self.w.zeta_v > 0:
             q[sv1] -= 2.0 * self.w.zeta_v * v_p                         # zeta_v (v_{k+1} - v_p)^2
             const += self.w.zeta_v * N * v_p * v_p

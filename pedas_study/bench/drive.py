@@ -13,6 +13,8 @@ import statistics
 import tempfile
 import time
 
+from pedas.vocabulary import CONDITIONS, STYLES
+
 
 def bench_drive(repeats: int = 1, cohort: int = 3, seed: int = 1, style: str = "normal") -> dict:
     """{'setup_s', 'baseline': {...}, 'pedas': {...}, 'pedas_over_baseline', 'cohort': {...}|None}."""
@@ -24,7 +26,7 @@ def bench_drive(repeats: int = 1, cohort: int = 3, seed: int = 1, style: str = "
     _setup(net)
     setup = time.perf_counter() - t0
     out: dict = {"setup_s": setup}
-    for cond in ("baseline", "pedas"):
+    for cond in CONDITIONS:
         walls, info = [], None
         for _ in range(repeats):
             df = drive(seed, style, cond, net_file=net)
@@ -44,9 +46,8 @@ def _cohort_speedup(n: int, seed: int) -> dict:
 
     from pedas.cohort import cohort_tasks, simulate_cohort
 
-    styles = ("cautious", "normal", "sporty")
     people = pd.DataFrame({"participant_id": [f"B{i:03d}" for i in range(n)],
-                           "style": [styles[i % 3] for i in range(n)]})
+                           "style": [STYLES[i % len(STYLES)] for i in range(n)]})
     tasks = cohort_tasks(people, base_seed=seed)
     walls, drive_wall = {}, 0.0
     for workers in (1, 2):

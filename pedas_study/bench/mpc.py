@@ -46,6 +46,10 @@ class BenchResult:
     statuses: dict = field(default_factory=dict)
     osqp_settings: dict = field(default_factory=dict)
 
+    def as_dict(self) -> dict:
+        """JSON-ready dict of the result."""
+        return asdict(self)
+
     def to_text(self) -> str:
         lines = [
             f"controller step (update + solve + advisory) over {self.steps} steps:",
@@ -171,9 +175,3 @@ def _min_eig(P) -> float:
 
 def _count_prefix(statuses: dict, prefix: str) -> int:
     return int(sum(n for k, n in statuses.items() if k.startswith(prefix)))
-
-
-def result_dict(res: BenchResult) -> dict:
-    """JSON-ready dict of a result."""
-    return asdict(res)
-

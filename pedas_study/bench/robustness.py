@@ -37,8 +37,9 @@ class SweepTask(NamedTuple):
 
     def label(self) -> str:
         """The drive's name in messages (the wording of the drive loop's own errors)."""
-        return (f"{'pEDAS' if self.condition == 'pedas' else self.condition} drive of participant seed {self.seed} "
-                f"({self.style}, traffic seed {self.traffic_seed})")
+        from pedas.drive import drive_name
+
+        return drive_name(self.seed, self.style, self.condition, self.traffic_seed)
 
 
 def sweep_tasks(seeds: Sequence[int], styles: Sequence[str] = STYLES, conditions: Sequence[str] = CONDITIONS,

@@ -35,8 +35,6 @@ class Group:
     """The sub-commands of one group, ``pedas-study GROUP NAME``."""
 
     def __init__(self, name: str, parser: argparse.ArgumentParser) -> None:
-        self.name = name
-        self.parser = parser
         self._sub = parser.add_subparsers(dest=f"{name}_command", metavar="SUBCOMMAND")
         self._sub.required = True
 

@@ -21,7 +21,7 @@ def _import(args) -> None:
 def _mpc(args) -> int:
     import json
 
-    from pedas_study.bench.mpc import result_dict, run_bench
+    from pedas_study.bench.mpc import run_bench
 
     if args.steps < 1:
         raise ValueError(f"--steps must be >= 1, got {args.steps}")
@@ -29,7 +29,7 @@ def _mpc(args) -> int:
         raise ValueError(f"--peer-steps must be >= 0, got {args.peer_steps}")
     res = run_bench(steps=args.steps, peer_steps=min(args.peer_steps, args.steps), seed=args.seed)
     if args.json:
-        print(json.dumps(result_dict(res)))
+        print(json.dumps(res.as_dict()))
     else:
         print(res.to_text())
     return 0
@@ -39,6 +39,7 @@ def _mpc(args) -> int:
 def _drive(args) -> int:
     import json
 
+    from pedas.vocabulary import CONDITIONS
     from pedas_study.bench.drive import bench_drive
 
     if args.repeats < 1 or args.cohort < 0:
@@ -48,7 +49,7 @@ def _drive(args) -> int:
         print(json.dumps(res, sort_keys=True))
         return 0
     print(f"setup (network, route, DP reference)   {res['setup_s']:8.2f} s")
-    for cond in ("baseline", "pedas"):
+    for cond in CONDITIONS:
         r = res[cond]
         print(f"{cond:<8} drive: simulated {r['sim_s']:7.1f} s in {r['wall_s_median']:6.2f} s wall (median of "
               f"{r['repeats']}) -> {r['rtf_median']:6.0f}x real time; {r['ms_per_step']:.2f} ms/step, "
@@ -156,8 +157,6 @@ def _kpi(args) -> int:
     from pedas_study.bench.kpi import FULL_ROWS, run_bench
 
     rows = FULL_ROWS if args.rows is None else args.rows
-    if rows < 2:
-        raise ValueError("--rows must be at least 2")
     if args.repeat < 1:
         raise ValueError("--repeat must be at least 1")
     res = run_bench(rows=rows, repeat=args.repeat, seed=args.seed, memory_limit=args.memory_limit,
@@ -168,6 +167,8 @@ def _kpi(args) -> int:
 
 def register(cli) -> None:
     """Declare the `bench` group."""
+    from pedas.vocabulary import CONDITIONS, STYLES
+
     g = cli.group("bench", "benchmarks")
     p = g.command("import", "throughput of drive-log import (rows/s) vs a plain DuckDB load", _import)
     p.add_argument("--rows", type=int, default=1_000_000)
@@ -193,8 +194,8 @@ def register(cli) -> None:
                   "SUMO, failures counted by kind; exit code 1 when any drive failed", _robustness)
     p.add_argument("--seeds", default="1000-1049", metavar="A-B|N",
                    help="person seeds: an inclusive range A-B, or a count N for 1000..1000+N-1 (default 1000-1049)")
-    p.add_argument("--styles", default="cautious,normal,sporty", help="comma-separated driving styles")
-    p.add_argument("--conditions", default="baseline,pedas", help="comma-separated conditions")
+    p.add_argument("--styles", default=",".join(STYLES), help="comma-separated driving styles")
+    p.add_argument("--conditions", default=",".join(CONDITIONS), help="comma-separated conditions")
     p.add_argument("--traffic-seeds", type=int, default=1, metavar="K",
                    help="traffic seeds per person: the person seed and K-1 others (default 1)")
     p.add_argument("--workers", type=int, default=None, help="worker processes (default: CPU count)")

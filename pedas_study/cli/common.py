@@ -58,3 +58,17 @@ def format_frame(df, fmt: str = "table") -> str:
         shown[col] = shown[col].map(lambda x: f"{x:%Y-%m-%d %H:%M:%S}" if hasattr(x, "strftime") else
                                     (f"{x:.1f}" if isinstance(x, float) else x))
     return shown.to_string(index=False)
+
+
+def simulate_and_store(args, tasks, **simulate_kw) -> list:
+    """Simulate `tasks` (:func:`pedas.cohort.simulate_cohort`), store them in one transaction, print one line per
+    drive; the stored (task, log, result) triples."""
+    from pedas.cohort import simulate_cohort
+    from study.simulated import store_simulated, summary_line
+
+    results = simulate_cohort(tasks, cache_dir=args.cache_dir, **simulate_kw)
+    with open_store(args) as st:
+        stored = store_simulated(st, tasks, results, replace=args.replace)
+    for task, df, r in stored:
+        print(summary_line(task, df, r))
+    return stored

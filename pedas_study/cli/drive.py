@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import sys
 
-from pedas_study.cli.common import DRIVE_CACHE_HELP, add_format_option, format_frame, open_store
+from pedas_study.cli.common import DRIVE_CACHE_HELP, add_format_option, format_frame, open_store, simulate_and_store
 
 
 def _import(args) -> None:
@@ -32,19 +32,15 @@ def _list(args) -> None:
 
 def _simulate(args) -> None:
     """Simulate before writing: a failing drive leaves the store unchanged."""
-    from pedas.cohort import cohort_tasks, simulate_cohort
-    from study.simulated import participants_to_simulate, store_simulated, summary_line
+    from pedas.cohort import cohort_tasks
+    from study.simulated import participants_to_simulate
 
     with open_store(args, read_only=True) as st:
         people = participants_to_simulate(st, [args.id])
     if not isinstance(people.loc[0, "style"], str):
         print(f"note: {args.id} has no driving style; simulated as 'normal'", file=sys.stderr)
     tasks = [t for t in cohort_tasks(people, base_seed=args.seed) if t.condition == args.condition]
-    results = simulate_cohort(tasks, workers=1, progress=False, cache_dir=args.cache_dir)
-    with open_store(args) as st:
-        stored = store_simulated(st, tasks, results, replace=args.replace)
-    for task, df, r in stored:
-        print(summary_line(task, df, r))
+    simulate_and_store(args, tasks, workers=1, progress=False)
 
 
 def register(cli) -> None:
@@ -64,7 +60,7 @@ def register(cli) -> None:
 
     p = g.command("simulate", "simulate one drive of a participant (virtual driver in SUMO traffic)", _simulate)
     p.add_argument("id", metavar="ID")
-    p.add_argument("condition", choices=("baseline", "pedas"))
+    p.add_argument("condition", choices=CONDITIONS)
     p.add_argument("--seed", type=int, default=0, help="cohort seed: the virtual person is derived from (seed, ID)")
     p.add_argument("--replace", action="store_true", help="replace a different drive stored for this condition")
     p.add_argument("--cache-dir", dest="cache_dir", default=None, help=DRIVE_CACHE_HELP)

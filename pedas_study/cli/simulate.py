@@ -2,15 +2,15 @@
 simulated with virtual drivers in SUMO traffic and stored (all drives are simulated before the store is written)."""
 from __future__ import annotations
 
-from pedas_study.cli.common import DRIVE_CACHE_HELP, open_store
+from pedas_study.cli.common import DRIVE_CACHE_HELP, open_store, simulate_and_store
 from study.errors import UserError
 
 
 def _cohort(args) -> None:
-    from pedas.cohort import cohort_tasks, simulate_cohort
+    from pedas.cohort import cohort_tasks
     from pedas_study.extras import require
     from study.exclusions import included_participants
-    from study.simulated import participants_to_simulate, store_simulated, summary_line
+    from study.simulated import participants_to_simulate
 
     if args.workers is not None and args.workers < 1:
         raise UserError("--workers must be >= 1")
@@ -18,16 +18,12 @@ def _cohort(args) -> None:
         require("distributed", "dask", "--scheduler")
     with open_store(args, read_only=True) as st:
         ids = included_participants(st, "objective")
-        people = participants_to_simulate(st, ids) if ids else None
-    if not ids:
-        raise UserError("no participants to simulate (none registered or all excluded from objective analyses)")
+        if not ids:
+            raise UserError("no participants to simulate (none registered or all excluded from objective analyses)")
+        people = participants_to_simulate(st, ids)
     tasks = cohort_tasks(people, base_seed=args.seed)
-    results = simulate_cohort(tasks, workers=args.workers, scheduler=args.scheduler,
-                              progress=not args.no_progress, cache_dir=args.cache_dir)
-    with open_store(args) as st:
-        stored = store_simulated(st, tasks, results, replace=args.replace)
-    for task, df, r in stored:
-        print(summary_line(task, df, r))
+    stored = simulate_and_store(args, tasks, workers=args.workers, scheduler=args.scheduler,
+                                progress=not args.no_progress)
     changed = sum(1 for _, _, r in stored if r.status != "unchanged")
     people_word = "participant" if len(ids) == 1 else "participants"
     print(f"{len(stored)} drives of {len(ids)} {people_word} ({changed} stored, {len(stored) - changed} unchanged)")
