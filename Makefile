@@ -37,6 +37,8 @@ venv: $(STAMP)
 refit: $(STAMP)
 	$(BIN)/python -m pedas.fitted
 
+# the report builds data/study.duckdb itself for the paper's study (as `pedas-study init --study studies/pedas_paper`),
+# loads data/reference/ and simulates the drives; reports/index.html is the report as one document (docs/report.md)
 report: $(STAMP)
 	$(BIN)/pedas-study report --out $(OUT)
 

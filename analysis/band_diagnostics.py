@@ -54,6 +54,9 @@ def band_diagnostics(st, result: ObjectiveResult, params: KpiParams | None = Non
     """Tidy frame band, key, quantity, unit, baseline, pedas over the participants with both drives in ``result``
     (``key``: a stable name of the quantity, ``quantity``: its label)."""
     p = params or KpiParams()
+    # the bands compare the paper's conditions: the comparison's control and treatment, in the columns baseline, pedas
+    comp = getattr(result.spec, "comparison", None)
+    conditions = (comp.control, comp.treatment) if comp is not None else ("baseline", "pedas")
     k = result.kpis[result.kpis["participant_id"].isin(result.per_participant["participant_id"])]
     ids = sorted(int(i) for i in k["drive_id"].unique())
     q = st.con.execute(_SQL, {"ids": ids, "v_stop": p.v_stop, "red_stop_dist": p.red_stop_dist,
@@ -65,7 +68,7 @@ def band_diagnostics(st, result: ObjectiveResult, params: KpiParams | None = Non
 
     def per_cond(key: str) -> tuple[float, float]:
         col = kpi[key] if key in kpi else q[key] * (1 / KMH if key == "v_highway" else 100)
-        return tuple(float(col[c]) if c in col.index and pd.notna(col[c]) else np.nan for c in ("baseline", "pedas"))
+        return tuple(float(col[c]) if c in col.index and pd.notna(col[c]) else np.nan for c in conditions)
 
     hw, vio, red = BAND_HIGHWAY, BAND_VIOLATION, BAND_RED
     rows = [

@@ -1,4 +1,6 @@
-"""The paper's objective-evaluation figures (Sec. 5.1) from a store, PNG + PDF, matplotlib (Agg backend).
+"""The paper's objective-evaluation figures (Sec. 5.1) from a store, PNG + PDF, matplotlib (Agg backend). They are
+drawn for a study that declares a comparison (control vs treatment drive, analysis.kpi_spec) with the columns they
+show; otherwise each is listed with the reason it was not drawn.
 
 * Fig. 9a  box plot of energy savings: urban, highway, overall trip
 * Fig. 9b-d savings by self-reported driving style: urban, highway, overall
@@ -16,7 +18,6 @@ import numpy as np
 import pandas as pd
 
 from analysis.render import pyplot, save_figure
-from pedas.vocabulary import STYLES
 from pedas.constants import SENSOR_RANGE
 
 BASE_COLOR, PEDAS_COLOR = "#7f7f7f", "#2ca02c"
@@ -58,11 +59,11 @@ def fig9a(per: pd.DataFrame, out: Path) -> list[Path]:
     return save_figure(fig, out, "fig9a_savings")
 
 
-def fig9_style(per: pd.DataFrame, out: Path, segment: str, letter: str) -> list[Path]:
+def fig9_style(per: pd.DataFrame, out: Path, segment: str, letter: str, styles) -> list[Path]:
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(5.5, 4))
     col = f"saving_{segment}_pct"
-    _box(ax, [per.loc[per["style"] == s, col] for s in STYLES], [s.capitalize() for s in STYLES],
+    _box(ax, [per.loc[per["style"] == s, col] for s in styles], [s.capitalize() for s in styles],
          f"Energy savings according to driving styles: {segment} trip")
     return save_figure(fig, out, f"fig9{letter}_savings_{segment}_by_style")
 
@@ -101,12 +102,13 @@ def _cumulative_wh(d: pd.DataFrame) -> np.ndarray:
     return np.concatenate([[0.0], np.cumsum(steps)])
 
 
-def fig11(st, participant: str, per: pd.DataFrame, out: Path) -> list[Path]:
+def fig11(st, participant: str, per: pd.DataFrame, out: Path, control: str = "baseline",
+          treatment: str = "pedas") -> list[Path]:
     from study.drives import drive_samples
 
     plt = pyplot()
-    base = drive_samples(st, participant, "baseline")
-    ped = drive_samples(st, participant, "pedas")
+    base = drive_samples(st, participant, control)
+    ped = drive_samples(st, participant, treatment)
     fig, axes = plt.subplots(3, 1, figsize=(9, 8), sharex=True)
     for d, label, color in ((base, "without pEDAS", BASE_COLOR), (ped, "with pEDAS", PEDAS_COLOR)):
         s_km = d["s"].to_numpy(float) / 1000.0
@@ -135,17 +137,17 @@ def fig11(st, participant: str, per: pd.DataFrame, out: Path) -> list[Path]:
     return save_figure(fig, out, "fig11_driving_behaviour")
 
 
-def find_switch(st, participant: str | None = None) -> tuple[str, float] | None:
-    """(participant, t of the first rt -> cf switch) in a pEDAS drive: the given participant's drive first, else
-    the first pEDAS drive (by participant id) that has one. None when no drive switches."""
+def find_switch(st, participant: str | None = None, treatment: str = "pedas") -> tuple[str, float] | None:
+    """(participant, t of the first rt -> cf switch) in a drive of the ``treatment`` condition (pEDAS): the given
+    participant's drive first, else the first such drive (by participant id) that has one. None when none switches."""
     sql = """
         SELECT d.participant_id, min(s.t) AS t_switch
         FROM (SELECT drive_id, t, controller, lag(controller) OVER (PARTITION BY drive_id ORDER BY idx) AS prev
               FROM drive_samples) s
         JOIN drives d USING (drive_id)
-        WHERE d.condition = 'pedas' AND s.prev = 'rt' AND s.controller = 'cf'
+        WHERE d.condition = $treatment AND s.prev = 'rt' AND s.controller = 'cf'
         GROUP BY d.participant_id ORDER BY d.participant_id"""
-    hits = st.df(sql)
+    hits = st.con.execute(sql, {"treatment": treatment}).df()
     if hits.empty:
         return None
     if participant is not None and participant in set(hits["participant_id"]):
@@ -155,15 +157,16 @@ def find_switch(st, participant: str | None = None) -> tuple[str, float] | None:
     return str(r["participant_id"]), float(r["t_switch"])
 
 
-def fig12(st, participant: str, out: Path, before_s: float = 60.0, after_s: float = 60.0) -> list[Path] | str:
+def fig12(st, participant: str, out: Path, before_s: float = 60.0, after_s: float = 60.0,
+          treatment: str = "pedas") -> list[Path] | str:
     """Returns the paths, or the reason the figure could not be drawn."""
     from study.drives import drive_samples
 
-    hit = find_switch(st, participant)
+    hit = find_switch(st, participant, treatment)
     if hit is None:
         return "no pEDAS drive switches from the reference-tracking to the car-following controller"
     who, t_sw = hit
-    d = drive_samples(st, who, "pedas")
+    d = drive_samples(st, who, treatment)
     w = d[(d["t"] >= t_sw - before_s) & (d["t"] <= t_sw + after_s)].reset_index(drop=True)
     plt = pyplot()
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
@@ -200,19 +203,32 @@ def fig12(st, participant: str, out: Path, before_s: float = 60.0, after_s: floa
 def write_figures(st, result, out_dir: str | Path, participant: str = "P006") -> dict[str, list[Path] | str]:
     """All figures into ``out_dir``; figure name -> paths, or the reason it was skipped."""
     out = Path(out_dir)
+    names = ("fig9a", "fig9b", "fig9c", "fig9d", "fig10", "fig11", "fig12")
+    comparison = result.spec.comparison if result.spec is not None else None
+    if comparison is None:
+        return {k: "the study declares no comparison of a treatment with a control drive" for k in names}
     out.mkdir(parents=True, exist_ok=True)
     per = result.per_participant
     made: dict[str, list[Path] | str] = {}
     if per.empty:
-        reason = "no included participant has both a baseline and a pEDAS drive"
-        return {k: reason for k in ("fig9a", "fig9b", "fig9c", "fig9d", "fig10", "fig11", "fig12")}
-    made["fig9a"] = fig9a(per, out)
+        reason = (f"no included participant has both a {comparison.control} and a {comparison.treatment} drive")
+        return {k: reason for k in names}
+
+    def lacking(*cols) -> str | None:
+        miss = [c for c in cols if c not in per]
+        return f"the comparison declares no {', '.join(miss)}" if miss else None
+
+    savings = [f"saving_{seg}_pct" for seg in ("urban", "highway", "overall")]
+    made["fig9a"] = lacking(*savings) or fig9a(per, out)
     for seg, letter in (("urban", "b"), ("highway", "c"), ("overall", "d")):
-        made[f"fig9{letter}"] = fig9_style(per, out, seg, letter)
-    made["fig10"] = fig10(per, out)
+        why = lacking(f"saving_{seg}_pct", "style")
+        made[f"fig9{letter}"] = why or fig9_style(per, out, seg, letter, result.levels.get("style", []))
+    made["fig10"] = lacking("tl_green_passes_baseline", "tl_green_passes_pedas") or fig10(per, out)
     if participant in set(per["participant_id"]):
-        made["fig11"] = fig11(st, participant, per, out)
+        made["fig11"] = lacking(*savings) or fig11(st, participant, per, out, comparison.control,
+                                                   comparison.treatment)
     else:
-        made["fig11"] = f"{participant} has no baseline+pEDAS pair among the included participants"
-    made["fig12"] = fig12(st, participant, out)
+        made["fig11"] = f"{participant} has no {comparison.control}+{comparison.treatment} pair among the included " \
+                        f"participants"
+    made["fig12"] = fig12(st, participant, out, treatment=comparison.treatment)
     return made

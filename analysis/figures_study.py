@@ -87,33 +87,53 @@ def plot_participant_flow(flow: ParticipantFlow, out_dir: Path, stem: str = "par
     return save(fig, out_dir, stem)
 
 
-def likert_distribution(responses: pd.DataFrame, items: list[str]) -> pd.DataFrame:
-    """Share (%) of answers 1..5 per item (raw answers as ticked), missing answers left out; rows in `items` order."""
+def likert_distribution(responses: pd.DataFrame, items: list[str], points=range(1, 6)) -> pd.DataFrame:
+    """Share (%) of answers per scale point (`points`, default 1..5) per item (raw answers as ticked), missing
+    answers left out; rows in `items` order."""
+    points = list(points)
     cols = [i for i in items if i in responses]
-    counts = pd.DataFrame({i: responses[i].dropna().astype(int).value_counts().reindex(range(1, 6), fill_value=0)
-                           for i in cols}).T
+    counts = pd.DataFrame({i: responses[i].dropna().astype(int).value_counts().reindex(points, fill_value=0)
+                           for i in cols}, index=points).T
     return counts.div(counts.sum(axis=1).replace(0, np.nan), axis=0) * 100.0
 
 
+# the 5-point palette (ColorBrewer RdBu); other scales sample the same colour map
+FIVE_COLORS = ["#b2182b", "#ef8a62", "#d9d9d9", "#67a9cf", "#2166ac"]
+
+
+def _colors(k: int) -> list:
+    if k == 5:
+        return FIVE_COLORS
+    cmap = plt.get_cmap("RdBu")
+    return [cmap(x) for x in np.linspace(0.1, 0.9, k)]
+
+
 def plot_likert(responses: pd.DataFrame, instrument, out_dir: Path, stem: str = "likert_items") -> list[Path]:
-    """Diverging stacked bars of the raw 1..5 answers per item (neutral centred), grouped by construct."""
+    """Diverging stacked bars of the raw answers per scaled item of the study's instrument (neutral centred),
+    grouped by construct. Items on different scales share the axis of the widest one (lowest scale_min to highest
+    scale_max)."""
     items = instrument.scaled_items
-    share = likert_distribution(responses, items)
-    colors = ["#b2182b", "#ef8a62", "#d9d9d9", "#67a9cf", "#2166ac"]
+    scales = [instrument.scale(i) for i in items]
+    lo, hi = min(s[0] for s in scales), max(s[1] for s in scales)
+    points = list(range(lo, hi + 1))
+    k = len(points)
+    share = likert_distribution(responses, items, points)
+    colors = _colors(k)
     fig, ax = plt.subplots(figsize=(8, 0.32 * len(share) + 1.4))
     y = np.arange(len(share))[::-1]
-    left = -(share[1] + share[2] + share[3] / 2.0)
-    for k in range(1, 6):
-        ax.barh(y, share[k], left=left, color=colors[k - 1], edgecolor="white", linewidth=0.4,
-                label=str(k) if k not in (1, 5) else ("1 strongly disagree / negative anchor" if k == 1 else
-                                                       "5 strongly agree / positive anchor"))
-        left = left + share[k]
+    # the bars start left of 0 by the share below the middle point (and half of the middle point on odd scales)
+    left = -(sum(share[p] for p in points[:k // 2]) + (share[points[k // 2]] / 2.0 if k % 2 else 0.0))
+    for j, p in enumerate(points):
+        ax.barh(y, share[p], left=left, color=colors[j], edgecolor="white", linewidth=0.4,
+                label=str(p) if p not in (lo, hi) else (f"{lo} strongly disagree / negative anchor" if p == lo else
+                                                        f"{hi} strongly agree / positive anchor"))
+        left = left + share[p]
     labels = [f"{i}{' (R)' if i in instrument.reverse_items else ''}" for i in share.index]
     ax.set_yticks(y, labels, fontsize=8)
     ax.axvline(0, color="#333", lw=0.8)
     ax.set_xlabel("share of answers (%) — left of 0: below neutral, right: above")
     ax.set_xlim(-100, 100)
-    ax.legend(ncol=5, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.12 - 2.0 / (len(share) + 4)),
+    ax.legend(ncol=min(k, 7), fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.12 - 2.0 / (len(share) + 4)),
               frameon=False)
     ax.set_title(f"Item-level answer distribution (n = {len(responses)}; R = reverse-scored item, raw answers)",
                  fontsize=10)

@@ -1,73 +1,68 @@
-"""Hypotheses H1-H7 (paper Section 4.4) judged on the hierarchical regressions.
+"""Hypotheses judged on the hierarchical regressions.
 
-Each hypothesis is data (``analysis/specs/hypotheses.json``): the path, and the model/step whose coefficient the
-paper reads in Section 5.2.2 (H1: model 1 step 1; H2 and H4: model 2 step 2; H3 and H5: model 3 step 2;
-H6: model 4 step 2; H7: model 4 step 3). Verdict: supported when beta > 0 and p < alpha (.05).
+A hypothesis is a labelled regression path of the study's model file (docs/study_folder.md): ``BI ~ ATT + H5*PU``
+marks H5 on the coefficient of PU in that model at that step, and ``H5 > 0`` declares its expected sign
+(:class:`study.definition.Hypothesis`). Verdicts, with p the coefficient's two-tailed t-test p as printed and alpha
+the study's ``[analysis] alpha``:
+
+* ``>``  supported when beta > 0 and p < alpha;
+* ``<``  supported when beta < 0 and p < alpha;
+* ``!=`` (a label without a sign) supported when p < alpha, whatever the sign.
 """
 from __future__ import annotations
 
-import json
-from dataclasses import dataclass
-from pathlib import Path
-
 import pandas as pd
 
-SPEC_DIR = Path(__file__).with_name("specs")
+from study.definition import Hypothesis
+
+SIGNS = (">", "<", "!=")
+COLUMNS = ["hypothesis", "path", "beta", "p", "supported", "model", "step", "b", "se_b", "t", "n"]
 
 
-@dataclass(frozen=True)
-class Hypothesis:
-    hypothesis: str
-    path: str
-    predictor: str
-    dv: str
-    model: str
-    step: int
+def supported(beta: float, p: float, sign: str, alpha: float) -> bool:
+    """The verdict rule of the module docstring (p = alpha is not significant).
 
-    @classmethod
-    def from_dict(cls, d: dict) -> "Hypothesis":
-        try:
-            return cls(hypothesis=str(d["hypothesis"]), path=str(d.get("path", f"{d['predictor']} -> {d['dv']}")),
-                       predictor=str(d["predictor"]), dv=str(d["dv"]), model=str(d["model"]), step=int(d["step"]))
-        except (KeyError, TypeError, ValueError) as exc:
-            raise ValueError(f"bad hypothesis spec {d!r}: needs hypothesis, predictor, dv, model, step "
-                             f"({exc})") from None
+    Examples
+    --------
+    >>> from analysis.hypotheses import supported
+    >>> supported(0.4, 0.01, ">", 0.05), supported(-0.4, 0.01, ">", 0.05), supported(-0.4, 0.01, "<", 0.05)
+    (True, False, True)
+    >>> supported(-0.4, 0.01, "!=", 0.05), supported(0.4, 0.05, "!=", 0.05)
+    (True, False)
+    """
+    if sign not in SIGNS:
+        raise ValueError(f"unknown hypothesis sign {sign!r} (one of {', '.join(SIGNS)})")
+    significant = p < alpha
+    if sign == ">":
+        return bool(beta > 0 and significant)
+    if sign == "<":
+        return bool(beta < 0 and significant)
+    return bool(significant)
 
 
-def load_hypotheses(spec=None) -> tuple[list[Hypothesis], float]:
-    """Hypotheses and alpha from a spec dict, a JSON path, a list of dicts, or the shipped default when None.
+def load_hypotheses(model) -> list[Hypothesis]:
+    """The hypotheses of a parsed model file (:class:`study.definition.AnalysisModel`), in declaration order.
 
     Examples
     --------
     >>> from analysis.hypotheses import load_hypotheses
-    >>> hyps, alpha = load_hypotheses()                 # analysis/specs/hypotheses.json
-    >>> [h.hypothesis for h in hyps], alpha
-    (['H1', 'H2', 'H3', 'H4', 'H5', 'H6', 'H7'], 0.05)
-    >>> hyps[0]
-    Hypothesis(hypothesis='H1', path='PEoU -> PU', predictor='PEoU', dv='PU', model='1', step=1)
+    >>> from study.definition import _Problems, parse_model
+    >>> model = parse_model("Y =~ y1 + y2\\nX =~ x1 + x2\\nY ~ H1*X\\nH1 < 0", "model.lav", _Problems())
+    >>> load_hypotheses(model)
+    [Hypothesis(hypothesis='H1', predictor='X', dv='Y', model='1', step=1, sign='<')]
     """
-    if spec is None:
-        spec = SPEC_DIR / "hypotheses.json"
-    if isinstance(spec, (str, Path)):
-        spec = json.loads(Path(spec).read_text())
-    if isinstance(spec, list):
-        spec = {"hypotheses": spec}
-    alpha = float(spec.get("alpha", 0.05))
-    items = spec.get("hypotheses")
-    if not isinstance(items, list):
-        raise ValueError("hypotheses spec needs a list 'hypotheses'")
-    return [h if isinstance(h, Hypothesis) else Hypothesis.from_dict(h) for h in items], alpha
+    return list(model.hypotheses)
 
 
 def judge_hypotheses(regressions: pd.DataFrame, hypotheses: list[Hypothesis], alpha: float = 0.05) -> pd.DataFrame:
-    """Verdicts on the hypotheses from the regression table: supported when beta > 0 and p < alpha.
+    """Verdicts on the hypotheses from the regression table (rule of the module docstring).
 
     Parameters
     ----------
     regressions : DataFrame
         The hierarchical regressions (columns model, step, dv, predictor, b, se_b, beta, t, p, n).
     hypotheses : list of Hypothesis
-        Each names the predictor, dv, model and step whose coefficient it reads.
+        Each names the predictor, dv, model and step whose coefficient it reads, and its expected sign.
     alpha : float
         Significance level, default .05 (strict: p = alpha is not significant).
 
@@ -84,20 +79,21 @@ def judge_hypotheses(regressions: pd.DataFrame, hypotheses: list[Hypothesis], al
     Examples
     --------
     >>> import pandas as pd
-    >>> from analysis.hypotheses import Hypothesis, judge_hypotheses
-    >>> reg = pd.DataFrame({"model": ["1", "1"], "step": [1, 1], "dv": ["PU", "PU"],
-    ...                     "predictor": ["(Constant)", "PEoU"], "b": [2.06, 0.48], "se_b": [0.73, 0.18],
+    >>> from analysis.hypotheses import judge_hypotheses
+    >>> from study.definition import Hypothesis
+    >>> reg = pd.DataFrame({"model": ["1", "1"], "step": [1, 1], "dv": ["Y", "Y"],
+    ...                     "predictor": ["(Constant)", "X"], "b": [2.06, 0.48], "se_b": [0.73, 0.18],
     ...                     "beta": [float("nan"), 0.40], "t": [2.83, 2.70], "p": [0.008, 0.010], "n": [40, 40]})
-    >>> h1 = Hypothesis("H1", "PEoU -> PU", predictor="PEoU", dv="PU", model="1", step=1)
+    >>> h1 = Hypothesis("H1", predictor="X", dv="Y", model="1", step=1, sign=">")
     >>> judge_hypotheses(reg, [h1])[["hypothesis", "path", "beta", "p", "supported"]]
-      hypothesis        path  beta     p  supported
-    0         H1  PEoU -> PU   0.4  0.01       True
+      hypothesis    path  beta     p  supported
+    0         H1  X -> Y   0.4  0.01       True
     >>> bool(judge_hypotheses(reg, [h1], alpha=0.01).loc[0, "supported"])      # p = .01 is not < .01
     False
     """
     rows = []
     for h in hypotheses:
-        sel = regressions[(regressions["model"].astype(str) == h.model) & (regressions["step"] == h.step)
+        sel = regressions[(regressions["model"].astype(str) == str(h.model)) & (regressions["step"] == h.step)
                           & (regressions["predictor"] == h.predictor)]
         if sel.empty:
             raise ValueError(f"{h.hypothesis}: no coefficient of {h.predictor} in model {h.model} step {h.step}")
@@ -105,7 +101,7 @@ def judge_hypotheses(regressions: pd.DataFrame, hypotheses: list[Hypothesis], al
         if r["dv"] != h.dv:
             raise ValueError(f"{h.hypothesis}: model {h.model} predicts {r['dv']}, not {h.dv}")
         rows.append({"hypothesis": h.hypothesis, "path": h.path, "beta": float(r["beta"]), "p": float(r["p"]),
-                     "supported": bool(r["beta"] > 0 and r["p"] < alpha), "model": h.model, "step": h.step,
-                     "b": float(r["b"]), "se_b": float(r["se_b"]), "t": float(r["t"]), "n": int(r["n"])})
-    return pd.DataFrame(rows, columns=["hypothesis", "path", "beta", "p", "supported", "model", "step", "b", "se_b",
-                                       "t", "n"])
+                     "supported": supported(float(r["beta"]), float(r["p"]), h.sign, alpha), "model": str(h.model),
+                     "step": h.step, "b": float(r["b"]), "se_b": float(r["se_b"]), "t": float(r["t"]),
+                     "n": int(r["n"])})
+    return pd.DataFrame(rows, columns=COLUMNS)

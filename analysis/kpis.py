@@ -7,13 +7,16 @@ group-by as short lists and are resolved by small windows over them. No Python l
 
 Definitions (units SI unless the column name says otherwise; see docs/kpis.md for the reasoning):
 
-* interval ``i`` = samples ``i -> i+1`` of a drive, attributed to the segment of sample ``i`` (left point).
+* interval ``i`` = samples ``i -> i+1`` of a drive, attributed to the segment of sample ``i`` (left point). The
+  segments are the labels the drive log carries (declared by the study's route); rows come per segment in order of
+  first appearance in the drive, then ``overall`` (the sum over the segments).
 * ``energy_wh``: battery energy, trapezoid of ``p_batt`` (W) over ``t`` (s), / 3600. Positive = drawn from the
   battery; recuperation counts negative.
 * ``distance_m`` = sum of ``s[i+1] - s[i]``; ``trip_time_s`` = sum of ``t[i+1] - t[i]``; ``mean_speed_mps`` =
   distance / time.
 * speed-limit violation at sample ``i``: ``v > speed_limit + tol`` with ``tol = max(tol_abs, tol_rel * speed_limit)``
-  (default 3 km/h, 3 %: the German enforcement deduction). ``violation_distance_m`` = distance of intervals whose
+  (the study declares the rule, analysis.kpi_spec; the defaults here, 3 km/h and 3 %, are the German enforcement
+  deduction the paper's study declares). ``violation_distance_m`` = distance of intervals whose
   left sample violates; ``violation_share`` = that / distance; ``violation_events`` = entries into violation whose
   episode (entry sample to the first non-violating sample, or the drive's end) lasts at least ``min_event_s``.
 * TL crossing: ``tl_id`` changes from a light X to another value or NULL; its state is ``tl_state`` at the last
@@ -27,6 +30,9 @@ Definitions (units SI unless the column name says otherwise; see docs/kpis.md fo
 * ``rms_jerk`` = sqrt(time-weighted mean of ((a[i+1] - a[i]) / dt)^2) in m/s^3; ``mean_abs_a`` = time-weighted mean
   of ``|a[i]|`` in m/s^2. Where ``a`` is not logged, :func:`fill_acceleration` (central differences of ``v``)
   fills it before the SQL runs.
+* user KPIs (:class:`analysis.kpi_spec.SqlKpi`): a DuckDB aggregate over the samples, computed in the same
+  GROUP BY (grouping sets: per segment and per whole drive), so a non-additive statistic such as a standard
+  deviation is exact for the whole drive too.
 """
 from __future__ import annotations
 
@@ -38,7 +44,9 @@ import pandas as pd
 from pedas.constants import KMH
 from pedas.vocabulary import SEGMENTS as ROUTE_SEGMENTS
 
-SEGMENTS = (*ROUTE_SEGMENTS, "overall")  # KPI rows: each route segment and the whole drive
+# the simulator's route segments and the whole drive: the row order of the pandas peer (analysis.testing), which
+# the SQL's order of first appearance reproduces on the simulator's routes (urban first)
+SEGMENTS = (*ROUTE_SEGMENTS, "overall")
 
 #: The columns of drive_samples the KPIs read.
 KPI_COLUMNS = ("drive_id", "idx", "t", "s", "v", "segment", "speed_limit", "a", "p_batt",
@@ -72,7 +80,7 @@ class KpiParams:
 # more CPU) and resolved by small windows after unnesting.
 _KPI_SQL = """
 WITH p0 AS NOT MATERIALIZED (
-    SELECT drive_id, idx, t, s, v, segment, speed_limit, a, p_batt, tl_id, tl_state, d_tl,
+    SELECT drive_id, idx, t, s, v, segment, speed_limit, a, p_batt, tl_id, tl_state, d_tl{extra0},
            lead(drive_id) OVER {w} = drive_id AS same_next,
            lag(drive_id) OVER {w} = drive_id  AS same_prev,
            lead(t) OVER {w} AS t_n, lead(s) OVER {w} AS s_n, lead(p_batt) OVER {w} AS p_n,
@@ -83,7 +91,7 @@ WITH p0 AS NOT MATERIALIZED (
     {window}
 ),
 p1 AS NOT MATERIALIZED (
-    SELECT drive_id, idx, t, v, segment, tl_id, tl_state, d_tl, a,
+    SELECT drive_id, idx, t, v, segment, tl_id, tl_state, d_tl, a{extra},
            CASE WHEN same_next THEN t_n - t END                    AS dt,
            CASE WHEN same_next THEN s_n - s END                    AS ds,
            CASE WHEN same_next THEN (p_batt + p_n) / 2.0 END       AS p_mid,
@@ -105,7 +113,7 @@ p2 AS NOT MATERIALIZED (  -- change-point flags
     FROM p1
 ),
 groups AS (
-    SELECT drive_id, segment,
+    SELECT drive_id, segment, {gset} AS gset,
            count(dt)                                                AS n_intervals,
            sum(p_mid * dt) / 3600.0                                 AS energy_wh,
            sum(ds)                                                  AS distance_m,
@@ -116,18 +124,19 @@ groups AS (
            sum(abs(a) * dt)                                         AS abs_a_dt,
            sum(dt) FILTER (WHERE a IS NOT NULL)                     AS a_time,
            max(t)                                                   AS t_last,
+           min(idx)                                                 AS idx_first,{user_aggs}
            -- the change points (a few % of the rows) ride along in the same scan
            list(struct_pack(idx := idx, t := t, viol := viol, tl_state := tl_state, viol_chg := viol_chg,
                             st := st, st_chg := st_chg, tl_cross := tl_cross, red_cand := red_cand))
              FILTER (WHERE viol_chg OR st_chg OR tl_cross OR red_cand) AS pts
     FROM p2
-    GROUP BY drive_id, segment
+    GROUP BY {group_by}
 ),
 pts AS MATERIALIZED (  -- change points only, ordered within each drive by the windows below
-    SELECT drive_id, segment, unnest(pts, recursive := true) FROM groups
+    SELECT drive_id, segment, unnest(pts, recursive := true) FROM groups WHERE gset = 0
 ),
 drive_end AS (
-    SELECT drive_id, max(t_last) AS t_end FROM groups GROUP BY drive_id
+    SELECT drive_id, max(t_last) AS t_end FROM groups WHERE gset = 0 GROUP BY drive_id
 ),
 viol_ep AS (   -- violation episodes: entry point to the next change point (or the drive's end)
     SELECT p.drive_id, p.segment, p.viol,
@@ -183,14 +192,14 @@ seg AS (
            coalesce(c.tl_crossed_yellow, 0) AS tl_crossed_yellow, coalesce(c.tl_crossed_red, 0) AS tl_crossed_red,
            coalesce(gp.tl_green_passes, 0) AS tl_green_passes,
            coalesce(r.red_stops, 0) AS red_stops, coalesce(s.stops, 0) AS stops,
-           g.jerk2_dt, g.jerk_time, g.abs_a_dt, g.a_time
+           g.jerk2_dt, g.jerk_time, g.abs_a_dt, g.a_time, g.idx_first{user_seg}
     FROM groups g
     LEFT JOIN viol_ev v USING (drive_id, segment)
     LEFT JOIN cross_ev c USING (drive_id, segment)
     LEFT JOIN red_ev r USING (drive_id, segment)
     LEFT JOIN stop_ev s USING (drive_id, segment)
     LEFT JOIN green_pass gp USING (drive_id, segment)
-    WHERE g.segment IN ('urban', 'highway')
+    WHERE g.gset = 0 AND g.segment IS NOT NULL
 ),
 rolled AS (
     SELECT * FROM seg
@@ -199,8 +208,8 @@ rolled AS (
            sum(violation_distance_m), sum(violation_events), sum(tl_crossed), sum(tl_crossed_green),
            sum(tl_crossed_yellow), sum(tl_crossed_red), sum(tl_green_passes), sum(red_stops), sum(stops),
            sum(jerk2_dt),
-           sum(jerk_time), sum(abs_a_dt), sum(a_time)
-    FROM seg GROUP BY drive_id
+           sum(jerk_time), sum(abs_a_dt), sum(a_time), NULL{user_all}
+    FROM seg {user_join} GROUP BY drive_id
 )
 SELECT drive_id, segment, n_intervals::BIGINT AS n_intervals, energy_wh, distance_m, trip_time_s,
        distance_m / nullif(trip_time_s, 0)                        AS mean_speed_mps,
@@ -212,9 +221,9 @@ SELECT drive_id, segment, n_intervals::BIGINT AS n_intervals, energy_wh, distanc
        tl_crossed_red::BIGINT AS tl_crossed_red, tl_green_passes::BIGINT AS tl_green_passes,
        red_stops::BIGINT AS red_stops, stops::BIGINT AS stops,
        sqrt(jerk2_dt / nullif(jerk_time, 0))                      AS rms_jerk,
-       abs_a_dt / nullif(a_time, 0)                               AS mean_abs_a
+       abs_a_dt / nullif(a_time, 0)                               AS mean_abs_a{user_out}
 FROM rolled
-ORDER BY drive_id, CASE segment WHEN 'urban' THEN 0 WHEN 'highway' THEN 1 ELSE 2 END
+ORDER BY drive_id, idx_first NULLS LAST
 """
 
 _ORDER_CHECK_SQL = """
@@ -234,19 +243,56 @@ def _check_name(src: str) -> str:
 _RANGE = "WHERE drive_id >= $lo AND drive_id < $hi"  # one chunk of drives (parameters lo, hi)
 
 
-def kpi_sql(src: str = "drive_samples", mode: str = "sorted", chunk: bool = False) -> str:
-    """The KPI query over the relation ``src`` (a table or view with :data:`KPI_COLUMNS`); parameters are the
-    fields of :class:`KpiParams` (``$tol_abs`` ...). ``mode="sorted"`` windows ``PARTITION BY drive_id ORDER BY
-    idx`` (any row order); ``mode="stream"`` reads neighbours in the relation's own order, which must be grouped
-    by drive and ascending in idx (:func:`in_drive_order`). ``chunk``: only the drives with ``$lo <= drive_id <
-    $hi`` (a filter keeps the rows' order, so a chunk of a relation in drive order is in drive order)."""
+def kpi_sql(src: str = "drive_samples", mode: str = "sorted", chunk: bool = False, sql_kpis=(),
+            columns=None) -> str:
+    """The KPI query over the relation ``src`` (a table or view with :data:`KPI_COLUMNS` and every column the
+    ``sql_kpis`` read); parameters are the fields of :class:`KpiParams` (``$tol_abs`` ...). ``mode="sorted"``
+    windows ``PARTITION BY drive_id ORDER BY idx`` (any row order); ``mode="stream"`` reads neighbours in the
+    relation's own order, which must be grouped by drive and ascending in idx (:func:`in_drive_order`). ``chunk``:
+    only the drives with ``$lo <= drive_id < $hi`` (a filter keeps the rows' order, so a chunk of a relation in
+    drive order is in drive order). ``sql_kpis``: user KPIs (:class:`analysis.kpi_spec.SqlKpi`, checked by
+    :func:`analysis.kpi_spec.check_sql`), one more column each after :data:`KPI_FIELDS`; ``columns``: the
+    columns of ``src`` (default: the standard drive-log columns), so that the columns they read are carried."""
     if mode == "sorted":
         w, window = "w", "WINDOW w AS (PARTITION BY drive_id ORDER BY idx)"
     elif mode == "stream":
         w, window = "()", ""
     else:
         raise ValueError(f"mode must be sorted or stream, not {mode!r}")
-    return _KPI_SQL.format(src=_check_name(src), w=w, window=window, where=_RANGE if chunk else "")
+    parts = dict(extra="", extra0="", gset="0", user_aggs="", group_by="drive_id, segment", user_seg="", user_all="",
+                 user_join="", user_out="")
+    if sql_kpis:
+        # the per-drive value of a user KPI cannot be rolled up from its segments (a standard deviation is not a
+        # sum): one GROUP BY with two grouping sets computes both from the same scan
+        extra = sql_columns(sql_kpis, columns)
+        parts.update(
+            extra="".join(f", {c}" for c in extra),
+            extra0="".join(f", {c}" for c in extra if c not in KPI_COLUMNS),
+            gset="grouping(segment)",
+            user_aggs="".join(f"\n           ({k.sql})::DOUBLE AS u_{k.name}," for k in sql_kpis),
+            group_by="GROUPING SETS ((drive_id, segment), (drive_id))",
+            user_seg="".join(f", {'g.u_' + k.name if k.per_segment else 'NULL::DOUBLE'} AS u_{k.name}"
+                             for k in sql_kpis),
+            user_all="".join(f", any_value(u.u_{k.name})" for k in sql_kpis),
+            user_join="LEFT JOIN (SELECT drive_id, " + ", ".join(f"u_{k.name}" for k in sql_kpis)
+                      + " FROM groups WHERE gset = 1) u USING (drive_id)",
+            user_out="".join(f",\n       u_{k.name} AS {k.name}" for k in sql_kpis))
+    return _KPI_SQL.format(src=_check_name(src), w=w, window=window, where=_RANGE if chunk else "", **parts)
+
+
+#: columns the KPI query passes from p0 to p2 anyway (a user KPI reading another column gets it passed on)
+_P2_COLUMNS = {"drive_id", "idx", "t", "v", "segment", "tl_id", "tl_state", "d_tl", "a"}
+
+
+def sql_columns(sql_kpis, columns=None) -> list[str]:
+    """Columns of the source (``columns``, default the standard drive-log columns) that the user KPIs read and the
+    KPI query does not carry to its group-by by itself, in the source's order."""
+    import re
+
+    from analysis.kpi_spec import SAMPLE_COLUMNS
+
+    words = set(re.findall(r"[A-Za-z_][A-Za-z0-9_]*", " ".join(k.sql for k in sql_kpis)))
+    return [c for c in (columns or SAMPLE_COLUMNS) if c not in _P2_COLUMNS and c in words]
 
 
 def in_drive_order(con, src: str, lo_hi: tuple[int, int] | None = None) -> bool:
@@ -260,9 +306,10 @@ def in_drive_order(con, src: str, lo_hi: tuple[int, int] | None = None) -> bool:
 
 
 def kpis_from_relation(con, src: str, params: KpiParams | None = None, mode: str = "auto",
-                       workers: int = 1) -> pd.DataFrame:
-    """KPIs (one row per drive and segment, columns :data:`KPI_FIELDS`) of the samples in relation ``src`` on the
-    DuckDB connection ``con``. NULL ``p_batt`` -> NULL energy, NULL ``a`` -> no jerk/|a| contribution.
+                       workers: int = 1, sql_kpis=()) -> pd.DataFrame:
+    """KPIs (one row per drive and segment, columns :data:`KPI_FIELDS` and then one per user KPI of ``sql_kpis``)
+    of the samples in relation ``src`` on the DuckDB connection ``con``. NULL ``p_batt`` -> NULL energy, NULL ``a``
+    -> no jerk/|a| contribution; a user KPI not declared per segment is NULL in the segment rows.
     ``mode="auto"`` streams when the relation is already in drive order (one cheap check scan), else sorts.
 
     ``workers`` > 1 splits the drives into that many chunks of about equal rows and runs them at once, each on its
@@ -273,13 +320,16 @@ def kpis_from_relation(con, src: str, params: KpiParams | None = None, mode: str
 
     params = params or KpiParams()
     chunks = _drive_chunks(con, src, workers) if workers > 1 else [None]
+    columns = [d[0] for d in con.execute(f"SELECT * FROM {_check_name(src)} LIMIT 0").description] if sql_kpis \
+        else None
 
     def run(lo_hi):
         c = con.cursor() if lo_hi else con
         try:
             m = mode if mode != "auto" else ("stream" if in_drive_order(c, src, lo_hi) else "sorted")
             values = {**params.sql_params(), **dict(zip(("lo", "hi"), lo_hi or ()))}
-            return c.execute(kpi_sql(src, m, chunk=lo_hi is not None), values).df()
+            return c.execute(kpi_sql(src, m, chunk=lo_hi is not None, sql_kpis=sql_kpis, columns=columns),
+                             values).df()
         finally:
             if lo_hi:
                 c.close()
@@ -289,7 +339,7 @@ def kpis_from_relation(con, src: str, params: KpiParams | None = None, mode: str
     else:
         with ThreadPoolExecutor(len(chunks)) as pool:
             parts = list(pool.map(run, chunks))
-    return pd.concat(parts, ignore_index=True)[list(KPI_FIELDS)]
+    return pd.concat(parts, ignore_index=True)[[*KPI_FIELDS, *(k.name for k in sql_kpis)]]
 
 
 def _drive_chunks(con, src: str, n: int) -> list[tuple[int, int] | None]:
@@ -304,18 +354,21 @@ def _drive_chunks(con, src: str, n: int) -> list[tuple[int, int] | None]:
     return list(zip(bounds[:-1], bounds[1:]))
 
 
-def kpis_from_frame(samples: pd.DataFrame, params: KpiParams | None = None, con=None) -> pd.DataFrame:
+def kpis_from_frame(samples: pd.DataFrame, params: KpiParams | None = None, con=None, sql_kpis=()) -> pd.DataFrame:
     """KPIs of a drive-log DataFrame (columns as drive_samples; ``drive_id`` defaults to 1, ``idx`` to row order,
-    missing optional columns to NULL). Uses an in-memory DuckDB unless ``con`` is given."""
+    missing optional columns to NULL; other columns, e.g. extra channels, are kept for the user KPIs ``sql_kpis``).
+    Uses an in-memory DuckDB unless ``con`` is given."""
     import duckdb
 
     df = _complete_columns(samples)
+    if sql_kpis:
+        df = pd.concat([df, samples[[c for c in samples.columns if c not in df.columns]].loc[df.index]], axis=1)
     own = con is None
     con = con or duckdb.connect()
     try:
         con.register("kpi_input_df", df)
         con.execute("CREATE OR REPLACE TEMP VIEW kpi_input AS SELECT * FROM kpi_input_df")
-        return kpis_from_relation(con, "kpi_input", params)
+        return kpis_from_relation(con, "kpi_input", params, sql_kpis=sql_kpis)
     finally:
         con.unregister("kpi_input_df")
         if own:
@@ -352,44 +405,137 @@ def fill_acceleration(t, v) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------------------------------- the store
-def store_kpis(st, drive_ids=None, params: KpiParams | None = None) -> pd.DataFrame:
-    """KPIs of the drives in the store ``st`` (a :class:`study.store.Store`), optionally only ``drive_ids``.
+MEASURED = "measured"
+UNAVAILABLE = "unavailable"
 
-    Drives whose ``p_batt`` or ``a`` is (partly) NULL get them from the vehicle power model
-    (``pedas.power.fill_drive_columns``) in a temporary table first; the store is not changed. The samples are
-    copied into a temporary table in drive order so that the KPI query can stream.
-    Joined with the drives table: columns participant_id, condition, then :data:`KPI_FIELDS`.
+
+def store_kpis(st, drive_ids=None, params: KpiParams | None = None, spec=None) -> pd.DataFrame:
+    """KPIs of the drives in the store ``st`` (a :class:`study.store.Store`), optionally only ``drive_ids``, as the
+    study declares them (``spec``: :class:`analysis.kpi_spec.KpiSpec`, default the store's study's; ``params``
+    overrides its thresholds). Columns participant_id, condition, drive_id, segment, n_intervals, then the declared
+    KPI columns (:attr:`KpiSpec.columns`). :func:`store_kpis_with_sources` also says where each energy comes from."""
+    return store_kpis_with_sources(st, drive_ids, params, spec)[0]
+
+
+def store_kpis_with_sources(st, drive_ids=None, params: KpiParams | None = None, spec=None
+                            ) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """(:func:`store_kpis`, energy sources): the second frame has drive_id, energy_source — ``measured`` (the log
+    has battery power; the import's ``energy_source`` in drives.meta when it recorded one), the vehicle model's
+    label (``modelled (Nissan Leaf parameters)``) where the study declares ``[energy] model`` and the log has no
+    power, or ``unavailable`` (no power, no model: the energy is NULL, never a substitute). Empty without energy.
+
+    A drive with (partly) NULL ``a`` gets it by central differences, and with NULL ``p_batt`` its power from the
+    model when declared, in a temporary table; the store is not changed. The samples are copied into a temporary
+    table in drive order so that the KPI query can stream.
     """
+    from analysis.kpi_spec import study_spec
+
+    if spec is None:
+        from study.studies import definition
+
+        spec = study_spec(definition(st))
+    params = params or spec.params
+    out_cols = ["participant_id", "condition", "drive_id", "segment", "n_intervals", *spec.columns]
     con = st.con
     where = ""
     if drive_ids is not None:
         ids = list(drive_ids)
         if not ids:
-            return pd.DataFrame(columns=["participant_id", "condition", *KPI_FIELDS])
+            return pd.DataFrame(columns=out_cols), pd.DataFrame(columns=["drive_id", "energy_source"])
         con.execute("CREATE OR REPLACE TEMP TABLE kpi_drive_sel AS SELECT unnest($ids) AS drive_id", {"ids": ids})
         where = " WHERE drive_id IN (SELECT drive_id FROM kpi_drive_sel)"
+    have = [d[0] for d in con.execute("SELECT * FROM drive_samples LIMIT 0").description]
+    extra = sql_columns(spec.sql, have)
+    missing_channels = sorted({c for c in spec.channels if c not in have}
+                              & {w for k in spec.sql for w in _words(k.sql)})
+    if missing_channels:
+        from study.errors import UserError
+
+        raise UserError(f"the study's SQL KPIs read channel(s) {', '.join(missing_channels)}, which no drive in the "
+                        f"store has; import drive logs that map them (docs/drive_logs.md)")
+    extra = [c for c in extra if c not in KPI_COLUMNS]           # the others are carried anyway
+    carried = "".join(f", {c}" for c in extra if c != "grade")
     con.execute(f"""CREATE OR REPLACE TEMP VIEW kpi_src_raw AS
-                    SELECT {', '.join(KPI_COLUMNS)}, grade FROM drive_samples{where}""")
-    missing = [r[0] for r in con.execute(
-        "SELECT DISTINCT drive_id FROM kpi_src_raw WHERE p_batt IS NULL OR a IS NULL ORDER BY 1").fetchall()]
-    if missing:
-        _fill_missing(con, missing)
-        con.execute("""CREATE OR REPLACE TEMP TABLE kpi_src AS
-            SELECT r.drive_id, r.idx, r.t, r.s, r.v, r.segment, r.speed_limit, coalesce(r.a, f.a) AS a,
-                   coalesce(r.p_batt, f.p_batt) AS p_batt, r.tl_id, r.tl_state, r.d_tl
-            FROM kpi_src_raw r LEFT JOIN kpi_fill f USING (drive_id, idx) ORDER BY r.drive_id, r.idx""")
+                    SELECT {', '.join(KPI_COLUMNS)}, grade{carried} FROM drive_samples{where}""")
+    energy = "energy" in spec.builtins
+    model = spec.energy_source_model
+    no_power = [r[0] for r in con.execute(
+        "SELECT DISTINCT drive_id FROM kpi_src_raw WHERE p_batt IS NULL ORDER BY 1").fetchall()] if energy else []
+    sources = _energy_sources(st, con, no_power, model) if energy else \
+        pd.DataFrame(columns=["drive_id", "energy_source"])
+    unavailable = [] if model else no_power
+    fill_p = no_power if model else []
+    missing_a = [r[0] for r in con.execute(
+        "SELECT DISTINCT drive_id FROM kpi_src_raw WHERE a IS NULL ORDER BY 1").fetchall()]
+    # without a model a drive lacking power gets none at all: a partial sum would pass for the drive's energy
+    p_expr = "coalesce(r.p_batt, f.p_batt)" if fill_p or missing_a else "r.p_batt"
+    if unavailable:
+        con.execute("CREATE OR REPLACE TEMP TABLE kpi_no_power AS SELECT unnest($ids) AS drive_id",
+                    {"ids": unavailable})
+        p_expr = f"CASE WHEN r.drive_id IN (SELECT drive_id FROM kpi_no_power) THEN NULL ELSE {p_expr} END"
+    fill_ids = sorted(set(fill_p) | set(missing_a))
+    if fill_ids:
+        _fill_missing(con, fill_ids, power=set(fill_p))
+        join = "LEFT JOIN kpi_fill f USING (drive_id, idx)"
+        a_expr = "coalesce(r.a, f.a)"
     else:
-        con.execute("CREATE OR REPLACE TEMP TABLE kpi_src AS SELECT * EXCLUDE (grade) FROM kpi_src_raw "
-                    "ORDER BY drive_id, idx")
-    k = kpis_from_relation(con, "kpi_src", params)
+        join, a_expr = "", "r.a"
+    rest = "".join(f", r.{c}" for c in extra)
+    con.execute(f"""CREATE OR REPLACE TEMP TABLE kpi_src AS
+        SELECT r.drive_id, r.idx, r.t, r.s, r.v, r.segment, r.speed_limit, {a_expr} AS a,
+               {p_expr} AS p_batt, r.tl_id, r.tl_state, r.d_tl{rest}
+        FROM kpi_src_raw r {join} ORDER BY r.drive_id, r.idx""")
+    k = kpis_from_relation(con, "kpi_src", params, sql_kpis=spec.sql)
     drives = con.execute("SELECT drive_id, participant_id, condition FROM drives").df()
-    return drives.merge(k, on="drive_id", how="inner")[["participant_id", "condition", *KPI_FIELDS]]
+    return drives.merge(k, on="drive_id", how="inner")[out_cols], sources
 
 
-def _fill_missing(con, drive_ids) -> None:
-    """``a`` and ``p_batt`` for the drives whose log lacks them, into TEMP TABLE kpi_fill(drive_id, idx, a,
-    p_batt): a by :func:`fill_acceleration`, p_batt by the vehicle power model (``pedas.power.fill_drive_columns``
-    on t, v, grade and a — the model of ``kpi energy``). Vectorised per drive, not per row."""
+def _words(sql: str) -> set[str]:
+    import re
+
+    return set(re.findall(r"[A-Za-z_][A-Za-z0-9_]*", sql))
+
+
+def _energy_sources(st, con, no_power: list, model: str | None) -> pd.DataFrame:
+    """drive_id, energy_source of the selected drives (module docstring of :func:`store_kpis_with_sources`)."""
+    import json
+
+    d = con.execute("SELECT drive_id, meta FROM drives WHERE drive_id IN (SELECT DISTINCT drive_id FROM kpi_src_raw)"
+                    " ORDER BY drive_id").df()
+    lacking = set(no_power)
+
+    def source(row) -> str:
+        if row.drive_id in lacking:
+            return model or UNAVAILABLE
+        try:
+            meta = json.loads(row.meta) if isinstance(row.meta, str) and row.meta else {}
+        except ValueError:
+            meta = {}
+        recorded = meta.get("energy_source") if isinstance(meta, dict) else None
+        return str(recorded) if recorded else MEASURED
+
+    return pd.DataFrame({"drive_id": d["drive_id"], "energy_source": [source(r) for r in d.itertuples()]})
+
+
+def energy_note(sources: pd.DataFrame) -> str:
+    """One line: how many drives' energy is measured, modelled or unavailable ('' without energy KPIs)."""
+    if sources is None or sources.empty:
+        return ""
+    counts = sources["energy_source"].value_counts()
+    parts = [f"{n} drive{'s' if n != 1 else ''} {src}" for src, n in sorted(counts.items(), key=lambda x: x[0])
+             if src != UNAVAILABLE]
+    if UNAVAILABLE in counts:
+        n = int(counts[UNAVAILABLE])
+        parts.append(f"{n} drive{'s' if n != 1 else ''} unavailable (no battery power logged and the study "
+                     f"declares no vehicle model: energy left empty)")
+    return "energy: " + ", ".join(parts)
+
+
+def _fill_missing(con, drive_ids, power=frozenset()) -> None:
+    """``a`` (all ``drive_ids``) and ``p_batt`` (the drives in ``power``) where the log lacks them, into TEMP TABLE
+    kpi_fill(drive_id, idx, a, p_batt): a by :func:`fill_acceleration`, p_batt by the vehicle power model
+    (``pedas.power.fill_drive_columns`` on t, v, grade and a — the model of ``kpi energy``). Vectorised per drive,
+    not per row."""
     from pedas.power import fill_drive_columns
 
     frames = []
@@ -398,7 +544,7 @@ def _fill_missing(con, drive_ids) -> None:
                         {"d": drive_id}).df()
         a = d["a"].astype(float).fillna(pd.Series(fill_acceleration(d["t"], d["v"]), index=d.index))
         p = d["p_batt"].astype(float)
-        if p.isna().any():
+        if drive_id in power and p.isna().any():
             model = fill_drive_columns(d[["t", "v", "grade"]].assign(a=a.to_numpy()))
             p = p.fillna(pd.Series(model["p_batt"].to_numpy(float), index=d.index))
         frames.append(pd.DataFrame({"drive_id": drive_id, "idx": d["idx"].to_numpy(), "a": a.to_numpy(),
@@ -407,4 +553,3 @@ def _fill_missing(con, drive_ids) -> None:
     con.register("kpi_fill_df", fill)
     con.execute("CREATE OR REPLACE TEMP TABLE kpi_fill AS SELECT * FROM kpi_fill_df")
     con.unregister("kpi_fill_df")
-

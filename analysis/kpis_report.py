@@ -1,5 +1,6 @@
-"""`analyze drives`: the whole objective evaluation of a store into one directory — KPI and effect tables
-(CSV/Markdown/LaTeX), the reproduction bands, Figures 9-12 and a short `objective.md` that links them."""
+"""`analyze drives`: the whole objective evaluation of a store into one directory, as the study declares it
+(analysis.kpi_spec) — KPI and summary tables (CSV/Markdown/LaTeX); with a comparison the effect tables, Figures 9-12
+and, where declared, the reproduction bands; a short `objective.md` that links them."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -9,26 +10,41 @@ import pandas as pd
 
 from analysis.band_diagnostics import band_diagnostics, diagnostics_markdown
 from analysis.figures_drives import write_figures
-from analysis.savings import ObjectiveResult, objective_results, reproduction_bands
-from analysis.tables_drives import bands_markdown, kpi_markdown, style_cells, style_table, write_tables
+from analysis.kpis import energy_note
+from analysis.savings import ObjectiveResult, objective_results, reproduction_bands, study_published
+from analysis.tables_drives import (_summary_cells, _texts, bands_markdown, kpi_markdown, kpi_summary_table,
+                                    style_cells, style_table, write_tables)
 
 
 @dataclass
 class DrivesReport:
-    """What :func:`analyze_drives` produced."""
+    """What :func:`analyze_drives` produced (``bands`` None when the study declares none)."""
     result: ObjectiveResult
-    bands: pd.DataFrame
+    bands: pd.DataFrame | None
     files: list[Path]
     figures: dict
     out: Path
 
     def text(self) -> str:
         r = self.result
-        lines = [f"objective analysis: {r.n} participants with both drives "
-                 f"({len(r.excluded)} excluded, {len(r.incomplete)} without a complete pair)"]
-        h, rows = style_cells(style_table(r.summary))
-        lines.append(kpi_markdown(h, rows, "By driving style, mean (median) %").rstrip())
-        lines.append(bands_markdown(self.bands).rstrip())
+        comparison = r.spec.comparison
+        if comparison is None:
+            lines = [f"objective analysis: {r.n} participants with drives ({len(r.excluded)} excluded)"]
+            t = kpi_summary_table(r.summary)
+            h, rows = _summary_cells(t)
+            lines.append(kpi_markdown(h, rows, "KPIs per drive, mean (SD)",
+                                      text_columns=list(t.columns).index("n")).rstrip())
+        else:
+            lines = [f"objective analysis: {r.n} participants with both drives "
+                     f"({len(r.excluded)} excluded, {len(r.incomplete)} without a complete pair)"]
+            h, rows = style_cells(style_table(r.summary, comparison), comparison)
+            title = _texts(comparison)["title"].split(",")[0].replace("Objective KPIs by", "By")
+            lines.append(kpi_markdown(h, rows, f"{title}, mean (median) %").rstrip())
+        if self.bands is not None:
+            lines.append(bands_markdown(self.bands).rstrip())
+        note = energy_note(r.energy_sources)
+        if note:
+            lines.append(note)
         skipped = {k: v for k, v in self.figures.items() if isinstance(v, str)}
         for k, v in skipped.items():
             lines.append(f"{k} not drawn: {v}")
@@ -37,29 +53,43 @@ class DrivesReport:
 
 
 def analyze_drives(st, out_dir: str | Path, participant: str = "P006", params=None) -> DrivesReport:
-    """Compute KPIs, effects, summary and bands from the store ``st`` and write everything to ``out_dir``.
-    A store without any drive is refused (ValueError) and nothing is written."""
+    """Compute the declared KPIs and summaries from the store ``st`` and write everything to ``out_dir``; with a
+    comparison also the effects, the figures and (when declared) the reproduction bands. A store without any drive
+    is refused (ValueError) and nothing is written."""
     n_drives = st.con.execute("SELECT count(*) FROM drives").fetchone()[0]
     if not n_drives:
         raise ValueError("the store has no drives; import or simulate drives first")
     out = Path(out_dir)
     result = objective_results(st, params)
-    bands = reproduction_bands(result.summary)
+    comparison = result.spec.comparison
     files = write_tables(result, out)
-    bands.to_csv(out / "bands.csv", index=False)
-    diag = band_diagnostics(st, result, params)
-    diag.to_csv(out / "band_diagnostics.csv", index=False, float_format="%.12g")
-    files += [out / "bands.csv", out / "band_diagnostics.csv"]
+    bands = diag = None
+    if comparison is not None and comparison.bands:
+        bands = reproduction_bands(result.summary, study_published(st))
+        bands.to_csv(out / "bands.csv", index=False)
+        diag = band_diagnostics(st, result, result.spec.params if params is None else params)
+        diag.to_csv(out / "band_diagnostics.csv", index=False, float_format="%.12g")
+        files += [out / "bands.csv", out / "band_diagnostics.csv"]
     figures = write_figures(st, result, out / "figures", participant)
     for v in figures.values():
         if not isinstance(v, str):
             files.extend(v)
     rep = DrivesReport(result, bands, files, figures, out)
-    md = ["# Objective evaluation", "",
-          f"Participants with both drives: {result.n}. Excluded (objective scope): "
-          f"{', '.join(result.excluded) or 'none'}. Without a complete pair: {', '.join(result.incomplete) or 'none'}.",
-          "", (out / "style_table.md").read_text(encoding="utf-8"), bands_markdown(bands),
-          diagnostics_markdown(diag), "## Figures", ""]
+    if comparison is None:
+        md = ["# Objective evaluation", "",
+              f"Participants with drives: {result.n}. Excluded (objective scope): {', '.join(result.excluded) or 'none'}.",
+              "", (out / "kpi_table.md").read_text(encoding="utf-8")]
+    else:
+        md = ["# Objective evaluation", "",
+              f"Participants with both drives: {result.n}. Excluded (objective scope): "
+              f"{', '.join(result.excluded) or 'none'}. Without a complete pair: "
+              f"{', '.join(result.incomplete) or 'none'}.", "", (out / "style_table.md").read_text(encoding="utf-8")]
+        if bands is not None:
+            md += [bands_markdown(bands), diagnostics_markdown(diag)]
+    note = energy_note(result.energy_sources)
+    if note:
+        md += [note[0].upper() + note[1:] + ".", ""]
+    md += ["## Figures", ""]
     for k, v in figures.items():
         md.append(f"- {k}: " + (f"not drawn ({v})" if isinstance(v, str)
                                  else ", ".join(f"[{p.name}](figures/{p.name})" for p in v)))

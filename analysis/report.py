@@ -1,20 +1,26 @@
-"""`pedas-study report`: every table and figure, the audit, the reproduction verdict and an HTML index, in one run.
+"""`pedas-study report`: every table and figure, the audit, the reproduction verdict and one HTML document
+(`index.html`, analysis.document), in one run, for the study the store serves.
 
 Two modes:
 
-* **reference** (the default store `data/study.duckdb`, or `--reference`): build the store from `data/reference/` (the
-  reference cohort with its protocol events and exclusions, the reconstructed survey), simulate the cohort's drives in
-  SUMO, analyse, audit the paper and compare with its published values.
-* **lab** (`--db my.duckdb` without `--reference`): analyse the lab's own store as it is; the paper comparison only with
-  `--compare-paper`.
+* **reference** (the default store `data/study.duckdb`, or `--reference`): build the store for the paper's study
+  (`init --study studies/pedas_paper`) from `data/reference/` (the reference cohort with its protocol events and
+  exclusions, the reconstructed survey), simulate the cohort's drives in SUMO, analyse, audit the paper and compare
+  with its published values.
+* **lab** (`--db my.duckdb` without `--reference`): analyse the lab's own store, for the study it serves
+  (`study.studies.definition`), as it is; the paper comparison only with `--compare-paper`.
+
+What the study or its store does not have is skipped with a stated reason instead of failing the run: no survey
+answers (or no instrument or model file) -> no survey analysis; no drives -> no drive KPIs; no published values of
+the paper -> no audit and no reproduction; conditions the simulator does not drive -> no simulation-core figures.
+A step that skips writes its reason into `skipped.txt` of its folder; the document shows every reason.
 
 Steps are cached by a hash of their inputs (data, parameters, code): a second run with nothing changed only re-renders
-the index; changing one survey answer rebuilds the store (drives come from the drive cache) and reruns the analyses,
+the document; changing one survey answer rebuilds the store (drives come from the drive cache) and reruns the analyses,
 not the simulation. Progress goes to stderr per step with its time; a failing step is named and earlier outputs stay.
 """
 from __future__ import annotations
 
-import html
 import json
 import shutil
 from contextlib import contextmanager
@@ -26,9 +32,11 @@ import pandas as pd
 
 from analysis.pipeline import Pipeline, Step, StepResult
 from analysis.render import write_table
-from pedas.paths import NETWORK_DIR, PAPER_DIR, REFERENCE_DIR, REPO_ROOT
+from pedas.paths import NETWORK_DIR, REFERENCE_DIR, REPO_ROOT
 
 CODE = {name: REPO_ROOT / name for name in ("study", "pedas", "analysis")}
+#: the one-line reason a step that skipped writes into its output folder
+SKIPPED = "skipped.txt"
 
 
 @dataclass
@@ -53,6 +61,7 @@ class ReportResult:
     steps: list[StepResult]
     files: list[Path]
     verdict: dict
+    skipped: dict[str, str] = field(default_factory=dict)   # part of the report -> why it was not produced
 
 
 # ---------------------------------------------------------------------------------------------- step bodies
@@ -63,11 +72,16 @@ def _open_store(cfg: ReportConfig, read_only: bool = False):
 
 
 def load_reference(st, ref_dir: Path = REFERENCE_DIR) -> None:
-    """Load the reference study inputs into an open store: participants and protocol events with exclusions
-    (`participants.csv`, `events.csv`) and the reconstructed survey (`survey.csv`), each import all or nothing."""
+    """Load the reference study inputs into an open store: the paper's study (as `init --study
+    studies/pedas_paper`; unchanged when the store already serves it, UserError when it serves another study),
+    participants and protocol events with exclusions (`participants.csv`, `events.csv`) and the reconstructed
+    survey (`survey.csv`), each import all or nothing."""
+    from analysis.paper.published import PAPER_STUDY_DIR
     from analysis.paper.reference_cohort import Cohort, load_into_store
+    from study.studies import register
     from study.survey_import import import_survey
 
+    register(st, PAPER_STUDY_DIR)
     participants = pd.read_csv(ref_dir / "participants.csv", dtype={"participant_id": str})
     events = pd.read_csv(ref_dir / "events.csv", dtype=str, keep_default_na=False)
     load_into_store(st, Cohort(participants, events, seed=-1))
@@ -81,8 +95,8 @@ def build_reference_store(cfg: ReportConfig) -> None:
     for quick runs); every participant and survey answer is loaded regardless.
     """
     from pedas.cohort import cohort_tasks, simulate_cohort
-    from study.drives import import_drive_frame
     from study.exclusions import included_participants
+    from study.simulated import participants_to_simulate, store_simulated
     from study.store import Store
 
     tmp = cfg.db.with_name(cfg.db.name + ".building")
@@ -91,13 +105,12 @@ def build_reference_store(cfg: ReportConfig) -> None:
     with Store.open(tmp, actor="report") as st:
         load_reference(st, cfg.reference_dir)
         drivers = sorted(included_participants(st, "objective"))[:cfg.participants]
-        people = st.df("SELECT participant_id, style FROM participants ORDER BY participant_id")
-        people = people[people["participant_id"].isin(drivers)]
-        logs = simulate_cohort(cohort_tasks(people, base_seed=cfg.seed), workers=cfg.workers,
-                               scheduler=cfg.scheduler, cache_dir=cfg.cache_dir / "drives")
+        # the same who-and-how as `simulate cohort`: tasks by participant id, baseline before pedas
+        tasks = cohort_tasks(participants_to_simulate(st, drivers), base_seed=cfg.seed)
+        logs = simulate_cohort(tasks, workers=cfg.workers, scheduler=cfg.scheduler,
+                               cache_dir=cfg.cache_dir / "drives")
         with st.transaction():
-            for (pid, condition), df in sorted(logs.items()):
-                import_drive_frame(st, pid, condition, df, source="simulation", route="study_13k2")
+            store_simulated(st, tasks, logs)
     cfg.db.parent.mkdir(parents=True, exist_ok=True)
     for p in (cfg.db, cfg.db.with_name(cfg.db.name + ".wal")):
         p.unlink(missing_ok=True)
@@ -120,15 +133,37 @@ def _fresh_dir(out: Path) -> Iterator[Path]:
     new.replace(out)
 
 
+def skipped_reason(folder: Path) -> str | None:
+    """The reason a step gave for skipping (its folder's skipped.txt), None when it produced its outputs."""
+    f = folder / SKIPPED
+    return f.read_text(encoding="utf-8").strip() if f.is_file() else None
+
+
+def survey_missing(st, study) -> str | None:
+    """Why the store's survey cannot be analysed (no instrument, no model file, no answers), None when it can."""
+    from analysis.acceptance import responses_from_store
+
+    if not study.instruments:
+        return f"study {study.study_id} declares no survey instrument ([files] instrument)"
+    if study.model is None:
+        return f"study {study.study_id} declares no analysis model ([files] model)"
+    if responses_from_store(st).empty:
+        return "the store has no survey answers of included participants"
+    return None
+
+
 def survey_step(cfg: ReportConfig) -> None:
-    from analysis.acceptance import analyze_survey, responses_from_store
+    from analysis.acceptance import analyze_store
+    from study.studies import definition
 
     with _open_store(cfg, read_only=True) as st:
-        responses = responses_from_store(st)
-    if responses.empty:
-        raise ValueError("the store has no survey answers of included participants")
-    res = analyze_survey(responses, n_boot=cfg.n_boot, seed=cfg.seed or 20240101)
+        reason = survey_missing(st, definition(st))
+        if reason is None:
+            res, responses = analyze_store(st, n_boot=cfg.n_boot, seed=cfg.seed or 20240101)
     with _fresh_dir(cfg.out / "survey") as out:
+        if reason is not None:
+            (out / SKIPPED).write_text(reason + "\n", encoding="utf-8")
+            return
         res.write(out)
         responses.to_csv(out / "responses.csv", index=False)
 
@@ -141,6 +176,7 @@ def drives_step(cfg: ReportConfig) -> None:
             analyze_drives(st, out)
         else:
             (out / "objective.md").write_text("# Objective evaluation\n\nThe store has no drives.\n")
+            (out / SKIPPED).write_text("the store has no drives, so there are no drive KPIs\n", encoding="utf-8")
 
 
 def audit_step(cfg: ReportConfig) -> None:
@@ -158,6 +194,10 @@ def reproduction_step(cfg: ReportConfig) -> None:
     from analysis.paper.audit import findings
     from analysis.paper.reproduction import render_markdown, reproduce
 
+    if skipped_reason(cfg.out / "survey") is not None:  # nothing to compare: the document says why
+        for name in ("reproduction.csv", "reproduction.md"):
+            (cfg.out / name).unlink(missing_ok=True)
+        return
     # from the files the survey and audit steps wrote: the comparison reruns when either changes
     survey = SimpleNamespace(**{name: pd.read_csv(cfg.out / "survey" / f"{name}.csv")
                                 for name in ("descriptives", "loadings", "reliability", "correlations", "regressions")})
@@ -195,16 +235,17 @@ def core_figures_step(cfg: ReportConfig) -> None:
 
 def study_figures_step(cfg: ReportConfig) -> None:
     from analysis.figures_study import participant_flow, plot_likert, plot_participant_flow
-    from study.instrument import load_instrument
+    from study.studies import definition
 
     figs = cfg.out / "figures"
     with _open_store(cfg, read_only=True) as st:
         flow = participant_flow(st)
+        study = definition(st)
     plot_participant_flow(flow, figs)
     write_table(flow.frame(), cfg.out / "tables", "participant_flow", "Participant flow")
     responses = cfg.out / "survey" / "responses.csv"
-    if responses.exists():
-        plot_likert(pd.read_csv(responses), load_instrument(), figs)
+    if responses.exists() and study.instruments:
+        plot_likert(pd.read_csv(responses, dtype={"participant_id": str}), study.instrument(), figs)
 
 
 _RAW_DATA = {"responses", "composites"}  # data files, not tables to render
@@ -233,7 +274,7 @@ def collect_step(cfg: ReportConfig) -> None:
             shutil.copy2(f, figs / f.name)
 
 
-# ---------------------------------------------------------------------------------------------- index
+# ---------------------------------------------------------------------------------------------- the study
 def _verdict(out: Path) -> dict:
     rep = out / "reproduction.csv"
     if not rep.exists():
@@ -242,53 +283,80 @@ def _verdict(out: Path) -> dict:
     return {"counts": df["status"].value_counts().to_dict(), "miss": int((df["status"] == "miss").sum())}
 
 
-def render_index(cfg: ReportConfig, steps: list[StepResult]) -> Path:
-    """index.html linking every file, figures inline (relative paths: opens from the file system)."""
-    out = cfg.out
-    parts = ["<!doctype html><html lang='en'><head><meta charset='utf-8'><title>pEDAS study report</title>",
-             "<style>body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}"
-             "img{max-width:100%;border:1px solid #ddd;margin:.3em 0}figure{margin:1.2em 0}"
-             "table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:.2em .5em;font-size:.9em}"
-             "code{background:#f4f4f4;padding:0 .2em}</style></head><body>",
-             "<h1>pEDAS study report</h1>",
-             f"<p>Mode: <b>{'reference study' if cfg.reference else 'lab store'}</b> · store <code>"
-             f"{html.escape(cfg.db.name)}</code></p>"]
-    verdict = _verdict(out)
-    if verdict:
-        counts = ", ".join(f"{k}: {v}" for k, v in sorted(verdict["counts"].items()))
-        parts.append(f"<h2>Reproduction verdict</h2><p>{html.escape(counts)} — "
-                     f"<a href='reproduction.md'>reproduction.md</a> · <a href='reproduction.csv'>csv</a></p>")
-    for title, sub in (("Acceptance statistics", "survey"), ("Objective evaluation", "drives"),
-                       ("Paper audit", "paper")):
-        d = out / sub
-        if d.exists():
-            links = " · ".join(f"<a href='{sub}/{f.name}'>{html.escape(f.name)}</a>"
-                               for f in sorted(d.iterdir()) if f.is_file())
-            parts.append(f"<h2>{title}</h2><p>{links}</p>")
-    tables = sorted((out / "tables").glob("*.md"))
-    if tables:
-        parts.append("<h2>Tables</h2><ul>")
-        for t in tables:
-            alts = " ".join(f"<a href='tables/{t.stem}{ext}'>{ext[1:]}</a>" for ext in (".csv", ".tex")
-                            if (t.with_suffix(ext)).exists())
-            parts.append(f"<li><a href='tables/{t.name}'>{html.escape(t.stem)}</a> {alts}</li>")
-        parts.append("</ul>")
-    figs = sorted((out / "figures").glob("*.png"))
-    if figs:
-        parts.append("<h2>Figures</h2>")
-        for f in figs:
-            parts.append(f"<figure><img src='figures/{f.name}' alt='{html.escape(f.stem)}'><figcaption>"
-                         f"{html.escape(f.stem)} · <a href='figures/{f.stem}.pdf'>pdf</a></figcaption></figure>")
-    parts.append("<h2>Steps</h2><table><tr><th>step</th><th>status</th><th>seconds</th></tr>")
-    parts += [f"<tr><td>{s.name}</td><td>{s.status}</td><td>{s.seconds:.1f}</td></tr>" for s in steps]
-    parts.append("</table></body></html>")
-    path = out / "index.html"
-    path.write_text("\n".join(parts) + "\n", encoding="utf-8")
-    return path
+def report_study(cfg: ReportConfig):
+    """The study the report is about: the paper's in reference mode (its store is built from it), else the one the
+    lab's store serves (a store without a study -> UserError saying how to add one)."""
+    if cfg.reference:
+        from analysis.paper.published import paper_study
+
+        return paper_study()
+    from study.studies import definition
+
+    with _open_store(cfg, read_only=True) as st:
+        return definition(st)
+
+
+def comparison_skip(cfg: ReportConfig, study) -> str | None:
+    """Why the paper audit and reproduction do not run for `study` (None when they do)."""
+    from analysis.paper.published import paper_study
+
+    if "published" not in study.paths:
+        return f"study {study.study_id} declares no published values to compare with ([files] published)"
+    if study.study_id != paper_study().study_id:
+        return (f"the reproduction compares the paper's Tables 3-5 with its published values; study "
+                f"{study.study_id} is not the paper's study")
+    if not cfg.compare_paper:
+        return "the comparison with the paper was not asked for (--compare-paper)"
+    return None
+
+
+def core_figures_skip(study) -> str | None:
+    """Why the simulation core's figures do not belong to `study`'s report (None when they do)."""
+    from study.errors import UserError
+    from study.simulated import check_simulable
+
+    try:
+        check_simulable(study)
+    except UserError:
+        from pedas.vocabulary import CONDITIONS
+
+        return (f"the simulation core's figures belong to studies the simulator drives (conditions "
+                f"{', '.join(CONDITIONS)}); study {study.study_id} declares {', '.join(study.condition_names)}")
+    return None
+
+
+def planned_skips(cfg: ReportConfig, study) -> dict[str, str]:
+    """Parts of the report that the study's declaration rules out before anything runs: part -> reason."""
+    out = {}
+    reason = comparison_skip(cfg, study)
+    if reason:
+        out["audit"] = out["reproduction"] = reason
+    reason = core_figures_skip(study)
+    if reason:
+        out["core figures"] = reason
+    return out
+
+
+def data_skips(cfg: ReportConfig) -> dict[str, str]:
+    """Parts skipped because the store lacks their data, as the steps recorded them: part -> reason."""
+    out = {}
+    for part in ("survey", "drives"):
+        reason = skipped_reason(cfg.out / part)
+        if reason:
+            out[part] = reason
+    if "survey" in out:
+        out.setdefault("reproduction", f"needs the survey analysis, which was skipped: {out['survey']}")
+    return out
 
 
 # ---------------------------------------------------------------------------------------------- the pipeline
-def build_pipeline(cfg: ReportConfig) -> Pipeline:
+def build_pipeline(cfg: ReportConfig, study=None) -> Pipeline:
+    """The report's steps for `study` (default :func:`report_study`); parts its declaration rules out
+    (:func:`planned_skips`) have no step."""
+    from analysis.paper.published import PAPER_STUDY_DIR
+
+    study = study if study is not None else report_study(cfg)
+    skips = planned_skips(cfg, study)
     cache = cfg.cache_dir / ("report-" + ("reference" if cfg.reference else "lab"))
     pipe = Pipeline(cache)
     params = json.dumps({"participants": cfg.participants, "seed": cfg.seed, "n_boot": cfg.n_boot,
@@ -299,9 +367,10 @@ def build_pipeline(cfg: ReportConfig) -> Pipeline:
 
         sources = sorted(p for p in NETWORK_DIR.iterdir() if p.suffix in (".xml", ".json", ".netccfg"))
         pipe.add(Step("network", lambda: build_network(), inputs=[*sources, CODE["pedas"] / "network.py"]))
-        # the store is built by this module and analysis.paper.reference_cohort besides study/ and pedas/
+        # the store is built by this module and analysis.paper.reference_cohort besides study/ and pedas/, for the
+        # paper's study folder
         pipe.add(Step("store", lambda: build_reference_store(cfg), after=["network"], outputs=[cfg.db],
-                      inputs=[cfg.reference_dir, CODE["study"], CODE["pedas"], Path(__file__),
+                      inputs=[cfg.reference_dir, PAPER_STUDY_DIR, CODE["study"], CODE["pedas"], Path(__file__),
                               CODE["analysis"] / "paper" / "reference_cohort.py", params]))
         store_inputs = []
     after_store = ["store"] if cfg.reference else []
@@ -309,15 +378,16 @@ def build_pipeline(cfg: ReportConfig) -> Pipeline:
                   inputs=[*store_inputs, CODE["analysis"], params]))
     pipe.add(Step("drives", lambda: drives_step(cfg), outputs=[cfg.out / "drives"], after=after_store,
                   inputs=[*store_inputs, CODE["analysis"], params]))
-    if cfg.compare_paper:
+    if "audit" not in skips:
         pipe.add(Step("audit", lambda: audit_step(cfg), outputs=[cfg.out / "paper"],
-                      inputs=[PAPER_DIR, CODE["analysis"], params]))
+                      inputs=[PAPER_STUDY_DIR, CODE["analysis"], params]))
         pipe.add(Step("reproduction", lambda: reproduction_step(cfg), after=["survey", "drives", "audit"],
                       outputs=[cfg.out / "reproduction.md", cfg.out / "reproduction.csv"],
                       inputs=[CODE["analysis"], params]))
-    pipe.add(Step("core figures", lambda: core_figures_step(cfg),
-                  outputs=[cfg.out / "figures" / "aero_linearisation.png"],
-                  inputs=[CODE["pedas"], params]))
+    if "core figures" not in skips:
+        pipe.add(Step("core figures", lambda: core_figures_step(cfg),
+                      outputs=[cfg.out / "figures" / "aero_linearisation.png"],
+                      inputs=[CODE["pedas"], params]))
     pipe.add(Step("study figures", lambda: study_figures_step(cfg), after=["survey", *after_store],
                   outputs=[cfg.out / "figures" / "participant_flow.png"],
                   inputs=[*store_inputs, CODE["analysis"], params]))
@@ -326,9 +396,16 @@ def build_pipeline(cfg: ReportConfig) -> Pipeline:
 
 
 def run_report(cfg: ReportConfig) -> ReportResult:
-    """Run the pipeline and render index.html; returns what ran and the reproduction verdict."""
+    """Run the pipeline for the report's study and render the document (index.html, analysis.document); returns
+    what ran, what was skipped and why, and the reproduction verdict."""
+    from analysis.document import render_document
+
+    study = report_study(cfg)
     cfg.out.mkdir(parents=True, exist_ok=True)
-    steps = build_pipeline(cfg).run(force=cfg.force)
-    render_index(cfg, steps)
+    steps = build_pipeline(cfg, study).run(force=cfg.force)
+    skipped = {**data_skips(cfg), **planned_skips(cfg, study)}  # a declared reason comes first
+    with _open_store(cfg, read_only=True) as st:
+        render_document(cfg.out, st, steps, skipped,
+                        mode="reference study" if cfg.reference else "lab store", store_name=cfg.db.name)
     files = sorted(p for p in cfg.out.rglob("*") if p.is_file())
-    return ReportResult(cfg.out, steps, files, _verdict(cfg.out))
+    return ReportResult(cfg.out, steps, files, _verdict(cfg.out), skipped)

@@ -1,10 +1,11 @@
-"""Scoring of the acceptance survey: validation of the wide answer frame, reverse scoring from the instrument,
-the listwise analysis sample and construct composites.
+"""Scoring of an acceptance survey: validation of the wide answer frame, reverse scoring from the study's
+instrument, the listwise analysis sample and construct composites.
 
-Conventions (docs/contracts.md "Analysis outputs"): answers are raw 1-5 as ticked; reverse-scored items
-(PEoU3) are mapped x -> min + max - x using the instrument's scale; a composite is the mean of a construct's
-*retained* items after reverse scoring. Missing data: listwise deletion over all scaled items by default, so
-every table is computed on the same participants and reports that n.
+Conventions (docs/contracts.md "Analysis outputs"): answers are raw as ticked, on each item's scale
+(scale_min..scale_max of the codebook, any K-point Likert or semantic item); reverse-scored items are mapped
+x -> min + max - x; a composite is the mean of a construct's *retained* items after reverse scoring. Missing data:
+listwise deletion over all scaled items by default, so every table is computed on the same participants and
+reports that n.
 """
 from __future__ import annotations
 
@@ -13,26 +14,29 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from study.instrument import Instrument, load_instrument
+from study.instrument import Instrument
 
 ID_COL = "participant_id"
 
 
-def resolve_instrument(instrument=None) -> Instrument:
-    """An :class:`Instrument`, from an instance, a codebook name, or the default codebook when None.
+def resolve_instrument(study, instrument=None) -> Instrument:
+    """The instrument to analyse: an :class:`Instrument` as given, else the study's instrument of that name (None:
+    the study's only one). `study` is a :class:`study.definition.StudyDefinition`.
 
     Examples
     --------
     >>> from analysis.scoring import resolve_instrument
-    >>> inst = resolve_instrument()
-    >>> inst.name, inst.reverse_items, inst.scale("PEoU3")
-    ('pedas_acceptance_v1', ['PEoU3'], (1, 5))
+    >>> from pedas.paths import REPO_ROOT
+    >>> from study.definition import load
+    >>> inst = resolve_instrument(load(REPO_ROOT / "studies" / "lane_keeping"))
+    >>> inst.name, inst.reverse_items, inst.scale("EE3")
+    ('lk_acceptance_v1', ['EE3'], (1, 7))
     """
-    if instrument is None:
-        return load_instrument()
-    if isinstance(instrument, str):
-        return load_instrument(instrument)
-    return instrument
+    if isinstance(instrument, Instrument):
+        return instrument
+    if study is None:
+        raise ValueError("no study given: pass the study definition (or an Instrument)")
+    return study.instrument(instrument)
 
 
 @dataclass(frozen=True)
@@ -52,15 +56,15 @@ class ScoredSurvey:
         return len(self.scored)
 
 
-def score_responses(responses: pd.DataFrame, instrument=None, *, listwise: bool = True) -> ScoredSurvey:
+def score_responses(responses: pd.DataFrame, instrument: Instrument, *, listwise: bool = True) -> ScoredSurvey:
     """Validate the wide survey frame and return the reverse-scored analysis sample.
 
     Parameters
     ----------
     responses : DataFrame
         participant_id (optional) + one column per scaled item of the instrument, raw answers as ticked.
-    instrument : Instrument or str, optional
-        Codebook (default ``pedas_acceptance_v1``).
+    instrument : Instrument
+        The study's codebook (``definition.instrument()``).
     listwise : bool
         Leave out participants with any missing scaled answer (default).
 
@@ -76,18 +80,23 @@ def score_responses(responses: pd.DataFrame, instrument=None, *, listwise: bool 
 
     Examples
     --------
-    The reference survey: PEoU3 is reverse scored x -> 1 + 5 - x, so raw and scored answers add up to 6:
+    Synthetic answers to the lane-keeping example study (7-point items): EE3 is reverse scored x -> 1 + 7 - x,
+    so raw and scored answers add up to 8:
 
-    >>> import pandas as pd
     >>> from analysis.scoring import score_responses
-    >>> from pedas.paths import REFERENCE_DIR
-    >>> s = score_responses(pd.read_csv(REFERENCE_DIR / "survey.csv"))
+    >>> from analysis.testing import simulate_study_responses
+    >>> from pedas.paths import REPO_ROOT
+    >>> from study.definition import load
+    >>> study = load(REPO_ROOT / "studies" / "lane_keeping")
+    >>> s = score_responses(simulate_study_responses(study, 24, seed=1), study.instrument())
     >>> s.n, s.reverse_items, list(s.constructs)
-    (40, ['PEoU3'], ['PU', 'PEoU', 'ATT', 'PBC', 'SN', 'BI'])
-    >>> bool(((s.raw["PEoU3"] + s.scored["PEoU3"]) == 6).all())
+    (24, ['EE3'], ['PE', 'EE', 'SI', 'BI'])
+    >>> bool(((s.raw["EE3"] + s.scored["EE3"]) == 8).all())
     True
     """
-    inst = resolve_instrument(instrument)
+    inst = instrument
+    if not isinstance(inst, Instrument):
+        raise ValueError("score_responses needs the study's Instrument (definition.instrument())")
     items = inst.scaled_items
     if not isinstance(responses, pd.DataFrame):
         raise ValueError("responses must be a pandas DataFrame (participant_id + one column per item)")
@@ -105,7 +114,7 @@ def score_responses(responses: pd.DataFrame, instrument=None, *, listwise: bool 
     try:
         raw = raw.apply(pd.to_numeric, errors="raise").astype(float)
     except (ValueError, TypeError) as exc:
-        raise ValueError(f"survey answers must be numbers 1-5 or empty: {exc}") from None
+        raise ValueError(f"survey answers must be numbers on the item's scale or empty: {exc}") from None
     for item in items:
         lo, hi = inst.scale(item)
         col = raw[item].dropna()

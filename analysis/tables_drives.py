@@ -1,5 +1,6 @@
-"""Tables of the objective evaluation: per-style means and medians (as Sec. 5.1 reports them) and the
-per-participant table, each as CSV (machine-readable), Markdown and LaTeX booktabs (rendered from the same frame)."""
+"""Tables of the objective evaluation, each as CSV (machine-readable), Markdown and LaTeX booktabs (rendered from the
+same frame). With a comparison: means and medians of the labelled reductions by group (the paper's per-style table,
+Sec. 5.1) and the per-participant table; without: means and SDs of every declared KPI by condition and group."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -8,27 +9,30 @@ import numpy as np
 import pandas as pd
 
 from analysis.render import fmt_cell, latex_table, markdown_table
-from pedas.vocabulary import STYLES
-
-# (metric, column label) of the per-style table, in the paper's order
-STYLE_TABLE_METRICS = (
-    ("saving_overall_pct", "Overall savings"),
-    ("saving_urban_pct", "Urban savings"),
-    ("saving_highway_pct", "Highway savings"),
-    ("violation_reduction_pct", "Violation reduction"),
-    ("red_stop_reduction_pct", "Red-stop reduction"),
-)
 
 
-def style_table(summary: pd.DataFrame) -> pd.DataFrame:
-    """Wide per-style table: style, n, then ``<metric>_mean`` and ``<metric>_median`` (%) for the metrics of
-    :data:`STYLE_TABLE_METRICS`; rows cautious, normal, sporty, all."""
+def _grouping(summary: pd.DataFrame) -> list[str]:
+    """The grouping columns of a tidy summary (those before ``metric``)."""
+    return list(summary.columns[:list(summary.columns).index("metric")])
+
+
+def style_table(summary: pd.DataFrame, comparison) -> pd.DataFrame:
+    """Wide table of the comparison's labelled reductions by group: the grouping column(s), n, then
+    ``<metric>_n``, ``<metric>_mean`` and ``<metric>_median`` (%); rows each group level, then ``all``. ``n`` is
+    the n of the first labelled reduction."""
+    metrics = [m for m, _ in comparison.labels]
+    group_cols = _grouping(summary)
     rows = []
-    for style in (*STYLES, "all"):
-        s = summary[summary["style"] == style].set_index("metric")
-        r = {"style": style,
-             "n": int(s.loc["saving_overall_pct", "n"]) if "saving_overall_pct" in s.index else 0}
-        for m, _ in STYLE_TABLE_METRICS:
+    keys = summary[group_cols].drop_duplicates()
+    ordered = [k for k in keys.itertuples(index=False) if any(v != "all" for v in k)] + \
+        [k for k in keys.itertuples(index=False) if all(v == "all" for v in k)]
+    for key in ordered:
+        mask = (summary[group_cols] == pd.Series(list(key), index=group_cols)).all(axis=1)
+        s = summary[mask].set_index("metric")
+        label = next((v for v in key if v != "all"), "all")
+        r = {group_cols[0] if len(group_cols) == 1 else "group": label,
+             "n": int(s.loc[metrics[0], "n"]) if metrics and metrics[0] in s.index else 0}
+        for m in metrics:
             r[f"{m}_n"] = int(s.loc[m, "n"]) if m in s.index else 0
             r[f"{m}_mean"] = s.loc[m, "mean"] if m in s.index else np.nan
             r[f"{m}_median"] = s.loc[m, "median"] if m in s.index else np.nan
@@ -36,6 +40,7 @@ def style_table(summary: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+# column labels of the per-participant table (the comparison's columns and reductions that have one, in this order)
 PARTICIPANT_COLUMNS = (
     ("participant_id", "Participant"), ("style", "Style"),
     ("saving_urban_pct", "Urban sav. %"), ("saving_highway_pct", "Highway sav. %"),
@@ -49,7 +54,7 @@ PARTICIPANT_COLUMNS = (
 
 
 def participant_table(per_participant: pd.DataFrame) -> pd.DataFrame:
-    """The per-participant table (columns of :data:`PARTICIPANT_COLUMNS`)."""
+    """The per-participant table (the columns of :data:`PARTICIPANT_COLUMNS` that the comparison has)."""
     cols = [c for c, _ in PARTICIPANT_COLUMNS if c in per_participant]
     return per_participant[cols].copy()
 
@@ -60,14 +65,15 @@ def _fmt(x, nd=2) -> str:
     return fmt_cell(x, nd, missing="–")
 
 
-def style_cells(t: pd.DataFrame) -> tuple[list[str], list[list[str]]]:
-    """Header and cells of the per-style table (:func:`style_table`): "mean (median)" per metric, with [n=k]
-    when a metric has fewer participants than the style."""
-    header = ["Style", "n"] + [label + " mean (median)" for _, label in STYLE_TABLE_METRICS]
+def style_cells(t: pd.DataFrame, comparison) -> tuple[list[str], list[list[str]]]:
+    """Header and cells of the table by group (:func:`style_table`): "mean (median)" per labelled reduction, with
+    [n=k] when a metric has fewer participants than the group."""
+    group = t.columns[0]
+    header = [group.replace("_", " ").capitalize(), "n"] + [label + " mean (median)" for _, label in comparison.labels]
     rows = []
     for _, r in t.iterrows():
-        cells = [str(r["style"]), str(int(r["n"]))]
-        for m, _ in STYLE_TABLE_METRICS:
+        cells = [str(r[group]), str(int(r["n"]))]
+        for m, _ in comparison.labels:
             cell = f"{_fmt(r[f'{m}_mean'])} ({_fmt(r[f'{m}_median'])})"
             if int(r[f"{m}_n"]) != int(r["n"]):
                 cell += f" [n={int(r[f'{m}_n'])}]"
@@ -78,7 +84,7 @@ def style_cells(t: pd.DataFrame) -> tuple[list[str], list[list[str]]]:
 
 def _participant_cells(t: pd.DataFrame) -> tuple[list[str], list[list[str]]]:
     labels = dict(PARTICIPANT_COLUMNS)
-    header = [labels[c] for c in t.columns]
+    header = [labels.get(c, c) for c in t.columns]
     rows = []
     for _, r in t.iterrows():
         cells = []
@@ -98,13 +104,44 @@ def kpi_markdown(header, rows, title: str, notes=(), text_columns: int = 1) -> s
     return markdown_table(header, rows, title, notes, align=align, title_style="bold")
 
 
-STYLE_NOTES = ("Savings = (baseline - pEDAS) / baseline of battery energy; reductions likewise. "
-               "Reductions against a baseline of 0 are undefined and left out ([n=...] when fewer).",)
+def _texts(comparison) -> dict:
+    """Title, note and participant title of the tables: the comparison's declared texts, else generic ones."""
+    t = dict(comparison.table)
+    c, tr = comparison.control, comparison.treatment
+    return {"title": t.get("title", "Effects of the comparison by group, mean (median) in %"),
+            "note": t.get("note", f"Reductions = ({c} - {tr}) / {c} per participant. Reductions against a {c} "
+                                  f"value of 0 are undefined and left out ([n=...] when fewer)."),
+            "participant_title": t.get("participant_title", f"KPIs per participant ({c} and {tr} drive)")}
+
+
+def kpi_summary_table(summary: pd.DataFrame) -> pd.DataFrame:
+    """Without a comparison: one row per group and segment, ``<kpi>_mean`` and ``<kpi>_sd`` per declared KPI
+    and n (drives)."""
+    keys = [c for c in summary.columns[:list(summary.columns).index("metric")]]
+    rows = []
+    for key, g in summary.groupby(keys, sort=False):
+        r = dict(zip(keys, key if isinstance(key, tuple) else (key,)))
+        r["n"] = int(g["n"].max())
+        for m in g["metric"]:
+            hit = g[g["metric"] == m].iloc[0]
+            r[f"{m}_mean"], r[f"{m}_sd"] = hit["mean"], hit["sd"]
+        rows.append(r)
+    return pd.DataFrame(rows)
+
+
+def _summary_cells(t: pd.DataFrame) -> tuple[list[str], list[list[str]]]:
+    metrics = [c[:-5] for c in t.columns if c.endswith("_mean")]
+    keys = [c for c in t.columns if c != "n" and not c.endswith(("_mean", "_sd"))]
+    header = [k.capitalize() for k in keys] + ["n"] + [f"{m} mean (SD)" for m in metrics]
+    rows = [[str(r[k]) for k in keys] + [str(int(r["n"]))]
+            + [f"{_fmt(r[f'{m}_mean'], 3)} ({_fmt(r[f'{m}_sd'], 3)})" for m in metrics] for _, r in t.iterrows()]
+    return header, rows
 
 
 def write_tables(result, out_dir: str | Path) -> list[Path]:
-    """Write kpis.csv, per_participant.csv, summary.csv, style_table.{csv,md,tex},
-    participant_table.{csv,md,tex} into ``out_dir``; returns the paths."""
+    """Write kpis.csv and summary.csv into ``out_dir``, and with a comparison per_participant.csv,
+    style_table.{csv,md,tex} and participant_table.{csv,md,tex}, without one kpi_table.{csv,md,tex}; returns the
+    paths."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     written = []
@@ -114,22 +151,33 @@ def write_tables(result, out_dir: str | Path) -> list[Path]:
         p.write_text(text, encoding="utf-8")
         written.append(p)
 
-    def table(stem, frame, cells, title, label, notes=()):
+    def table(stem, frame, cells, title, label, notes=(), text_columns=1):
         """<stem>.csv from the frame, .md and .tex from its cells."""
         frame.to_csv(out / f"{stem}.csv", index=False)
         written.append(out / f"{stem}.csv")
         h, r = cells(frame)
-        put(f"{stem}.md", kpi_markdown(h, r, title, notes))
+        put(f"{stem}.md", kpi_markdown(h, r, title, notes, text_columns))
         put(f"{stem}.tex", latex_table(h, r, title, notes, label))
 
+    comparison = result.spec.comparison
+    if comparison is None:
+        for name, df in (("kpis.csv", result.kpis), ("summary.csv", result.summary)):
+            df.to_csv(out / name, index=False)
+            written.append(out / name)
+        summary = kpi_summary_table(result.summary)
+        table("kpi_table", summary, _summary_cells,
+              f"Objective KPIs per drive, mean (SD) (N = {result.n} participants)", "tab:kpis",
+              text_columns=list(summary.columns).index("n"))
+        return written
     for name, df in (("kpis.csv", result.kpis), ("per_participant.csv", result.per_participant),
                      ("summary.csv", result.summary)):
         df.to_csv(out / name, index=False)
         written.append(out / name)
-    table("style_table", style_table(result.summary), style_cells,
-          f"Objective KPIs by driving style, mean (median) in % (N = {result.n})", "tab:kpi_styles", STYLE_NOTES)
+    texts = _texts(comparison)
+    table("style_table", style_table(result.summary, comparison), lambda t: style_cells(t, comparison),
+          f"{texts['title']} (N = {result.n})", "tab:kpi_styles", (texts["note"],))
     table("participant_table", participant_table(result.per_participant), _participant_cells,
-          "Objective KPIs per participant (w/o = baseline drive, with = pEDAS drive)", "tab:kpi_participants")
+          texts["participant_title"], "tab:kpi_participants")
     return written
 
 

@@ -1,6 +1,8 @@
 """Human renderings (Markdown and LaTeX booktabs) of the acceptance statistics, shaped like the paper's
 Table 3 (descriptives, loadings, alpha, CR, AVE), Table 4 (inter-construct correlations, sqrt(AVE) on the
-diagonal) and Table 5 (hierarchical regressions). Rendered from the same frames `SurveyAnalysis.write` saves.
+diagonal) and Table 5 (hierarchical regressions). Rendered from the same frames `SurveyAnalysis.write` saves; the
+construct labels of Table 3 and the titles of Tables 4 and 5 come from the study (``settings`` of the analysis:
+``construct_labels``, ``table_titles``; :func:`analysis.acceptance.table_titles`).
 
 Table 3 shows, for a retained item, its loading in the final CFA and, for an omitted item, its loading in the
 initial CFA marked with * (as the paper marks items omitted from the analysis); reverse-scored items carry a
@@ -12,11 +14,6 @@ from __future__ import annotations
 from analysis.render import fmt_cell, latex_table, markdown_table
 from analysis.validity import stars
 
-NAMES = {"PU": "Perceived Usefulness (PU)", "PEoU": "Perceived Ease of Use (PEoU)",
-         "ATT": "Attitude toward Behaviour (ATT)", "PBC": "Perceived Behavioural Control (PBC)",
-         "SN": "Subjective Norms (SN)", "BI": "Behavioural Intention (BI)"}
-
-
 def table3_rows(res) -> tuple[list[str], list[list[str]], list[str]]:
     desc = res.descriptives.set_index("item")
     lo = res.loadings
@@ -24,10 +21,11 @@ def table3_rows(res) -> tuple[list[str], list[list[str]], list[str]]:
     fin = lo[lo["stage"] == "final"].set_index("item")
     rel = res.reliability.set_index("construct")
     header = ["Constructs", "Mean", "SD", "λ", "Cα", "CR", "AVE"]
+    labels = res.settings.get("construct_labels", {})
     rows = []
     for c in ini["construct"].unique():
         r = rel.loc[c] if c in rel.index else None
-        rows.append([f"**{NAMES.get(c, c)}**", "", "", "", fmt_cell(r["alpha"]) if r is not None else "",
+        rows.append([f"**{labels.get(c, c)}**", "", "", "", fmt_cell(r["alpha"]) if r is not None else "",
                      fmt_cell(r["cr"]) if r is not None else "", fmt_cell(r["ave"]) if r is not None else ""])
         for item in ini.index[ini["construct"] == c]:
             name = item + ("†" if bool(desc.loc[item, "reversed"]) else "")
@@ -104,8 +102,13 @@ def item_flags_rows(res) -> tuple[list[str], list[list[str]], list[str]]:
 TITLES = {"item_flags": "Item deletion rules of the initial measurement model",
           "table3": "Descriptive statistics, standardized factor loadings, Cronbach's alpha, composite reliability "
                     "and average variance extracted",
-          "table4": "Inter-construct correlation matrix of the TAM and TPB constructs",
-          "table5": "Hierarchical regression analysis on TAM and TPB models"}
+          "table4": "Inter-construct correlation matrix",
+          "table5": "Hierarchical regression analysis"}
+
+
+def title(res, name: str) -> str:
+    """The title of table `name`: the study's (``settings["table_titles"]``) or the generic one of TITLES."""
+    return res.settings.get("table_titles", {}).get(name) or TITLES[name]
 
 
 # the paper's tables in print order, then the item flags; each builder returns (header, rows, notes)
@@ -114,12 +117,13 @@ PAPER_TABLES = ("table3", "table4", "table5")
 FORMATS = ("md", "tex", "csv")
 
 
-def _format(name: str, header, rows, notes, fmt: str) -> str:
+def _format(name: str, header, rows, notes, fmt: str, caption: str = "") -> str:
+    caption = caption or TITLES[name]
     if fmt == "md":
         # bold title and verbatim notes (they carry the * significance marks) as the paper prints them
-        return markdown_table(header, rows, TITLES[name], notes, title_style="bold", notes_style="plain")
+        return markdown_table(header, rows, caption, notes, title_style="bold", notes_style="plain")
     if fmt == "tex":
-        return latex_table(header, rows, TITLES[name], notes, align="l" + "c" * (len(header) - 1))
+        return latex_table(header, rows, caption, notes, align="l" + "c" * (len(header) - 1))
     if fmt == "csv":
         import csv
         import io
@@ -138,7 +142,7 @@ def render_table(res, name: str, fmt: str = "md") -> str:
         raise ValueError(f"unknown table {name!r} (one of {', '.join(TABLES)})")
     if fmt not in FORMATS:
         raise ValueError(f"unknown table format {fmt!r} (one of {', '.join(FORMATS)})")
-    return _format(name, *TABLES[name](res), fmt)
+    return _format(name, *TABLES[name](res), fmt, title(res, name))
 
 
 def render_all(res) -> dict[str, str]:
@@ -148,5 +152,5 @@ def render_all(res) -> dict[str, str]:
     for name, fn in TABLES.items():
         header, rows, notes = fn(res)
         for fmt in FORMATS:
-            out[f"{name}.{fmt}"] = _format(name, header, rows, notes, fmt)
+            out[f"{name}.{fmt}"] = _format(name, header, rows, notes, fmt, title(res, name))
     return out

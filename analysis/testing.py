@@ -3,12 +3,14 @@
 - :func:`kpis_pandas`: the KPIs of :mod:`analysis.kpis` computed again in pandas (vectorised group shifts; same
   definitions, same output columns), independently of the SQL: the cross-check of the SQL in the tests and the
   peer of ``pedas-study bench kpi``.
-- :func:`simulate_responses`: seeded synthetic survey answers. A six-factor population (PU, PEoU, ATT, PBC, SN, BI)
-  with loadings ~0.8, discretised to the 1-5 scale; PEoU3 is generated negatively keyed (raw, as a participant
-  ticks it) and ATT1-ATT5 lean on PU, so the data carry the structure the paper's item deletions respond to. A
-  test fixture, not a reconstruction of the paper's data.
+- :func:`simulate_study_responses` / :func:`simulate_study_participants`: seeded synthetic survey answers and
+  participant attributes for any study: one factor per construct of the study's instrument, loadings ~0.8,
+  discretised to each item's scale, reverse-scored items generated negatively keyed (raw, as a participant ticks
+  them). Test fixtures, not a model of any real survey.
 """
 from __future__ import annotations
+
+import re
 
 import numpy as np
 import pandas as pd
@@ -97,38 +99,105 @@ def kpis_pandas(samples: pd.DataFrame, params: KpiParams | None = None) -> pd.Da
     return out[list(KPI_FIELDS)].reset_index(drop=True)
 
 
-FACTORS = ("PU", "PEoU", "ATT", "PBC", "SN", "BI")
-# Latent correlations loosely shaped like the paper's Table 4.
-PHI = np.array([
-    [1.00, 0.45, 0.75, 0.38, 0.49, 0.62],
-    [0.45, 1.00, 0.33, 0.55, 0.00, 0.31],
-    [0.75, 0.33, 1.00, 0.11, 0.46, 0.40],
-    [0.38, 0.55, 0.11, 1.00, 0.00, 0.50],
-    [0.49, 0.00, 0.46, 0.00, 1.00, 0.35],
-    [0.62, 0.31, 0.40, 0.50, 0.35, 1.00],
-])
+def participant_ids(study, n: int) -> list[str]:
+    """`n` ids in the study's own format: the number at the end of ``id_example`` counted up with its width
+    (``LK-01`` -> LK-01, LK-02, ...; ``P001`` -> P001, P002, ...); each is checked against the id pattern.
+
+    Examples
+    --------
+    >>> from analysis.testing import participant_ids
+    >>> from pedas.paths import REPO_ROOT
+    >>> from study.definition import load
+    >>> participant_ids(load(REPO_ROOT / "studies" / "lane_keeping"), 3)
+    ['LK-01', 'LK-02', 'LK-03']
+    """
+    m = re.fullmatch(r"(.*?)(\d+)(\D*)", study.id_example)
+    if m is None:
+        raise ValueError(f"id example {study.id_example!r} ends in no number to count up")
+    head, digits, tail = m.groups()
+    return [study.validate_id(f"{head}{i:0{len(digits)}d}{tail}") for i in range(1, n + 1)]
 
 
-def simulate_responses(n: int = 40, seed: int = 1, instrument=None, loading: float = 0.8) -> pd.DataFrame:
-    """Wide survey frame (participant_id P001.. + every scaled item, raw 1-5) of `n` synthetic participants."""
+def _thresholds(k: int) -> np.ndarray:
+    """k - 1 cut points on the latent (standard normal) scale for a k-point item: answers lean towards agreement,
+    as acceptance answers usually do (the middle category sits at about -0.3 SD)."""
+    return np.linspace(-2.0, 1.4, k + 1)[1:-1]
+
+
+def simulate_study_responses(study, n: int = 40, seed: int = 1, *, instrument=None, loading: float = 0.8,
+                             phi=0.4, signals: dict[str, dict[str, float]] | None = None,
+                             thresholds=None) -> pd.DataFrame:
+    """Wide survey frame (participant_id + every scaled item of the study's instrument, raw answers as ticked) of
+    `n` synthetic participants with a clean factor structure.
+
+    One latent factor per construct of the instrument (standard normal, correlation `phi`: one number for every
+    pair, or a construct x construct matrix/DataFrame in the instrument's construct order); an item is
+    ``loading * signal + sqrt(1 - loading^2) * noise``, where the signal is its construct's factor or, for an item
+    in `signals`, the weighted sum {construct: weight} of factors; a reverse-scored item is generated negatively
+    keyed (as a participant ticks it). The continuous value is cut into the item's scale_min..scale_max by
+    `thresholds` (default: evenly spaced cut points leaning towards agreement, :func:`_thresholds`).
+    Deterministic for (study, n, seed, options). A test fixture, not a model of any real survey.
+
+    Examples
+    --------
+    >>> from analysis.testing import simulate_study_responses
+    >>> from pedas.paths import REPO_ROOT
+    >>> from study.definition import load
+    >>> data = simulate_study_responses(load(REPO_ROOT / "studies" / "lane_keeping"), 24, seed=7)
+    >>> data.shape, data["participant_id"].iloc[-1], int(data["PE1"].min()) >= 1, int(data["PE1"].max()) <= 7
+    ((24, 13), 'LK-24', True, True)
+    """
     from analysis.scoring import resolve_instrument
 
-    inst = resolve_instrument(instrument)
+    inst = resolve_instrument(study, instrument)
+    factors = list(inst.constructs)
+    if np.isscalar(phi):
+        corr = np.full((len(factors), len(factors)), float(phi))
+        np.fill_diagonal(corr, 1.0)
+    else:
+        corr = np.asarray(phi.loc[factors, factors] if isinstance(phi, pd.DataFrame) else phi, dtype=float)
     rng = np.random.default_rng(seed)
-    eta = rng.multivariate_normal(np.zeros(len(FACTORS)), PHI, size=n)
-    col = {f: k for k, f in enumerate(FACTORS)}
-    out = {"participant_id": [f"P{i + 1:03d}" for i in range(n)]}
+    eta = rng.multivariate_normal(np.zeros(len(factors)), corr, size=n)
+    col = {f: k for k, f in enumerate(factors)}
+    out = {"participant_id": participant_ids(study, n)}
     for c, items in inst.constructs.items():
         for item in items:
-            lam = loading
-            signal = eta[:, col[c]]
-            if c == "ATT" and int(item[3:]) <= 5:  # ATT1-ATT5 share variance with PU
-                signal = 0.5 * eta[:, col[c]] + 0.6 * eta[:, col["PU"]]
-            x = lam * signal + np.sqrt(1 - lam ** 2) * rng.standard_normal(n)
+            weights = (signals or {}).get(item, {c: 1.0})
+            signal = sum(w * eta[:, col[f]] for f, w in weights.items())
+            x = loading * signal + np.sqrt(1 - loading ** 2) * rng.standard_normal(n)
             if item in inst.reverse_items:
                 x = -x
             lo, hi = inst.scale(item)
-            # thresholds placed so answers centre around 4 of 5, like the paper's item means
-            ans = np.digitize(x, [-1.8, -1.0, -0.2, 0.9]) + lo
-            out[item] = np.clip(ans, lo, hi).astype(int)
+            cuts = _thresholds(hi - lo + 1) if thresholds is None else np.asarray(thresholds, float)
+            out[item] = np.clip(np.digitize(x, cuts) + lo, lo, hi).astype(int)
+    return pd.DataFrame(out)
+
+
+def simulate_study_participants(study, n: int = 40, seed: int = 1) -> pd.DataFrame:
+    """participant_id + one column per declared attribute for `n` synthetic participants (the ids of
+    :func:`simulate_study_responses`): a number within min..max drawn around min + 30 % of the range (SD a sixth of
+    it; whole numbers for an integer attribute), a choice drawn uniformly, a text attribute left empty. Seeded by
+    `seed` (its own stream: the answers of the same seed do not change when attributes are added).
+
+    Examples
+    --------
+    >>> from analysis.testing import simulate_study_participants
+    >>> from pedas.paths import REPO_ROOT
+    >>> from study.definition import load
+    >>> p = simulate_study_participants(load(REPO_ROOT / "studies" / "lane_keeping"), 24, seed=7)
+    >>> list(p.columns), bool(p["age"].between(18, 90).all())
+    (['participant_id', 'age', 'gender', 'km_per_year'], True)
+    """
+    rng = np.random.default_rng(np.random.SeedSequence([int(seed), 1]))
+    out: dict[str, list] = {"participant_id": participant_ids(study, n)}
+    for a in study.attributes:
+        if a.type in ("integer", "number"):
+            lo = 0.0 if a.min is None else float(a.min)
+            hi = lo + 100.0 if a.max is None else float(a.max)
+            x = np.clip(rng.normal(lo + 0.3 * (hi - lo), (hi - lo) / 6.0, n), lo, hi)
+            out[a.name] = [int(v) for v in np.round(x)] if a.type == "integer" else [float(v) for v in np.round(x, 1)]
+        elif a.type == "choice":
+            out[a.name] = [str(v) for v in rng.choice(list(a.choices), n)]
+        else:
+            out[a.name] = [None] * n
     return pd.DataFrame(out)

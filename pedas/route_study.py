@@ -215,3 +215,53 @@ def sumo_cycle_start(offset: float) -> float:
     type counts the cycle from `TrafficLight.offset`, so the sign flips (checked against libsumo in the tests).
     """
     return float(offset)
+
+
+# ---------------------------------------------------------------------------------------------- route file
+ROUTE_FILE_HEADER = """The paper's study route (13.2 km: town, on-ramp, highway) as a route file (docs/drive_logs.md).
+Generated from the SUMO network by `python -m pedas.route_study studies/pedas_paper/route.toml`;
+do not edit by hand (tests/test_drive_mapping.py checks that regenerating gives this file).
+Sections: the ego path's lanes merged where limit and segment agree (junction lanes keep the limit of their
+approach), positions in m along the path from the start of lane u01_0 (a SUMO vehicle's position on u01 plus its
+odometer), limits in m/s as in the network;
+lights: stop line and fixed-time plan of the ego's signal; stops: stop lines of the priority_stop junctions."""
+
+
+def route_file_text(net_file: str | Path | None = None) -> str:
+    """The paper's route as the text of a route file (study.route_file format), built from the network."""
+    from study.route_file import Light, Stop, dump_route
+
+    if net_file is None:
+        from pedas.network import build_network
+
+        net_file = build_network()
+    path = ego_path(net_file)
+    route = study_route(net_file)
+    hw_start = next(pl.s0 for pl in path if pl.edge == HIGHWAY_EDGES[0] and not pl.internal)
+    sections: list[list] = []
+    for pl in path:
+        seg = "highway" if pl.s0 >= hw_start else "urban"
+        a, b = round(pl.s0, 3), round(pl.s0 + pl.length, 3)
+        if sections and sections[-1][2] == pl.speed and sections[-1][3] == seg:
+            sections[-1][1] = b
+        else:
+            sections.append([a, b, pl.speed, seg])
+    lights = [Light(tl.tl_id, round(tl.s, 3), tl.phases, tl.offset) for tl in route.lights]
+    stops = [Stop(ss.ss_id, round(ss.s, 3)) for ss in route.stops]
+    return dump_route(route.name, [tuple(x) for x in sections], lights, stops, speed_unit="m/s",
+                      header=ROUTE_FILE_HEADER)
+
+
+def write_route_file(out: str | Path, net_file: str | Path | None = None) -> Path:
+    """Write :func:`route_file_text` to `out`; returns the path."""
+    out = Path(out)
+    out.write_text(route_file_text(net_file), encoding="utf-8")
+    return out
+
+
+if __name__ == "__main__":
+    import sys
+
+    if len(sys.argv) != 2:
+        raise SystemExit("usage: python -m pedas.route_study FILE   (writes the paper's route file to FILE)")
+    print(write_route_file(sys.argv[1]))

@@ -2,21 +2,29 @@
 
 Besides the tables, a wide survey file per instrument (``survey_wide_<instrument>``: one row per participant,
 one column per item, the final answers) is written, because that is the file an analyst opens in SPSS.
-A ``manifest.json`` lists the files, their row counts, the schema version and what was left out.
+``participants`` carries the study's declared attributes as columns (``study.participants.participant_attributes``;
+the long ``participant_attributes`` table is written as well). A ``manifest.json`` lists the files, their row
+counts, the schema version and what was left out.
 
-``.sav`` files carry variable labels (a description per column; the item wording for survey items) and value
-labels. Text enumerations (gender, style, scope, condition, ...) are written as numeric codes 1..k with value
-labels, as SPSS users expect; booleans as 0/1 with labels no/yes.
+``.sav`` files carry variable labels and value labels taken from the store's study: an attribute's ``label``
+(study.toml), a choice attribute written as codes 1..k labelled with its choices, a numeric attribute that a choice
+item of the codebook fills labelled with that item's choices, condition and segment names coded in the order the
+study declares them; a survey item's wording and its anchors or point labels looked up per (instrument, item_id)
+in the ``items`` table, so two instrument versions that reuse an item id keep their own wording. Enumerations
+of the store itself (scope, reason, outcome, ...) are coded 1..k as well; booleans 0/1 with labels no/yes.
 
-``deidentify=True`` keeps only what is needed for analysis under the pseudonymous participant IDs: exact age
-becomes ``age_band`` and licence years ``license_band``; free-text notes, people's names (entered_by,
-actor, ...) and source file names are dropped; the audit log (which repeats exact values), survey link tokens
-and drafts and any table this module does not know are left out (listed in the manifest).
+``deidentify=True`` keeps only what is needed for analysis under the pseudonymous participant IDs: an attribute
+for which study.toml declares bands (``[export.bands]``, e.g. ``age = ["16-24", "25-34", "65+"]``) is written as
+its band (column ``<attribute>_band`` or the declared ``column``) instead of the exact value — attributes without
+declared bands are written as they are; free-text notes, people's names (entered_by, actor, ...) and source file
+names are dropped; the audit log (which repeats exact values), the long attribute table, survey link tokens and
+drafts and any table this module does not know are left out (listed in the manifest).
 """
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+import re
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import pandas as pd
@@ -25,19 +33,14 @@ from study.errors import UserError, check_choice
 
 FORMATS = ("csv", "parquet", "sav")
 
+#: enumerations of the store itself (not of a study): coded 1..k in .sav files
 ENUMS: dict[str, tuple[str, ...]] = {
-    "gender": ("female", "male", "diverse", "undisclosed"),
-    "style": ("cautious", "normal", "sporty"),
     "scope": ("all", "objective", "subjective"),
     "reason": ("motion_sickness", "technical_issue", "incomplete_survey", "withdrawn", "other"),
-    "condition": ("baseline", "pedas"),
     "outcome": ("in_progress", "completed", "aborted"),
-    "segment": ("urban", "highway"),
     "tl_state": ("green", "yellow", "red"),
     "controller": ("rt", "cf", "none"),
     "action": ("insert", "update", "delete"),
-    "age_band": ("16-24", "25-34", "35-44", "45-54", "55-64", "65+"),
-    "license_band": ("0-2", "3-5", "6-10", "11-20", "21+"),
 }
 # `source` means different things in drives and survey_submissions: per table.
 TABLE_ENUMS: dict[str, dict[str, tuple[str, ...]]] = {
@@ -45,22 +48,14 @@ TABLE_ENUMS: dict[str, dict[str, tuple[str, ...]]] = {
     "survey_submissions": {"source": ("web", "import", "entry")},
 }
 NUMERIC_LABELS: dict[str, dict[int, str]] = {
-    "eco_familiarity": {1: "never heard of eco-driving", 2: "heard of it, never used it",
-                        3: "moderately familiar, used a few times", 4: "quite familiar, used occasionally",
-                        5: "uses or used a similar system regularly"},
     "hud_arrow": {-1: "slow down", 0: "keep speed", 1: "speed up"},
 }
 LABELS: dict[str, str] = {
     "participant_id": "Pseudonymous participant ID",
-    "age": "Age (years)",
-    "age_band": "Age band (years)",
-    "gender": "Gender",
-    "license_years": "Years holding a driving licence",
-    "license_band": "Years holding a driving licence (band)",
-    "style": "Self-reported driving style",
-    "eco_familiarity": "Familiarity with eco-driving (1-5)",
     "protocol": "Study protocol",
+    "study_version": "Version of the study definition at registration",
     "created_at": "Recorded at (UTC)",
+    "attribute": "Participant attribute",
     "phase": "Protocol phase",
     "seq": "Position of the phase in the protocol",
     "started_at": "Phase start (UTC)",
@@ -70,7 +65,7 @@ LABELS: dict[str, str] = {
     "scope": "Exclusion scope",
     "reason": "Exclusion reason",
     "drive_id": "Drive ID",
-    "condition": "Drive condition (baseline = no assistance, pedas = with pEDAS)",
+    "condition": "Drive condition",
     "source": "Data source",
     "route": "Route",
     "checksum": "SHA-256 of the drive log",
@@ -121,8 +116,8 @@ DEIDENTIFIED_TABLES = ("participants", "phase_events", "exclusions", "drives", "
                        "items", "responses", "survey_submissions", "survey_resolutions", "order_assignments")
 IDENTIFYING_COLUMNS = ("note", "entered_by", "submitted_by", "resolved_by", "issued_by", "actor", "file_name",
                        "created_by", "email", "phone", "name")
-AGE_BANDS = ((16, 24), (25, 34), (35, 44), (45, 54), (55, 64), (65, 200))
-LICENSE_BANDS = ((0, 2), (3, 5), (6, 10), (11, 20), (21, 200))
+WIDE = "survey_wide_"  # file name prefix of the wide survey file of an instrument
+_BAND = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*(?:-\s*(\d+(?:\.\d+)?)|(\+))\s*$")
 
 
 @dataclass(frozen=True)
@@ -132,24 +127,119 @@ class ExportResult:
     skipped: tuple[str, ...]       # tables left out
 
 
-def _band(values: pd.Series, bands, labels: tuple[str, ...]) -> pd.Series:
-    out = pd.Series([None] * len(values), index=values.index, dtype=object)
-    for (lo, hi), lab in zip(bands, labels):
-        out[(values >= lo) & (values <= hi)] = lab
+@dataclass(frozen=True)
+class Bands:
+    """Declared bands of one numeric attribute: `column` replaces it in a deidentified export; `bands` are
+    (low, high, label) with inclusive bounds (high None = open, "65+")."""
+
+    attribute: str
+    column: str
+    bands: tuple[tuple[float, float | None, str], ...]
+
+    def apply(self, values: pd.Series) -> pd.Series:
+        """The band label of each value (None when missing or in no band)."""
+        num = pd.to_numeric(values, errors="coerce")
+        out = pd.Series([None] * len(values), index=values.index, dtype=object)
+        for lo, hi, label in self.bands:
+            inside = (num >= lo) if hi is None else (num >= lo) & (num <= hi)
+            out[inside.fillna(False).astype(bool)] = label
+        return out
+
+
+@dataclass
+class Vocabulary:
+    """What the .sav files of one store say about its columns (built from the store's study and items)."""
+
+    enums: dict[str, tuple[str, ...]] = field(default_factory=dict)        # text column -> categories 1..k
+    labels: dict[str, str] = field(default_factory=dict)                   # column -> variable label
+    values: dict[str, dict[int, str]] = field(default_factory=dict)        # numeric column -> value labels
+    items: dict[str, tuple[dict[str, str], dict[str, dict[int, str]]]] = field(default_factory=dict)
+    title: str = "study"                                                   # file label prefix
+
+
+def declared_bands(study) -> list[Bands]:
+    """The bands study.toml declares under ``[export.bands]``: ``attr = ["16-24", ..., "65+"]`` or
+    ``attr = { column = "name", bands = [...] }``; a band list that is not ascending and disjoint, or names an
+    attribute that is not numeric -> UserError naming study.toml."""
+    raw = (study.settings.get("export") or {}).get("bands") or {}
+    where = "study.toml: export.bands"
+    if not isinstance(raw, dict):
+        raise UserError(f"{where}: must be a table of attribute = [bands]")
+    out = []
+    for name, spec in raw.items():
+        column, labels = f"{name}_band", spec
+        if isinstance(spec, dict):
+            column, labels = spec.get("column", column), spec.get("bands")
+        try:
+            a = study.attribute(name)
+        except UserError as exc:
+            raise UserError(f"{where}.{name}: {exc}") from None
+        if a.type not in ("integer", "number"):
+            raise UserError(f"{where}.{name}: only a numeric attribute can be banded ({name} is {a.type})")
+        if not isinstance(column, str) or not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]*", column):
+            raise UserError(f"{where}.{name}.column: {column!r} is not a column name")
+        if not isinstance(labels, list) or not labels or not all(isinstance(b, str) for b in labels):
+            raise UserError(f"{where}.{name}: give the bands as a list of texts like \"16-24\" or \"65+\"")
+        bands, prev = [], None
+        for k, b in enumerate(labels):
+            m = _BAND.match(b)
+            if not m or (m.group(3) and k != len(labels) - 1):
+                raise UserError(f"{where}.{name}: {b!r} is not a band (\"LOW-HIGH\", the last may be \"LOW+\")")
+            lo, hi = float(m.group(1)), None if m.group(3) else float(m.group(2))
+            if (hi is not None and hi < lo) or (prev is not None and lo <= prev):
+                raise UserError(f"{where}.{name}: bands must be ascending and must not overlap ({b!r})")
+            prev = hi
+            bands.append((lo, hi, b.strip()))
+        out.append(Bands(name, column, tuple(bands)))
     return out
 
 
-def deidentify_table(table: str, df: pd.DataFrame) -> pd.DataFrame:
-    """The deidentified form of one table (see module docstring)."""
+def _check_study(study, problems) -> None:
+    """`study check` hook: the [export] bands must be usable."""
+    try:
+        declared_bands(study)
+    except UserError as exc:
+        problems.add("study.toml", None, "export.bands", str(exc).split(": ", 2)[-1])
+
+
+def _register() -> None:
+    from study.definition import register_file_check
+
+    register_file_check(_check_study)
+
+
+_register()
+
+
+def _study_of(st):
+    """The store's study, or None for a store without one (its tables are still exported)."""
+    from study.studies import definition
+
+    try:
+        return definition(st)
+    except UserError:
+        return None
+
+
+def participants_frame(st, study) -> pd.DataFrame:
+    """The participants table with one typed column per declared attribute after participant_id."""
+    from study.participants import participant_attributes
+
+    base = st.df("SELECT * FROM participants ORDER BY participant_id")
+    if study is None:
+        return base
+    attrs = participant_attributes(st)
+    return attrs.merge(base, on="participant_id", how="left")[list(attrs.columns) + list(base.columns[1:])]
+
+
+def deidentify_table(table: str, df: pd.DataFrame, bands: list[Bands] | tuple = ()) -> pd.DataFrame:
+    """The deidentified form of one table (see module docstring); `bands` from :func:`declared_bands`."""
     df = df.copy()
     if table == "participants":
-        if "age" in df:
-            df.insert(df.columns.get_loc("age"), "age_band", _band(df["age"], AGE_BANDS, ENUMS["age_band"]))
-            df = df.drop(columns="age")
-        if "license_years" in df:
-            df.insert(df.columns.get_loc("license_years"), "license_band",
-                      _band(df["license_years"], LICENSE_BANDS, ENUMS["license_band"]))
-            df = df.drop(columns="license_years")
+        for b in bands:
+            if b.attribute in df:
+                df.insert(df.columns.get_loc(b.attribute), b.column, b.apply(df[b.attribute]))
+                df = df.drop(columns=b.attribute)
         df = df.drop(columns=[c for c in ("created_at",) if c in df])
     return df.drop(columns=[c for c in IDENTIFYING_COLUMNS if c in df.columns])
 
@@ -163,56 +253,109 @@ def survey_wide(st, instrument: str) -> pd.DataFrame:
 
 def collect(st, deidentify: bool = False) -> tuple[dict[str, pd.DataFrame], tuple[str, ...]]:
     """Frames to export: every table (or the deidentified set) and the wide survey file(s)."""
+    study = _study_of(st)
+    bands = declared_bands(study) if (deidentify and study is not None) else []
     frames: dict[str, pd.DataFrame] = {}
     skipped = []
     for table in st.tables():
         if deidentify and table not in DEIDENTIFIED_TABLES:
             skipped.append(table)
             continue
-        order = " ORDER BY drive_id, idx" if table == "drive_samples" else ""
-        df = st.df(f'SELECT * FROM "{table}"{order}')
-        frames[table] = deidentify_table(table, df) if deidentify else df
+        if table == "participants":
+            df = participants_frame(st, study)
+        else:
+            order = " ORDER BY drive_id, idx" if table == "drive_samples" else ""
+            df = st.df(f'SELECT * FROM "{table}"{order}')
+        frames[table] = deidentify_table(table, df, bands) if deidentify else df
     instruments = [r[0] for r in st.con.execute("SELECT DISTINCT instrument FROM responses ORDER BY 1").fetchall()]
     if not instruments:
         instruments = [r[0] for r in st.con.execute("SELECT instrument FROM instruments ORDER BY 1").fetchall()]
     for ins in instruments:
         try:
-            frames[f"survey_wide_{ins}"] = survey_wide(st, ins)
-        except (ValueError, KeyError):  # a codebook no longer shipped: the long table is still exported
-            skipped.append(f"survey_wide_{ins}")
+            wide = survey_wide(st, ins)
+        except (UserError, ValueError, KeyError):  # a codebook no stored study version declares: the long
+            skipped.append(f"{WIDE}{ins}")         # responses table is still exported
+            continue
+        if deidentify:  # attribute items repeat the participants' exact attributes: those are in participants
+            from study.survey import attribute_items, instrument_of
+
+            wide = wide.drop(columns=[c for c in attribute_items(instrument_of(st, ins)) if c in wide.columns])
+        frames[f"{WIDE}{ins}"] = wide
     return frames, tuple(skipped)
 
 
 # ---------------------------------------------------------------------------------------------- SPSS
-def _item_labels(st) -> tuple[dict[str, str], dict[str, dict[int, str]]]:
-    """Variable labels (item wording) and value labels (scale anchors) of the survey items."""
-    items = st.df("SELECT item_id, text, scale_min, scale_max, anchor_low, anchor_high FROM items")
-    var, val = {}, {}
+def _item_labels(st) -> dict[str, tuple[dict[str, str], dict[str, dict[int, str]]]]:
+    """Per instrument: (variable labels = item wording, value labels = every point's or choice's label when the
+    codebook gives them, else the two anchors of a scale), looked up per (instrument, item_id) in `items`."""
+    from study.instrument import parse_choices
+
+    items = st.df("SELECT instrument, item_id, text, scale_min, scale_max, anchor_low, anchor_high, choices "
+                  "FROM items ORDER BY instrument, position")
+    out: dict[str, tuple[dict[str, str], dict[str, dict[int, str]]]] = {}
     for r in items.itertuples(index=False):
+        var, val = out.setdefault(r.instrument, ({}, {}))
         var[r.item_id] = str(r.text)[:250]
-        if pd.notna(r.scale_min) and pd.notna(r.scale_max):
+        try:
+            labs = parse_choices(r.choices) if isinstance(r.choices, str) else {}
+        except ValueError:
             labs = {}
+        if not labs and pd.notna(r.scale_min) and pd.notna(r.scale_max):
             if isinstance(r.anchor_low, str) and r.anchor_low:
                 labs[int(r.scale_min)] = r.anchor_low
             if isinstance(r.anchor_high, str) and r.anchor_high:
                 labs[int(r.scale_max)] = r.anchor_high
-            if labs:
-                val[r.item_id] = labs
-    return var, val
+        if labs:
+            val[r.item_id] = labs
+    return out
 
 
-def to_spss_frame(table: str, df: pd.DataFrame, item_var: dict[str, str] | None = None,
-                  item_val: dict[str, dict[int, str]] | None = None):
-    """(frame with SPSS-friendly types, variable labels, value labels, measures) for pyreadstat.write_sav."""
+def vocabulary(st) -> Vocabulary:
+    """Labels and codes of the store's study and items for the .sav files (see the module docstring)."""
+    from study.survey import attribute_items
+
+    voc = Vocabulary(enums=dict(ENUMS), labels=dict(LABELS), values=dict(NUMERIC_LABELS), items=_item_labels(st))
+    study = _study_of(st)
+    if study is None:
+        return voc
+    voc.title = study.study_id
+    voc.enums["condition"] = study.condition_names
+    voc.labels["condition"] = ("Drive condition (" + "; ".join(f"{c.name} = {c.label}" for c in study.conditions)
+                               + ")")[:250]
+    if study.text("route") is not None:
+        from study.route_file import study_route
+
+        voc.enums["segment"] = tuple(dict.fromkeys(study_route(study).segments))
+    for a in study.attributes:
+        voc.labels[a.name] = a.label or a.name
+        if a.type == "choice":
+            voc.enums[a.name] = a.choices
+    for b in declared_bands(study):
+        voc.labels[b.column] = f"{voc.labels.get(b.attribute, b.attribute)} (band)"
+        voc.enums[b.column] = tuple(label for _, _, label in b.bands)
+    # a numeric attribute filled by a choice item: that item's choices label the numbers
+    for ins in study.instruments.values():
+        for item, name in attribute_items(ins).items():
+            attr = next((a for a in study.attributes if a.name == name), None)
+            if attr is not None and attr.type in ("integer", "number") and ins.choices(item):
+                voc.values.setdefault(name, ins.choices(item))
+    return voc
+
+
+def to_spss_frame(table: str, df: pd.DataFrame, voc: Vocabulary | None = None, instrument: str | None = None):
+    """(frame with SPSS-friendly types, variable labels, value labels, measures) for pyreadstat.write_sav.
+
+    `instrument` names the instrument of a wide survey frame: its items' labels come from that instrument."""
+    voc = voc or Vocabulary(enums=dict(ENUMS), labels=dict(LABELS), values=dict(NUMERIC_LABELS))
+    item_var, item_val = voc.items.get(instrument, ({}, {})) if instrument else ({}, {})
     out = pd.DataFrame(index=df.index)
     var_labels: dict[str, str] = {}
     val_labels: dict[str, dict] = {}
     measure: dict[str, str] = {}
-    enums = {**ENUMS, **TABLE_ENUMS.get(table, {})}
+    enums = {**voc.enums, **TABLE_ENUMS.get(table, {})}
     for col in df.columns:
         s = df[col]
-        label = (item_var or {}).get(col) if table.startswith("survey_wide") else None
-        var_labels[col] = label or LABELS.get(col, col)
+        var_labels[col] = item_var.get(col) or voc.labels.get(col, col)
         if col in enums and col != "participant_id" and not pd.api.types.is_numeric_dtype(s):
             codes = {v: i for i, v in enumerate(enums[col], start=1)}
             unknown = set(s.dropna().unique()) - set(codes)
@@ -221,7 +364,7 @@ def to_spss_frame(table: str, df: pd.DataFrame, item_var: dict[str, str] | None 
                 continue
             out[col] = s.map(codes).astype("float64")
             val_labels[col] = {float(i): v for v, i in codes.items()}
-            measure[col] = "ordinal" if col in ("age_band", "license_band") else "nominal"
+            measure[col] = "ordinal" if col.endswith("_band") else "nominal"
         elif pd.api.types.is_bool_dtype(s) or (s.dtype == object and s.dropna().map(type).eq(bool).all()
                                                 and s.notna().any()):
             out[col] = s.astype("float64")
@@ -232,11 +375,9 @@ def to_spss_frame(table: str, df: pd.DataFrame, item_var: dict[str, str] | None 
         elif pd.api.types.is_numeric_dtype(s):
             out[col] = s.astype("float64")
             measure[col] = "scale"
-            if col in NUMERIC_LABELS:
-                val_labels[col] = {float(k): v for k, v in NUMERIC_LABELS[col].items()}
-                measure[col] = "ordinal"
-            elif item_val and col in item_val and table.startswith("survey_wide"):
-                val_labels[col] = {float(k): v for k, v in item_val[col].items()}
+            labels = item_val.get(col) if col in item_var else voc.values.get(col)
+            if labels:
+                val_labels[col] = {float(k): v for k, v in labels.items()}
                 measure[col] = "ordinal"
         else:
             out[col] = s.astype(object).where(s.notna(), "").astype(str)
@@ -248,7 +389,7 @@ def _sql_path(path: Path) -> str:
     return str(path).replace("'", "''")
 
 
-def _write(fmt: str, table: str, df: pd.DataFrame, path: Path, item_var, item_val) -> None:
+def _write(fmt: str, table: str, df: pd.DataFrame, path: Path, voc: Vocabulary | None) -> None:
     if fmt == "csv":
         # DuckDB's CSV writer is ~10x faster than pandas' on million-row drive logs
         import duckdb
@@ -265,8 +406,9 @@ def _write(fmt: str, table: str, df: pd.DataFrame, path: Path, item_var, item_va
     else:
         import pyreadstat
 
-        frame, var_labels, val_labels, measure = to_spss_frame(table, df, item_var, item_val)
-        pyreadstat.write_sav(frame, str(path), file_label=f"pEDAS study: {table}"[:64], column_labels=var_labels,
+        instrument = table[len(WIDE):] if table.startswith(WIDE) else None
+        frame, var_labels, val_labels, measure = to_spss_frame(table, df, voc, instrument)
+        pyreadstat.write_sav(frame, str(path), file_label=f"{voc.title}: {table}"[:64], column_labels=var_labels,
                              variable_value_labels=val_labels or None, variable_measure=measure or None)
 
 
@@ -277,13 +419,13 @@ def export(st, fmt: str, outdir: str | Path, deidentify: bool = False) -> Export
     if outdir.exists() and not outdir.is_dir():
         raise UserError(f"{outdir} exists and is not a directory")
     frames, skipped = collect(st, deidentify)
-    item_var, item_val = _item_labels(st) if fmt == "sav" else ({}, {})
+    voc = vocabulary(st) if fmt == "sav" else None
     outdir.mkdir(parents=True, exist_ok=True)
     files: dict[str, int] = {}
     for name, df in frames.items():
         path = outdir / f"{name}.{fmt}"
         tmp = path.with_name(path.name + ".partial")
-        _write(fmt, name, df, tmp, item_var, item_val)
+        _write(fmt, name, df, tmp, voc)
         tmp.replace(path)  # a crash never leaves a half-written file under the final name
         files[path.name] = int(len(df))
     manifest = {"format": fmt, "deidentified": deidentify, "schema_version": st.schema_version,

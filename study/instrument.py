@@ -1,28 +1,30 @@
-"""The survey instrument as data: a versioned codebook (one row per item, in the spirit of a REDCap data
-dictionary) shipped in `study/instruments/<name>_v<N>.csv`.
+"""The survey instrument as data: a codebook CSV in a study folder (one row per item, in the spirit of a REDCap
+data dictionary; docs/study_folder.md).
 
-Columns: item_id, construct, section, text, response_type (likert5 | semantic5 | text | number | choice),
-scale_min, scale_max (inclusive range of a scaled, number or choice item), anchor_low, anchor_high (labels of the
-two scale ends), choices (``code=label|code=label`` for choice items), reverse_scored (0/1), required (0/1: the web
-form refuses to submit without it; an import needs the column), reconstructed (0/1: wording not printed in the
-paper), source (where the wording comes from).
+Columns: item_id, construct, section, text, response_type, scale_min, scale_max (inclusive range of a scaled, number
+or choice item), anchor_low, anchor_high (labels of the two scale ends), choices, reverse_scored (0/1), required (0/1:
+the web form refuses to submit without it; an import needs the column). Optional: attribute (the participant
+attribute the answer fills), reconstructed, source, and any other column (kept, not interpreted).
 
-The socio-demographic block (construct ``DEMO``: AGE, GENDER, LICENSE_YEARS, STYLE, ECO_FAM) is answered with
-integers like every other non-text item: numbers as given, choices as their codes.
+response_type is ``likert``/``likertK`` or ``semantic``/``semanticK`` (a K-point scale, 2 <= K <= 11, K =
+scale_max - scale_min + 1), ``number``, ``choice`` or ``text``. ``choices`` lists ``code=label`` or REDCap's
+``code, label`` pairs separated by ``|``; a Likert item may label every point this way.
 """
 from __future__ import annotations
 
+import io
 import re
 from dataclasses import dataclass
-from functools import cached_property, lru_cache
-from pathlib import Path
+from functools import cached_property
 
 import pandas as pd
 
-INSTRUMENT_DIR = Path(__file__).with_name("instruments")
-DEFAULT_INSTRUMENT = "pedas_acceptance_v1"
-SCALED_TYPES = ("likert5", "semantic5")
+SCALED_KINDS = ("likert", "semantic")
 DEMOGRAPHIC_TYPES = ("number", "choice")
+RESPONSE_TYPE = re.compile(r"^(likert|semantic)(\d+)?$|^(number|choice|text)$")
+MIN_POINTS, MAX_POINTS = 2, 11
+REQUIRED_COLUMNS = ("item_id", "construct", "section", "text", "response_type", "scale_min", "scale_max",
+                    "anchor_low", "anchor_high", "choices", "reverse_scored", "required")
 MAX_TEXT = 5000  # characters kept for one free-text answer
 
 
@@ -45,6 +47,11 @@ class Instrument:
     name: str
     items: pd.DataFrame
 
+    @classmethod
+    def from_csv(cls, name: str, text: str, rel: str = "codebook.csv", problems=None) -> "Instrument":
+        """The instrument of a codebook's CSV text (see :func:`_from_csv`)."""
+        return _from_csv(cls, name, text, rel, problems)
+
     @property
     def version(self) -> str:
         return self.name.rsplit("_v", 1)[-1]
@@ -52,7 +59,7 @@ class Instrument:
     @property
     def scaled_items(self) -> list[str]:
         """Items answered on a numeric scale (Likert and semantic differentials), in order."""
-        return self.items.index[self.items["response_type"].isin(SCALED_TYPES)].tolist()
+        return self.items.index[self.items["response_type"].map(is_scaled)].tolist()
 
     @property
     def text_items(self) -> list[str]:
@@ -89,12 +96,7 @@ class Instrument:
 
     def choices(self, item_id: str) -> dict[int, str]:
         """Code -> label of a choice item (empty for other items)."""
-        raw = str(self.items.loc[item_id, "choices"] or "")
-        out: dict[int, str] = {}
-        for part in filter(None, raw.split("|")):
-            code, _, label = part.partition("=")
-            out[int(code)] = label.strip()
-        return out
+        return parse_choices(str(self.items.loc[item_id, "choices"] or ""))
 
     def parse(self, item_id: str, raw) -> Answer:
         """Validate one raw answer (str, int or None) for `item_id`; '' / None = missing.
@@ -158,16 +160,116 @@ class Instrument:
         return out
 
 
-@lru_cache(maxsize=None)
-def load_instrument(name: str = DEFAULT_INSTRUMENT) -> Instrument:
-    """Load a codebook by name (file stem), e.g. ``load_instrument().constructs['PEoU']``."""
-    path = INSTRUMENT_DIR / f"{name}.csv"
-    if not path.exists():
-        known = ", ".join(sorted(p.stem for p in INSTRUMENT_DIR.glob("*.csv")))
-        raise ValueError(f"unknown instrument {name!r} (known: {known})")
-    items = pd.read_csv(path, dtype=str, keep_default_na=False).set_index("item_id")
+def is_scaled(response_type: str) -> bool:
+    """Likert items and semantic differentials (any number of points)."""
+    return str(response_type).startswith(SCALED_KINDS)
+
+
+def parse_choices(raw: str) -> dict[int, str]:
+    """``1=Female|2=Male`` or REDCap's ``1, Female | 2, Male`` -> {1: 'Female', 2: 'Male'}; ValueError if malformed."""
+    out: dict[int, str] = {}
+    for part in filter(None, (p.strip() for p in str(raw).split("|"))):
+        m = re.fullmatch(r"([+-]?\d+)\s*[=,]\s*(.*)", part, flags=re.S)
+        if not m:
+            raise ValueError(f"choice {part!r} is not 'code=label' or 'code, label'")
+        code = int(m.group(1))
+        if code in out:
+            raise ValueError(f"choice code {code} appears twice")
+        out[code] = m.group(2).strip()
+    return out
+
+
+def _from_csv(cls, name: str, text: str, rel: str = "codebook.csv", problems=None) -> "Instrument":
+    """Parse and check a codebook's text; with `problems` (a list with .add) every problem is added there, else the
+    first raises StudyError. Lines are 1-based lines of the CSV (header = line 1)."""
+    from study.definition import StudyError, _Problems
+
+    own = problems is None
+    problems = _Problems() if own else problems
+    n0 = len(problems)
+    try:
+        items = pd.read_csv(io.StringIO(text), dtype=str, keep_default_na=False)
+    except Exception as exc:  # noqa: BLE001 - any CSV parser error is a problem of the file
+        problems.add(rel, None, "", f"not a readable CSV: {' '.join(str(exc).split())}")
+        if own:
+            raise StudyError(list(problems)) from None
+        return None
+    missing = [c for c in REQUIRED_COLUMNS if c not in items.columns]
+    if missing:
+        problems.add(rel, 1, "", f"missing column(s) {', '.join(missing)}")
+    else:
+        items.columns = [c.strip() for c in items.columns]
+        seen: set[str] = set()
+        for k, row in enumerate(items.to_dict("records")):
+            _check_row(row, k + 2, rel, seen, problems)
+    if len(problems) > n0:
+        if own:
+            raise StudyError(list(problems)[n0:])
+        return None
+    items = items.set_index("item_id")
     for col in ("scale_min", "scale_max"):
         items[col] = pd.to_numeric(items[col].replace("", None)).astype("Int64")
-    for col in ("reverse_scored", "required", "reconstructed"):
+    for col in ("reverse_scored", "required"):
         items[col] = items[col].astype(int)
-    return Instrument(name=name, items=items)
+    if "reconstructed" in items:
+        items["reconstructed"] = items["reconstructed"].replace("", "0").astype(int)
+    return cls(name=name, items=items)
+
+
+def _check_row(row: dict, line: int, rel: str, seen: set, problems) -> None:
+    item = str(row["item_id"]).strip()
+    if not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]*", item):
+        problems.add(rel, line, "item_id", f"{item!r}: use letters, digits and _, starting with a letter")
+    elif item in seen:
+        problems.add(rel, line, "item_id", f"{item!r} appears twice")
+    seen.add(item)
+    where = item or "item_id"
+    kind = str(row["response_type"]).strip()
+    m = RESPONSE_TYPE.match(kind)
+    if not m:
+        problems.add(rel, line, f"{where}.response_type", f"{kind!r} is not likert[K] | semantic[K] | number | "
+                                                          f"choice | text")
+        return
+    if not str(row["text"]).strip():
+        problems.add(rel, line, f"{where}.text", "empty question text")
+    if not str(row["construct"]).strip():
+        problems.add(rel, line, f"{where}.construct", "empty construct (use e.g. DEMO or FEEDBACK for other items)")
+    for col in ("reverse_scored", "required"):
+        if str(row[col]).strip() not in ("0", "1"):
+            problems.add(rel, line, f"{where}.{col}", f"{row[col]!r} is not 0 or 1")
+    lo, hi = str(row["scale_min"]).strip(), str(row["scale_max"]).strip()
+    if kind == "text":
+        if lo or hi:
+            problems.add(rel, line, f"{where}.scale_min", "a text item has no scale")
+        return
+    if not re.fullmatch(r"[+-]?\d+", lo) or not re.fullmatch(r"[+-]?\d+", hi):
+        problems.add(rel, line, f"{where}.scale_min", f"a {kind} item needs whole-number scale_min and scale_max")
+        return
+    lo_i, hi_i = int(lo), int(hi)
+    if hi_i <= lo_i:
+        problems.add(rel, line, f"{where}.scale_max", f"scale_max {hi_i} must exceed scale_min {lo_i}")
+        return
+    try:
+        choices = parse_choices(row["choices"])
+    except ValueError as exc:
+        problems.add(rel, line, f"{where}.choices", str(exc))
+        return
+    if m.group(1):  # Likert / semantic differential
+        points = hi_i - lo_i + 1
+        if not MIN_POINTS <= points <= MAX_POINTS:
+            problems.add(rel, line, f"{where}.scale_max", f"{points} points; a scale has {MIN_POINTS} to "
+                                                          f"{MAX_POINTS}")
+        if m.group(2) and int(m.group(2)) != points:
+            problems.add(rel, line, f"{where}.response_type", f"{kind} but scale_min..scale_max has {points} points")
+        if choices and sorted(choices) != list(range(lo_i, hi_i + 1)):
+            problems.add(rel, line, f"{where}.choices", f"labels must cover every point {lo_i}..{hi_i} or none")
+        if m.group(1) == "semantic" and not (str(row["anchor_low"]).strip() and str(row["anchor_high"]).strip()):
+            problems.add(rel, line, f"{where}.anchor_low", "a semantic differential needs both anchors")
+    elif kind == "choice":
+        if not choices:
+            problems.add(rel, line, f"{where}.choices", "a choice item needs choices")
+        elif min(choices) < lo_i or max(choices) > hi_i:
+            problems.add(rel, line, f"{where}.choices", f"codes must lie within {lo_i}..{hi_i}")
+    if str(row["reverse_scored"]).strip() == "1" and not m.group(1):
+        problems.add(rel, line, f"{where}.reverse_scored", "only a scaled item can be reverse-scored")
+

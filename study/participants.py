@@ -1,89 +1,161 @@
-"""Participants: pseudonymous IDs and the demographics the paper reports (age, gender, licence years,
-self-reported driving style, eco-driving familiarity on the paper's five levels)."""
+"""Participants: pseudonymous ids and the attributes the store's study declares (docs/study_folder.md).
+
+The study (``definition(st)``) fixes the id pattern, the attributes (name, type, range or choices, required) and
+the ``[[checks]]`` over several attributes. A participant is one ``participants`` row (id, protocol, the study
+version it was registered under) plus one ``participant_attributes`` row per attribute with a value, stored as text
+and typed again by the declaration when read (:func:`participant_attributes`).
+"""
 from __future__ import annotations
 
 import re
-from typing import Any
+from typing import Any, Mapping
 
 import pandas as pd
 
-from pedas.vocabulary import STYLES
-from study.errors import UserError, check_choice
+from study.errors import UserError
 
-ID_PATTERN = re.compile(r"^P[0-9]{3,}$")  # ASCII digits only, as the schema's CHECK
-GENDERS = ("female", "male", "diverse", "undisclosed")
-AGE_RANGE = (16, 110)
-
-
-def validate_id(participant_id: str) -> str:
-    if not isinstance(participant_id, str) or not ID_PATTERN.fullmatch(participant_id):
-        raise UserError(f"bad participant id {participant_id!r}: use P followed by at least 3 digits, e.g. P001")
-    return participant_id
+#: pandas dtype of each attribute type in the wide tables (integers keep missing values as <NA>)
+DTYPES = {"integer": "Int64", "number": "float64", "choice": "object", "text": "object"}
+_SQL_TYPES = {"integer": "BIGINT", "number": "DOUBLE", "choice": "VARCHAR", "text": "VARCHAR"}
 
 
-def _int(name: str, value: Any, lo: int, hi: int) -> int | None:
-    if value is None:
-        return None
+def _study(st):
+    from study.studies import definition
+
+    return definition(st)
+
+
+def _as_text(value: Any) -> str:
+    """The stored text of a typed attribute value (read back by the declaration's type)."""
+    if isinstance(value, float):
+        return repr(value)  # shortest text that reads back as the same float
+    return str(value)
+
+
+def typed_attributes(study, attributes: Mapping[str, Any] | None) -> dict[str, Any]:
+    """{name: typed value} of every declared attribute (None when not given) after checking each value, the
+    required attributes and the study's checks; any problem -> UserError (one line)."""
+    given = dict(attributes or {})
+    values: dict[str, Any] = {a.name: None for a in study.attributes}
+    for name, raw in given.items():
+        values[study.attribute(name).name] = study.attribute(name).parse(raw)
+    missing = [a.name for a in study.attributes if a.required and values[a.name] is None]
+    if missing:
+        raise UserError(f"{', '.join(missing)} {'is' if len(missing) == 1 else 'are'} required "
+                        f"(study {study.study_id})")
+    run_checks(study, values)
+    return values
+
+
+def run_checks(study, values: dict[str, Any]) -> None:
+    """Evaluate the study's [[checks]] with DuckDB over one row of typed values. A check that is false refuses
+    the values with its message; NULL (a value it needs is missing) passes, as in a SQL CHECK constraint."""
+    if not study.checks:
+        return
+    import duckdb
+
+    attrs = study.attributes
+    cols = ", ".join(f'CAST(? AS {_SQL_TYPES[a.type]}) AS "{a.name}"' for a in attrs) or "NULL AS _none"
+    params = [values.get(a.name) for a in attrs]
+    # a connection of its own: an error inside the store's transaction would abort that transaction
+    con = duckdb.connect()
     try:
-        iv = int(value)
-    except (TypeError, ValueError):
-        raise UserError(f"{name} must be a whole number, not {value!r}") from None
-    if iv != value and not isinstance(value, str):
-        raise UserError(f"{name} must be a whole number, not {value!r}")
-    if not lo <= iv <= hi:
-        raise UserError(f"{name} must be between {lo} and {hi}, not {iv}")
-    return iv
+        for c in study.checks:
+            try:
+                ok = con.execute(f"SELECT CAST(({c.sql}) AS BOOLEAN) FROM (SELECT {cols}) AS p", params).fetchone()[0]
+            except duckdb.Error as exc:
+                raise UserError(f"check {c.sql!r} of study {study.study_id} failed: {' '.join(str(exc).split())}") \
+                    from None
+            if ok is False:
+                used = [a.name for a in attrs if re.search(rf"\b{re.escape(a.name)}\b", c.sql)]
+                shown = ", ".join(f"{n} {values[n]}" for n in used if values.get(n) is not None)
+                raise UserError(f"{c.message}" + (f" ({shown})" if shown else ""))
+    finally:
+        con.close()
 
 
-def _choice(name: str, value: str | None, allowed: tuple[str, ...]) -> str | None:
-    return None if value is None else check_choice(name, value, allowed)
+def add_participant(st, participant_id: str, attributes: Mapping[str, Any] | None = None,
+                    protocol: str | None = None, **named: Any) -> dict[str, Any]:
+    """Register a participant of the store's study (audited, one transaction); returns the participants row plus
+    the typed attribute values.
 
+    `attributes` maps declared attribute names to raw values (text or numbers, parsed by the declaration);
+    keyword arguments (``age=30, style="normal"``) are attributes too, and a keyword given as None is ignored.
+    `protocol` is one of the study's protocols (default: the first declared). A bad id, an unknown attribute, a
+    value out of range, a missing required attribute, a failed check, an unknown protocol or an id already
+    registered -> UserError; nothing is stored then.
+    """
+    from study.studies import version
 
-def add_participant(st, participant_id: str, age: int | None = None, gender: str | None = None,
-                    license_years: int | None = None, style: str | None = None,
-                    eco_familiarity: int | None = None, protocol: str | None = None) -> dict[str, Any]:
-    """Register a participant (audited); returns the stored row. Duplicate or invalid values -> UserError."""
-    from study.protocol import load_protocol
-
-    row: dict[str, Any] = {
-        "participant_id": validate_id(participant_id),
-        "age": _int("age", age, *AGE_RANGE),
-        "gender": _choice("gender", gender, GENDERS),
-        "license_years": _int("license years", license_years, 0, 95),
-        "style": _choice("style", style, STYLES),
-        "eco_familiarity": _int("eco familiarity", eco_familiarity, 1, 5),
-    }
-    if row["age"] is not None and row["license_years"] is not None and row["license_years"] > row["age"] - 16:
-        raise UserError(f"license years {row['license_years']} impossible at age {row['age']} (licence from 16)")
-    if protocol is not None:
-        row["protocol"] = load_protocol(protocol).name
+    study = _study(st)
+    study.validate_id(participant_id)
+    raw = dict(attributes or {})
+    for name, value in named.items():
+        if value is None:
+            continue
+        if name in raw:
+            raise UserError(f"attribute {name} given twice")
+        raw[name] = value
+    values = typed_attributes(study, raw)
+    proto = study.protocol(protocol).name
     with st.transaction():
         if st.one("SELECT 1 FROM participants WHERE participant_id = ?", [participant_id]):
             raise UserError(f"participant {participant_id} already exists")
-        return st.insert("participants", row)
+        row = st.insert("participants", {"participant_id": participant_id, "protocol": proto,
+                                         "study_version": version(st)})
+        for name, value in values.items():
+            if value is not None:
+                st.insert("participant_attributes", {"participant_id": participant_id, "attribute": name,
+                                                     "value": _as_text(value)})
+    return {**row, **values}
 
 
 def require(st, participant_id: str) -> None:
     """UserError unless the participant is registered."""
-    validate_id(participant_id)
-    if not st.one("SELECT 1 FROM participants WHERE participant_id = ?", [participant_id]):
+    if not isinstance(participant_id, str) or not st.one(
+            "SELECT 1 FROM participants WHERE participant_id = ?", [participant_id]):
         raise UserError(f"unknown participant {participant_id}")
 
 
-def list_participants(st) -> pd.DataFrame:
-    """Participants with their protocol position and exclusions, one row each, ordered by ID.
+def participant_attributes(st, ids: list[str] | None = None) -> pd.DataFrame:
+    """One row per participant (ordered by id; only `ids` when given): participant_id and one column per declared
+    attribute, typed by its declaration (integer -> Int64, number -> float, choice/text -> str, missing -> NA).
+    Stored values of attributes the study no longer declares are not shown."""
+    study = _study(st)
+    people = st.df("SELECT participant_id FROM participants ORDER BY participant_id")["participant_id"].tolist()
+    if ids is not None:
+        wanted = set(ids)
+        people = [p for p in people if p in wanted]
+    out = pd.DataFrame({"participant_id": pd.Series(people, dtype=object)})
+    long = st.df("SELECT participant_id, attribute, value FROM participant_attributes")
+    for a in study.attributes:
+        vals = long[long["attribute"] == a.name].set_index("participant_id")["value"].reindex(people)
+        if a.type == "integer":
+            col = pd.to_numeric(vals, errors="coerce").round().astype("Int64")
+        elif a.type == "number":
+            col = pd.to_numeric(vals, errors="coerce").astype(float)
+        else:
+            col = vals.astype(object).where(vals.notna(), None)
+        out[a.name] = col.reset_index(drop=True).astype(DTYPES[a.type])
+    return out
 
-    Columns: participant_id, age, gender, license_years, style, eco_familiarity, protocol, phase (last
-    phase entered), phase_outcome, excluded (comma-separated scopes, '' when none), created_at.
+
+def list_participants(st) -> pd.DataFrame:
+    """Participants with their attributes, protocol position and exclusions, one row each, ordered by id.
+
+    Columns: participant_id, one per declared attribute (typed as :func:`participant_attributes`), protocol,
+    phase (last phase entered), phase_outcome, excluded (comma-separated scopes, '' when none), created_at.
     """
-    return st.df("""
+    base = st.df("""
         WITH last AS (
             SELECT participant_id, arg_max(phase, seq) AS phase, arg_max(outcome, seq) AS phase_outcome
             FROM phase_events GROUP BY participant_id),
         exc AS (
             SELECT participant_id, string_agg(scope, ',' ORDER BY scope) AS excluded
             FROM exclusions GROUP BY participant_id)
-        SELECT p.participant_id, p.age, p.gender, p.license_years, p.style, p.eco_familiarity, p.protocol,
-               last.phase, last.phase_outcome, coalesce(exc.excluded, '') AS excluded, p.created_at
+        SELECT p.participant_id, p.protocol, last.phase, last.phase_outcome,
+               coalesce(exc.excluded, '') AS excluded, p.created_at
         FROM participants p LEFT JOIN last USING (participant_id) LEFT JOIN exc USING (participant_id)
         ORDER BY p.participant_id""")
+    attrs = participant_attributes(st)
+    return attrs.merge(base, on="participant_id", how="left")[list(attrs.columns) + list(base.columns[1:])]

@@ -1,8 +1,9 @@
 """The study protocol as data, and recording a participant's way through it.
 
-A protocol is a versioned JSON file ``study/protocols/<name>.json`` with an ordered list of ``phases`` (each a
-``name``, ``planned_minutes``, whether it is a ``drive`` and for which ``condition``). Extra keys are kept in
-:attr:`Phase.extra` / :attr:`Protocol.extra` so that newer files load in older code.
+A protocol is a JSON file of a study folder (declared in its ``study.toml``, docs/study_folder.md) with an ordered
+list of ``phases`` (each a ``name``, ``planned_minutes``, whether it is a ``drive`` and for which ``condition`` of
+the study). Extra keys are kept in :attr:`Phase.extra` / :attr:`Protocol.extra` so that newer files load in
+older code. The store's protocols come from its stored study: :func:`load_protocol`.
 
 Semantics of the phase log (table ``phase_events``, one row per phase a participant entered):
 
@@ -10,7 +11,7 @@ Semantics of the phase log (table ``phase_events``, one row per phase a particip
   (the first phase for a new participant); anything else is refused as out of order. A phase still in
   progress is completed at the moment the next one starts.
 * :func:`abort` ends the phase in progress with outcome ``aborted`` and a reason (e.g. motion sickness).
-  The participant may still advance afterwards (a technical issue in the pEDAS drive does not stop the survey)
+  The participant may still advance afterwards (a technical issue in one drive need not stop the survey)
   unless excluded with scope ``all``: such a participant's protocol is closed.
 * :func:`complete` ends the phase in progress with outcome ``completed`` without starting another (the end of
   the last phase, or a stop after an aborted drive).
@@ -20,17 +21,12 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
-from functools import lru_cache
-from pathlib import Path
 from typing import Any
 
 import pandas as pd
 
 from study.audit_trail import utcnow
 from study.errors import UserError
-
-PROTOCOL_DIR = Path(__file__).with_name("protocols")
-DEFAULT_PROTOCOL = "paper_v1"
 
 
 @dataclass(frozen=True)
@@ -66,24 +62,44 @@ class Protocol:
         return self.phases.index(self.phase(name).name)
 
 
-@lru_cache(maxsize=None)
-def load_protocol(name: str = DEFAULT_PROTOCOL) -> Protocol:
-    """Load ``study/protocols/<name>.json`` (unknown keys are kept, not refused)."""
-    path = PROTOCOL_DIR / f"{name}.json"
-    if not path.exists():
-        known = ", ".join(sorted(p.stem for p in PROTOCOL_DIR.glob("*.json")))
-        raise UserError(f"unknown protocol {name!r} (known: {known})")
-    data = json.loads(path.read_text(encoding="utf-8"))
+def parse_protocol(text: str, rel: str = "protocol.json") -> Protocol:
+    """Parse a protocol file's JSON text (unknown keys are kept, not refused); a problem -> UserError naming `rel`."""
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise UserError(f"{rel}:{exc.lineno}: not valid JSON: {exc.msg}") from None
+    if not isinstance(data, dict) or not isinstance(data.get("name"), str):
+        raise UserError(f"{rel}: a protocol is a JSON object with a name and phases")
+    name = data["name"]
     steps = []
     for raw in data.get("phases", []):
         raw = {"name": raw} if isinstance(raw, str) else dict(raw)
         known = {k: raw.pop(k) for k in ("name", "planned_minutes", "drive", "condition") if k in raw}
+        if not isinstance(known.get("name"), str):
+            raise UserError(f"{rel}: every phase needs a name")
+        pm = known.get("planned_minutes")
+        if pm is not None and (isinstance(pm, bool) or not isinstance(pm, (int, float)) or pm < 0):
+            raise UserError(f"{rel}: phase {known['name']}: planned_minutes must be a number >= 0")
         steps.append(Phase(extra=raw, **known))
     names = [s.name for s in steps]
     if not names or len(set(names)) != len(names):
-        raise UserError(f"protocol {name}: phases must be a non-empty list of distinct names")
+        raise UserError(f"{rel}: phases must be a non-empty list of distinct names")
     extra = {k: v for k, v in data.items() if k not in ("name", "version", "phases")}
-    return Protocol(name=data.get("name", name), steps=tuple(steps), version=data.get("version"), extra=extra)
+    proto = Protocol(name=name, steps=tuple(steps), version=data.get("version"), extra=extra)
+    from study.scheduling import protocol_orders  # checks that every order lists each phase once
+
+    try:
+        protocol_orders(proto)
+    except UserError as exc:
+        raise UserError(f"{rel}: {exc}") from None
+    return proto
+
+
+def load_protocol(st, name: str | None = None) -> Protocol:
+    """A protocol of the store's study (`name` None = its default protocol); unknown name -> UserError."""
+    from study.studies import definition
+
+    return definition(st).protocol(name)
 
 
 def protocol_of(st, participant_id: str) -> Protocol:

@@ -3,7 +3,8 @@
 Times of appointments are the lab's local wall-clock time (naive datetimes), the way a lab books a slot; the calendar
 export writes them as floating local times (RFC 5545 §3.3.5), so a calendar shows them at the same clock time.
 
-A slot lasts the protocol's planned duration (sum of its phases' ``planned_minutes``) plus a buffer (default
+A slot lasts the planned duration of the participant's protocol (sum of its phases' ``planned_minutes``, as the
+study's protocol file declares them) plus a buffer (default
 :data:`DEFAULT_BUFFER_MINUTES`) for set-up, briefing and cleaning the simulator. Two booked slots on the same
 simulator must not overlap; a participant holds at most one booked slot; excluded participants are not booked.
 
@@ -111,7 +112,7 @@ def _check_free(st, simulator: str, start: datetime, end: datetime, ignore: int 
 def participant_protocol(st, participant_id: str) -> Protocol:
     """The protocol of a participant in the order assigned to them (the file's order when none is assigned)."""
     p = _participant(st, participant_id)
-    proto = load_protocol(p["protocol"])
+    proto = load_protocol(st, p["protocol"])
     order = st.one("SELECT order_name FROM order_assignments WHERE participant_id = ?", [participant_id])
     return ordered_protocol(proto, order) if order else proto
 
@@ -119,7 +120,7 @@ def participant_protocol(st, participant_id: str) -> Protocol:
 # ---------------------------------------------------------------------------------------------- assignment
 def order_counts(st, protocol: str) -> pd.DataFrame:
     """Per order of `protocol`: assigned, dropped_out and active (= assigned − dropped out) participants."""
-    orders = list(protocol_orders(load_protocol(protocol)))
+    orders = list(protocol_orders(load_protocol(st, protocol)))
     df = st.df("""
         SELECT a.order_name,
                count(*) AS assigned,
@@ -163,7 +164,7 @@ def assign_order(st, participant_id: str) -> str:
 def ensure_order(st, participant_id: str) -> str | None:
     """Assign an order if the participant's protocol has several and none is assigned yet; returns the order."""
     p = _participant(st, participant_id)
-    if len(protocol_orders(load_protocol(p["protocol"]))) < 2:
+    if len(protocol_orders(load_protocol(st, p["protocol"]))) < 2:
         return None
     return assign_order(st, participant_id)
 
@@ -186,8 +187,11 @@ def book(st, participant_id: str, at: str | datetime, simulator: str = DEFAULT_S
     if not simulator:
         raise UserError("a simulator name is required")
     p = _participant(st, participant_id)
-    proto = load_protocol(p["protocol"])
-    end = start + timedelta(minutes=planned_minutes(proto) + buffer_minutes)
+    proto = load_protocol(st, p["protocol"])
+    minutes = planned_minutes(proto) + buffer_minutes
+    if minutes <= 0:
+        raise UserError(f"protocol {proto.name} plans no minutes; give a buffer to book a slot")
+    end = start + timedelta(minutes=minutes)
     with st.transaction():
         excluded = _exclusion(st, participant_id)
         if excluded:
@@ -253,7 +257,8 @@ def day_agenda(st, day: str | date, simulator: str | None = None) -> pd.DataFram
 
 
 def to_ics(st, include_closed: bool = False) -> bytes:
-    """RFC 5545 calendar: one VEVENT per appointment (booked ones, or all with `include_closed`); pseudonymous IDs only."""
+    """RFC 5545 calendar: one VEVENT per appointment (booked ones, or all with `include_closed`); pseudonymous IDs
+    only."""
     from icalendar import Calendar, Event
 
     cal = Calendar()

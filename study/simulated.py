@@ -1,35 +1,65 @@
 """Simulated drives in the store: who is simulated, how a simulated drive is stored and its one-line summary.
 
 Virtual participants drive the study route in SUMO traffic (:mod:`pedas.cohort`); their logs go through the
-drive import (:func:`study.drives.import_drive_frame`, source 'simulation') like a lab's logs.
+drive import (:func:`study.drives.import_drive_frame`, source 'simulation') like a lab's logs. The simulator drives
+its own conditions and driving styles (:mod:`pedas.vocabulary`): a study can be simulated when it declares those
+conditions; a participant's ``style`` attribute (when the study declares one) chooses the virtual driver.
 """
 from __future__ import annotations
 
 import pandas as pd
 
+from study.errors import UserError
+
+#: the route every simulated drive is stored with (the simulator's 13.2 km study route; its route file's name)
 ROUTE_NAME = "study-13.2km"
 
 
-def participants_to_simulate(st, ids: list[str] | None = None) -> pd.DataFrame:
-    """participant_id and style of the given participants (all when `ids` is None), sorted by ID; UserError for
-    an unknown ID."""
-    from study.participants import require
+def check_simulable(study) -> None:
+    """UserError unless `study` declares every condition the simulator drives (pedas.vocabulary.CONDITIONS)."""
+    from pedas.vocabulary import CONDITIONS
 
+    missing = [c for c in CONDITIONS if c not in study.condition_names]
+    if missing:
+        raise UserError(f"study {study.study_id} cannot be simulated: the simulator drives the conditions "
+                        f"{', '.join(CONDITIONS)}; the study declares {', '.join(study.condition_names)}")
+
+
+def participants_to_simulate(st, ids: list[str] | None = None) -> pd.DataFrame:
+    """participant_id and style of the given participants (all when `ids` is None), sorted by ID.
+
+    The style is the participant attribute ``style`` (study.participants.participant_attributes); None when the
+    study declares no such attribute or the participant has no value (simulated as 'normal'). An unknown ID, a
+    study whose conditions the simulator does not drive, or a style the simulator does not know -> UserError.
+    """
+    from pedas.vocabulary import STYLES
+    from study.participants import participant_attributes, require
+    from study.studies import definition
+
+    check_simulable(definition(st))
     if ids is not None:
         for pid in ids:
             require(st, pid)
-    df = st.df("SELECT participant_id, style FROM participants ORDER BY participant_id")
-    if ids is not None:
-        df = df[df["participant_id"].isin(ids)]
-    return df.reset_index(drop=True)
+    attrs = participant_attributes(st, ids)
+    styles = attrs["style"] if "style" in attrs.columns else pd.Series([None] * len(attrs), dtype=object)
+    styles = [s if isinstance(s, str) and s else None for s in styles]
+    for pid, style in zip(attrs["participant_id"], styles):
+        if style is not None and style not in STYLES:
+            raise UserError(f"{pid}: the simulator has no driving style {style!r} ({'|'.join(STYLES)})")
+    return pd.DataFrame({"participant_id": pd.Series(list(attrs["participant_id"]), dtype=object),
+                         "style": pd.Series(styles, dtype=object)})
 
 
 def drive_settings(df: pd.DataFrame, task) -> dict:
     """The settings stored with a simulated drive: the drive loop's own (without its machine-dependent wall time),
-    the participant seed, the style and the route."""
+    the participant seed, the style, the route, and where its battery power comes from (the simulator's vehicle
+    model, pedas.params.LEAF)."""
+    from study.drives import ENERGY_MODELS
+
     info = dict(df.attrs.get("drive", {}))
     info.pop("wall_s", None)
-    info.update({"participant_seed": task.seed, "style": task.style, "route": ROUTE_NAME})
+    info.update({"participant_seed": task.seed, "style": task.style, "route": ROUTE_NAME,
+                 "energy_source": f"modelled ({ENERGY_MODELS['nissan_leaf']})"})
     return info
 
 

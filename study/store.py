@@ -4,8 +4,8 @@ survey answers and the audit trail.
     from study.store import Store
     with Store.open("data/study.duckdb", actor="alice") as st:
         with st.transaction():                       # all or nothing
-            st.insert("participants", {"participant_id": "P001", "age": 30})
-            st.update("participants", {"participant_id": "P001"}, {"style": "normal"})
+            st.insert("participants", {"participant_id": "P001", "protocol": "paper_v1"})
+            st.update("participants", {"participant_id": "P001"}, {"protocol": "counterbalanced_v1"})
         st.df("SELECT * FROM participants")
 
 Every :meth:`Store.insert`, :meth:`Store.update` and :meth:`Store.delete` writes an ``audit_log`` row in the same
@@ -24,8 +24,6 @@ import duckdb
 
 from study import audit_trail, migrate
 from study.errors import UserError
-
-INSTRUMENT_DIR = Path(__file__).with_name("instruments")
 
 
 def _one_line(exc: BaseException) -> str:
@@ -68,8 +66,6 @@ class Store:
                 migrate.check_not_newer(con)
             st = cls(con, path, audit_trail.resolve_actor(actor), read_only)
             st.applied = [m.version for m in applied]  # migrations applied by this open (for `init`)
-            if not read_only:
-                st._load_instruments()
         except BaseException:
             con.close()
             raise
@@ -301,55 +297,3 @@ class Store:
     def _writable(self) -> None:
         if self.read_only:
             raise UserError(f"store {self.path} is open read-only")
-
-    def _load_instruments(self) -> None:
-        """Load the shipped survey codebooks into instruments/items (reference data, not audited).
-
-        A new codebook is inserted whole; items added to a known codebook are appended (existing item rows are
-        never rewritten: a changed wording is a new instrument version).
-        """
-        paths = sorted(INSTRUMENT_DIR.glob("*.csv"))
-        if not paths:
-            return
-        have = dict(self.con.execute("SELECT i.instrument, count(t.item_id) FROM instruments i "
-                                     "LEFT JOIN items t USING (instrument) GROUP BY i.instrument").fetchall())
-        from study.instrument import load_instrument
-
-        todo = []
-        for p in paths:
-            ins = load_instrument(p.stem)
-            if have.get(ins.name, -1) < len(ins.items):
-                todo.append(ins)
-        if not todo:
-            return
-        with self.transaction():
-            for ins in todo:
-                items = ins.items.reset_index()
-                if ins.name not in have:
-                    self.con.execute("INSERT INTO instruments (instrument, version, n_items, loaded_at) "
-                                     "VALUES (?, ?, ?, ?)", [ins.name, ins.version, len(items), audit_trail.utcnow()])
-                else:
-                    self.con.execute("UPDATE instruments SET n_items = ? WHERE instrument = ?",
-                                     [len(items), ins.name])
-                known = {r[0] for r in self.con.execute("SELECT item_id FROM items WHERE instrument = ?",
-                                                        [ins.name]).fetchall()}
-                cols = [c for c in self.columns("items") if c in items.columns and c != "instrument"]
-                for pos, r in enumerate(items.to_dict("records"), start=1):
-                    if r["item_id"] in known:
-                        continue
-                    vals = {c: _codebook_value(c, r[c]) for c in cols}
-                    vals.update(instrument=ins.name, position=pos)
-                    names = ", ".join(f'"{c}"' for c in vals)
-                    self.con.execute(f"INSERT INTO items ({names}) VALUES ({', '.join('?' for _ in vals)})",
-                                     list(vals.values()))
-
-
-def _codebook_value(column: str, value: Any) -> Any:
-    """A codebook cell as stored: empty text -> NULL, 0/1 flags -> bool, scale bounds -> int."""
-    if value is None or (isinstance(value, str) and value.strip() == ""):
-        return None
-    if column in ("reverse_scored", "required"):
-        return bool(int(value))
-    if column in ("scale_min", "scale_max"):
-        return int(float(value))
-    return value

@@ -11,6 +11,9 @@ Entry rounds (the `responses.entry_round` column):
 :func:`final_responses` applies exactly this rule (resolution > agreed double entry; single entry as is) and
 leaves out participants whose answers are not final yet (second entry missing or a discrepancy unresolved).
 
+The instrument is the store's study's (:func:`instrument_of`; an earlier stored version by name). Items with an
+`attribute` in the codebook fill participant attributes instead of `responses` (:func:`_fill_attributes`).
+
 Missing answers are NULL, never 0. Every write of research data goes through the audited Store API; web drafts
 are not research data until submitted and are not audited. The caller serialises access to a Store shared
 between threads (the web app holds a lock around every call).
@@ -18,6 +21,7 @@ between threads (the web app holds a lock around every call).
 from __future__ import annotations
 
 import hashlib
+import json
 import re
 import secrets
 from contextlib import contextmanager
@@ -29,18 +33,10 @@ import pandas as pd
 from study import audit_trail
 from study.audit_trail import utcnow
 from study.errors import UserError
-from study.instrument import DEFAULT_INSTRUMENT, Answer, Instrument, load_instrument
+from study.instrument import Answer, Instrument
 
 WEB_ENTERED_BY = "participant"  # `responses.entered_by` of answers the participant gave on the web form
-DEMO = "DEMO"                   # construct of the socio-demographic block (kept on the participants row)
-# socio-demographic item -> participants column; choice codes -> the participants table's categories
-DEMOGRAPHIC_FIELDS = {"AGE": "age", "GENDER": "gender", "LICENSE_YEARS": "license_years", "STYLE": "style",
-                      "ECO_FAM": "eco_familiarity"}
-DEMOGRAPHIC_CODES = {"GENDER": {1: "female", 2: "male", 3: "diverse", 4: "undisclosed"},
-                     "STYLE": {1: "cautious", 2: "normal", 3: "sporty"}}
-MIN_LICENSE_AGE = 16  # the store refuses license_years > age - 16 (participants CHECK)
 _TOKEN = re.compile(r"^[A-Za-z0-9_-]{43}$")  # secrets.token_urlsafe(32)
-PARTICIPANT_ID_RE = re.compile(r"^P[0-9]{3,}$")  # as the participants table CHECK
 
 
 class SubmittedError(UserError):
@@ -64,10 +60,52 @@ class Link:
     submitted: bool
 
 
-# ---------------------------------------------------------------------------------------------- helpers
+# ---------------------------------------------------------------------------------------------- instruments
+def instrument_of(st, name: str | None = None) -> Instrument:
+    """The store's instrument `name` (None = the study's current one).
+
+    An instrument an earlier stored version of the study declared (e.g. ``..._v1`` after ``[instrument] version``
+    became 2) is found in that version's stored files: answers stay tied to the version they were given on.
+    Unknown name -> UserError listing the study's instruments.
+    """
+    from study.definition import StudyError, from_files
+    from study.studies import definition
+
+    study = definition(st)
+    if name is None or name in study.instruments:
+        return study.instrument(name)
+    cache = st.__dict__.setdefault("_earlier_instruments", {})
+    if name not in cache:
+        for files in st.df("SELECT files FROM study_definitions ORDER BY version DESC")["files"]:
+            try:
+                old = from_files(json.loads(files))
+            except StudyError:  # an old version the current checks no longer accept: its codebook is not offered
+                continue
+            if name in old.instruments:
+                cache[name] = old.instruments[name]
+                break
+    return cache[name] if name in cache else study.instrument(name)
+
+
+def attribute_items(ins: Instrument) -> dict[str, str]:
+    """{item_id: participant attribute} of the items whose answer fills a participant attribute (the codebook's
+    optional `attribute` column), in questionnaire order."""
+    if "attribute" not in ins.items.columns:
+        return {}
+    col = ins.items["attribute"].fillna("").astype(str).str.strip()
+    return {item: name for item, name in col.items() if name}
+
+
 def response_items(ins: Instrument) -> list[str]:
-    """Items whose answers go to `responses` (everything but the socio-demographic block), in order."""
-    return [i for i in ins.items.index if ins.items.loc[i, "construct"] != DEMO]
+    """Items whose answers go to `responses` (every item that does not fill a participant attribute), in order."""
+    filled = attribute_items(ins)
+    return [i for i in ins.items.index if i not in filled]
+
+
+def _study(st):
+    from study.studies import definition
+
+    return definition(st)
 
 
 @contextmanager
@@ -86,8 +124,7 @@ def participant_exists(st, participant_id: str) -> bool:
 
 
 def _require_participant(st, participant_id: str) -> None:
-    if not PARTICIPANT_ID_RE.match(str(participant_id)):
-        raise UserError(f"participant id {participant_id!r} is not of the form P001")
+    _study(st).validate_id(participant_id)
     if not participant_exists(st, participant_id):
         raise UserError(f"unknown participant {participant_id} (add it first: pedas-study participant add "
                         f"{participant_id})")
@@ -102,6 +139,9 @@ def parse_answers(ins: Instrument, answers: Mapping[str, Any], items: list[str] 
     out: dict[str, Answer] = {}
     for item, raw in answers.items():
         if item not in allowed:
+            if item in ins.items.index and item in attribute_items(ins):
+                raise UserError(f"item {item} fills the participant attribute {attribute_items(ins)[item]}: record "
+                                f"it on the participant (pedas-study participant add ID --attr NAME=VALUE)")
             raise UserError(f"unknown item {item!r} for instrument {ins.name}")
         try:
             out[item] = ins.parse(item, raw)
@@ -119,18 +159,99 @@ def _rows_to_answers(df: pd.DataFrame) -> dict[str, Answer]:
     return out
 
 
+# ---------------------------------------------------------------------------------------------- attributes
+def attribute_value(ins: Instrument, item: str, answer: Answer, attribute) -> Any:
+    """The typed value of participant `attribute` (a study.definition.Attribute) that an answer to `item` gives.
+
+    A choice attribute takes the k-th of its choices for code k; a numeric attribute takes the number as is; a
+    text attribute takes the text of a free-text item or the label of a choice. Missing -> None; a value the
+    attribute refuses -> UserError naming the item.
+    """
+    if answer.missing:
+        return None
+    try:
+        if attribute.type == "choice":
+            code = answer.value
+            if code is None or not 1 <= code <= len(attribute.choices):
+                raise UserError(f"code {code} has no {attribute.name} ({'|'.join(attribute.choices)})")
+            return attribute.parse(attribute.choices[code - 1])
+        if attribute.type == "text":
+            raw = answer.text if answer.text is not None else ins.choices(item).get(answer.value, answer.value)
+            return attribute.parse(str(raw))
+        return attribute.parse(answer.value if answer.value is not None else answer.text)
+    except UserError as exc:
+        raise UserError(f"{item}: {exc}") from None
+
+
+def item_answer(ins: Instrument, item: str, attribute, value: Any) -> Any:
+    """The answer to `item` that gives the stored attribute `value` (the inverse of :func:`attribute_value`):
+    the choice code for a choice attribute or label, the number as is, the text of a free-text item; None when
+    missing or not expressible as an answer to `item`."""
+    if value is None or (not isinstance(value, str) and pd.isna(value)):
+        return None
+    if attribute.type == "choice":
+        return attribute.choices.index(value) + 1 if value in attribute.choices else None
+    kind = ins.items.loc[item, "response_type"]
+    if kind == "text":
+        return str(value)
+    if attribute.type == "text":
+        codes = {label: code for code, label in ins.choices(item).items()}
+        if value in codes:
+            return codes[value]
+        return int(value) if re.fullmatch(r"[+-]?\d+", str(value)) else None
+    num = float(value)
+    return int(num) if num.is_integer() else num
+
+
+def _stored_text(value: Any) -> str:
+    """An attribute value as `participant_attributes.value` keeps it (as study.participants writes it: floats in
+    their shortest exact form, so they read back as the same number)."""
+    return repr(value) if isinstance(value, float) else str(value)
+
+
+def _fill_attributes(st, ins: Instrument, participant_id: str, answers: Mapping[str, Answer]) -> dict[str, Any]:
+    """Write the participant attributes that the answered attribute items give (audited; an answer replaces a
+    value recorded earlier, as the participant's own statement on the form). The values are checked first with
+    the attribute declarations, the study's required attributes and its checks, together with the attributes
+    already stored; any problem -> UserError and nothing is written. Returns {attribute: typed value} written."""
+    from study.participants import participant_attributes, typed_attributes
+
+    study = _study(st)
+    given: dict[str, Any] = {}
+    for item, name in attribute_items(ins).items():
+        a = answers.get(item)
+        if a is None or a.missing:
+            continue
+        given[name] = attribute_value(ins, item, a, study.attribute(name))
+    if not given:
+        return {}
+    row = participant_attributes(st, [participant_id])
+    stored = {} if row.empty else {k: (None if (not isinstance(v, str) and pd.isna(v)) else v)
+                                   for k, v in row.iloc[0].drop("participant_id").items()}
+    typed_attributes(study, {**stored, **given})
+    with st.transaction():
+        for name, value in given.items():
+            key = {"participant_id": participant_id, "attribute": name}
+            if stored.get(name) is None:
+                st.insert("participant_attributes", {**key, "value": _stored_text(value)})
+            elif stored[name] != value:
+                st.update("participant_attributes", key, {"value": _stored_text(value)})
+    return given
+
+
 # ---------------------------------------------------------------------------------------------- links
 def hash_token(token: str) -> str:
     """SHA-256 hex of a link token (the store keeps only this)."""
     return hashlib.sha256(token.encode("utf-8")).hexdigest()
 
 
-def issue_link(st, participant_id: str, instrument: str = DEFAULT_INSTRUMENT) -> str:
-    """A new one-participant link token (URL-safe, 256 bits); earlier links of the participant are revoked.
+def issue_link(st, participant_id: str, instrument: str | None = None) -> str:
+    """A new one-participant link token (URL-safe, 256 bits) for `instrument` (None = the study's); earlier links
+    of the participant are revoked.
 
     Refused for unknown participants and for participants whose survey answers are already in the store.
     """
-    load_instrument(instrument)
+    instrument = instrument_of(st, instrument).name
     _require_participant(st, participant_id)
     sub = submission(st, participant_id, 1, instrument)
     if sub is not None:
@@ -165,13 +286,20 @@ def resolve_token(st, token: str) -> Link:
 
 # ---------------------------------------------------------------------------------------------- web drafts
 def save_draft(st, participant_id: str, answers: Mapping[str, Any],
-               instrument: str = DEFAULT_INSTRUMENT) -> dict[str, Answer]:
+               instrument: str | None = None) -> dict[str, Answer]:
     """Keep the given answers of a participant's unsubmitted web survey (upsert per item; '' clears one).
 
-    All answers are validated first; one bad answer stores none of them. Refused after submission.
+    All answers are validated first against the codebook (item known, value within scale_min..scale_max, a
+    declared choice, text not too long) and an attribute item's value against its participant attribute; one
+    bad answer stores none of them. Refused after submission.
     """
-    ins = load_instrument(instrument)
+    ins = instrument_of(st, instrument)
+    instrument = ins.name
     parsed = parse_answers(ins, answers)
+    study = _study(st)
+    for item, name in attribute_items(ins).items():
+        if item in parsed:
+            attribute_value(ins, item, parsed[item], study.attribute(name))
     if submission(st, participant_id, 1, instrument) is not None:
         raise SubmittedError("This survey has been submitted and can no longer be changed.")
     now = utcnow()
@@ -185,8 +313,9 @@ def save_draft(st, participant_id: str, answers: Mapping[str, Any],
     return parsed
 
 
-def draft(st, participant_id: str, instrument: str = DEFAULT_INSTRUMENT) -> dict[str, Answer]:
+def draft(st, participant_id: str, instrument: str | None = None) -> dict[str, Answer]:
     """The participant's saved, unsubmitted web answers {item_id: Answer}."""
+    instrument = instrument_of(st, instrument).name
     return _rows_to_answers(st.df("SELECT item_id, value, text FROM survey_drafts WHERE participant_id = ? "
                                   "AND instrument = ?", [participant_id, instrument]))
 
@@ -196,22 +325,16 @@ def missing_required(ins: Instrument, answers: Mapping[str, Answer]) -> list[str
     return [i for i in ins.required_items if i not in answers or answers[i].missing]
 
 
-def check_demographics(answers: Mapping[str, Answer]) -> None:
-    """Cross-item check the store enforces: driving experience <= age - 16 years."""
-    age, lic = answers.get("AGE"), answers.get("LICENSE_YEARS")
-    if age and lic and age.value is not None and lic.value is not None and lic.value > age.value - MIN_LICENSE_AGE:
-        raise UserError(f"LICENSE_YEARS: {lic.value} years of driving experience is more than age "
-                        f"{age.value} minus {MIN_LICENSE_AGE}")
-
-
-def submit_web(st, participant_id: str, instrument: str = DEFAULT_INSTRUMENT) -> int:
+def submit_web(st, participant_id: str, instrument: str | None = None) -> int:
     """Submit a participant's web survey atomically; returns the number of `responses` rows written.
 
-    Required items must be answered. In one transaction: the socio-demographic answers update the participants
-    row, one `responses` row per item (NULL where unanswered) is written as entry round 1 by
-    ``participant``, the submission is recorded as a single (final) entry and the draft is deleted.
+    Required items must be answered. In one transaction: the attribute items' answers fill the participant's
+    attributes (:func:`_fill_attributes`: checked with the study's declarations and checks), one `responses` row
+    per other item (NULL where unanswered) is written as entry round 1 by ``participant``, the submission is
+    recorded as a single (final) entry and the draft is deleted. Any refusal leaves the store unchanged.
     """
-    ins = load_instrument(instrument)
+    ins = instrument_of(st, instrument)
+    instrument = ins.name
     answers = draft(st, participant_id, instrument)
     if submission(st, participant_id, 1, instrument) is not None:
         raise SubmittedError("This survey has already been submitted.")
@@ -219,16 +342,9 @@ def submit_web(st, participant_id: str, instrument: str = DEFAULT_INSTRUMENT) ->
     if missing:
         raise UserError(f"please answer every question before submitting ({len(missing)} unanswered: "
                         f"{', '.join(missing)})")
-    check_demographics(answers)
     now = utcnow()
     with st.transaction():
-        demo = {}
-        for item, field in DEMOGRAPHIC_FIELDS.items():
-            if item in ins.items.index and item in answers and answers[item].value is not None:
-                v = answers[item].value
-                demo[field] = DEMOGRAPHIC_CODES.get(item, {}).get(v, v)
-        if demo:
-            st.update("participants", {"participant_id": participant_id}, demo)
+        _fill_attributes(st, ins, participant_id, answers)
         n = _write_round(st, ins, participant_id, 1, answers, WEB_ENTERED_BY, now)
         st.insert("survey_submissions", {"participant_id": participant_id, "instrument": instrument,
                                          "entry_round": 1, "source": "web", "double_entry": False,
@@ -285,8 +401,9 @@ def insert_audited(st, table: str, rows: list[dict]) -> None:
 
 
 # ---------------------------------------------------------------------------------------------- data entry
-def submission(st, participant_id: str, entry_round: int, instrument: str = DEFAULT_INSTRUMENT) -> dict | None:
+def submission(st, participant_id: str, entry_round: int, instrument: str | None = None) -> dict | None:
     """The survey_submissions row of one entry round, or None."""
+    instrument = instrument_of(st, instrument).name
     cur = st.con.execute("SELECT * FROM survey_submissions WHERE participant_id = ? AND instrument = ? "
                          "AND entry_round = ?", [participant_id, instrument, entry_round])
     row = cur.fetchone()
@@ -294,27 +411,33 @@ def submission(st, participant_id: str, entry_round: int, instrument: str = DEFA
 
 
 def entry_answers(st, participant_id: str, entry_round: int,
-                  instrument: str = DEFAULT_INSTRUMENT) -> dict[str, Answer]:
+                  instrument: str | None = None) -> dict[str, Answer]:
     """The stored answers of one entry round {item_id: Answer} (empty when not entered)."""
+    instrument = instrument_of(st, instrument).name
     return _rows_to_answers(st.df(
         "SELECT item_id, value, text FROM responses WHERE participant_id = ? AND instrument = ? AND entry_round = ?",
         [participant_id, instrument, entry_round]))
 
 
 def save_entry(st, participant_id: str, entry_round: int, answers: Mapping[str, Any], *,
-               instrument: str = DEFAULT_INSTRUMENT, double_entry: bool = True, source: str = "entry",
+               instrument: str | None = None, double_entry: bool = True, source: str = "entry",
                replace: bool = False) -> int:
     """Store one complete entry round of a participant's survey (items not given are stored as missing).
 
     `double_entry=True` (paper forms): round 1 and round 2 are typed in by two people and compared;
     `double_entry=False` (only round 1): a single electronic entry, final as is. `replace=True` lets a
     researcher correct an existing double-entry round (each changed item audited). Returns rows written.
+
+    Attribute items (the codebook's `attribute` column) fill the participant's attributes: accepted in a single
+    entry (final as entered, :func:`_fill_attributes`), refused in a double entry (two typists' values are not
+    compared for attributes; record them on the participant).
     """
-    ins = load_instrument(instrument)
+    ins = instrument_of(st, instrument)
+    instrument = ins.name
     if entry_round not in (1, 2):
         raise UserError(f"entry round must be 1 or 2, not {entry_round}")
     _require_participant(st, participant_id)
-    parsed = parse_answers(ins, answers, response_items(ins))
+    parsed = parse_answers(ins, answers, None if not double_entry else response_items(ins))
     first = submission(st, participant_id, 1, instrument)
     this = submission(st, participant_id, entry_round, instrument)
     if first is not None and not first["double_entry"]:
@@ -331,6 +454,8 @@ def save_entry(st, participant_id: str, entry_round: int, answers: Mapping[str, 
                         f"(by {this['submitted_by']}, {this['submitted_at']:%Y-%m-%d %H:%M} UTC)")
     now = utcnow()
     with st.transaction():
+        if not double_entry:
+            _fill_attributes(st, ins, participant_id, parsed)
         n = _write_round(st, ins, participant_id, entry_round, parsed, st.actor, now)
         if this is None:
             st.insert("survey_submissions", {"participant_id": participant_id, "instrument": instrument,
@@ -341,12 +466,13 @@ def save_entry(st, participant_id: str, entry_round: int, answers: Mapping[str, 
 
 
 # ---------------------------------------------------------------------------------------------- discrepancies
-def discrepancies(st, instrument: str = DEFAULT_INSTRUMENT) -> pd.DataFrame:
+def discrepancies(st, instrument: str | None = None) -> pd.DataFrame:
     """Every item where the two entries of a double data entry differ.
 
     Columns: participant_id, item_id, value_1, text_1, value_2, text_2, entered_by_1, entered_by_2,
     resolved (bool), resolved_value, resolved_text, resolved_by. Missing vs. a value counts as a difference.
     """
+    instrument = instrument_of(st, instrument).name
     df = st.df("""
         SELECT r1.participant_id, r1.item_id, r1.value AS value_1, r1.text AS text_1, r2.value AS value_2,
                r2.text AS text_2, r1.entered_by AS entered_by_1, r2.entered_by AS entered_by_2,
@@ -369,12 +495,13 @@ def discrepancies(st, instrument: str = DEFAULT_INSTRUMENT) -> pd.DataFrame:
 
 
 def resolve(st, participant_id: str, item_id: str, raw: Any, note: str | None = None,
-            instrument: str = DEFAULT_INSTRUMENT) -> Answer:
+            instrument: str | None = None) -> Answer:
     """Record the final value of a double-entry discrepancy (audited); '' / None = missing on the form.
 
     Only items listed by :func:`discrepancies` can be resolved; resolving again replaces the value.
     """
-    ins = load_instrument(instrument)
+    ins = instrument_of(st, instrument)
+    instrument = ins.name
     parsed = parse_answers(ins, {item_id: raw}, response_items(ins))[item_id]
     d = discrepancies(st, instrument)
     if not ((d["participant_id"] == participant_id) & (d["item_id"] == item_id)).any():
@@ -456,36 +583,55 @@ def _eq(a: pd.Series, b: pd.Series) -> pd.Series:
     return both_na | eq
 
 
-def final_responses(st, instrument: str = DEFAULT_INSTRUMENT) -> pd.DataFrame:
+def final_responses(st, instrument: str | None = None) -> pd.DataFrame:
     """The final survey answers, wide, in the survey CSV format of docs/contracts.md.
 
-    Columns: participant_id, then every scaled item of the instrument (float, NaN = missing; raw answers as
-    ticked, reverse-scored items NOT reversed), then the free-text items (str or None). One row per participant
-    whose answers are final: a single electronic entry as is; a double entry where per item the two entries
-    agree or a resolution was recorded (resolution wins). Participants still awaiting their second entry or
-    with unresolved discrepancies are left out (see :func:`survey_status`). Exclusions are not applied here.
+    Columns: participant_id, then every item of the instrument in codebook order: numeric items (scaled, number,
+    choice) as float (NaN = missing; raw answers as ticked, reverse-scored items NOT reversed), free-text items
+    as str or None. An item that fills a participant attribute shows the participant's stored attribute as that
+    item's answer (:func:`item_answer`: the choice code, the number). One row per participant whose answers are
+    final: a single electronic entry as is; a double entry where per item the two entries agree or a resolution
+    was recorded (resolution wins). Participants still awaiting their second entry or with unresolved
+    discrepancies are left out (see :func:`survey_status`). Exclusions are not applied here.
     """
-    ins = load_instrument(instrument)
-    long, _ = _final_long(st, instrument)
+    from study.participants import participant_attributes
+
+    ins = instrument_of(st, instrument)
+    long, _ = _final_long(st, ins.name)
     pids = sorted(long["participant_id"].unique())
-    values = long.pivot(index="participant_id", columns="item_id", values="value").reindex(
-        index=pids, columns=ins.scaled_items)
-    texts = long.pivot(index="participant_id", columns="item_id", values="text").reindex(
-        index=pids, columns=ins.text_items)
+    values = long.pivot(index="participant_id", columns="item_id", values="value").reindex(index=pids)
+    texts = long.pivot(index="participant_id", columns="item_id", values="text").reindex(index=pids)
+    filled = attribute_items(ins)
+    study = _study(st)
+    attrs = participant_attributes(st, pids).set_index("participant_id").reindex(pids) if filled else None
     out = pd.DataFrame({"participant_id": pd.Series(pids, dtype=object)})
-    for item in ins.scaled_items:
-        out[item] = pd.to_numeric(values[item], errors="coerce").astype("float64").to_numpy()
-    for item in ins.text_items:
-        col = texts[item].astype(object).to_numpy()
-        out[item] = pd.Series([None if (v is None or (isinstance(v, float) and v != v) or v is pd.NA) else str(v)
-                               for v in col], dtype=object)
-    out.attrs["instrument"] = instrument
+    for item in ins.items.index:
+        is_text = ins.items.loc[item, "response_type"] == "text"
+        if item in filled:
+            name = filled[item]
+            try:
+                attribute = study.attribute(name)
+            except UserError:  # an attribute the study no longer declares: nothing to show
+                col = [None] * len(pids)
+            else:
+                col = [item_answer(ins, item, attribute, v) for v in (attrs[name] if name in attrs else
+                                                                      [None] * len(pids))]
+        else:
+            src = texts if is_text else values
+            col = src[item].tolist() if item in src else [None] * len(pids)
+        if is_text:
+            out[item] = pd.Series([None if (v is None or (isinstance(v, float) and v != v) or v is pd.NA)
+                                   else str(v) for v in col], dtype=object)
+        else:
+            out[item] = pd.to_numeric(pd.Series(col, dtype=object), errors="coerce").astype("float64").to_numpy()
+    out.attrs["instrument"] = ins.name
     return out
 
 
-def survey_status(st, instrument: str = DEFAULT_INSTRUMENT) -> pd.DataFrame:
+def survey_status(st, instrument: str | None = None) -> pd.DataFrame:
     """One row per participant: link (none|issued|revoked), draft_items, entry_1/entry_2 (source or ''),
     basis (none|single|awaiting_second_entry|unresolved|double_entry_final), discrepancies, unresolved, final."""
+    instrument = instrument_of(st, instrument).name
     parts = st.df("SELECT participant_id FROM participants ORDER BY participant_id")
     links = st.df("SELECT participant_id, bool_or(revoked_at IS NULL) AS active FROM survey_tokens "
                   "WHERE instrument = ? GROUP BY participant_id", [instrument]).set_index("participant_id")["active"]

@@ -1,14 +1,18 @@
 """`survey import FILE [--entry 1|2]`: a wide survey CSV (docs/contracts.md) into the store, all or nothing.
 
-Format: ``participant_id`` then one column per item id (PU1..BI2 required, Q1..Q3 optional), raw answers as
-ticked (reverse-scored items not reversed), empty cell = missing (stored as NULL). Without ``--entry`` the file
-is a single electronic entry (e.g. an export of another survey tool) and is final as imported; ``--entry 1`` /
-``--entry 2`` are the two rounds of a double data entry of paper forms, compared by the discrepancy report.
+Format: ``participant_id`` then one column per item id of the study's instrument (every required item that does
+not fill a participant attribute must have a column; the others are optional), raw answers as ticked
+(reverse-scored items not reversed), empty cell = missing (stored as NULL). Without ``--entry`` the file is a
+single electronic entry (e.g. an export of another survey tool, or ``survey final``) and is final as imported; its
+attribute items (the codebook's ``attribute`` column) fill the participants' attributes. ``--entry 1`` /
+``--entry 2`` are the two rounds of a double data entry of paper forms, compared by the discrepancy report; they
+carry no attribute items.
 
 Checks before anything is written: the file is well-formed CSV (every row as many fields as the header),
-every column is a known item, every required item has a column, participant ids are well-formed, known to the
-store and not repeated, every answer is an integer within its item's range, and no participant already has
-answers for that round. Any problem -> UserError naming the first problem (line and item) and how many more.
+every column is a known item, every required item has a column, participant ids match the study's pattern, are
+known to the store and not repeated, every answer is an integer within its item's range (or a declared choice),
+attribute values fit their declaration and the study's checks, and no participant already has answers for that
+round. Any problem -> UserError naming the first problem (line and item) and how many more.
 """
 from __future__ import annotations
 
@@ -18,8 +22,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from study.errors import UserError
-from study.instrument import DEFAULT_INSTRUMENT, load_instrument
-from study.survey import PARTICIPANT_ID_RE, DEMO, response_items, save_entry, submission
+from study.instrument import Instrument
+from study.survey import attribute_items, attribute_value, instrument_of, response_items, save_entry, submission
 
 
 @dataclass(frozen=True)
@@ -31,12 +35,14 @@ class ImportResult:
     double_entry: bool
 
 
-def read_survey_csv(path: str | Path, instrument: str = DEFAULT_INSTRUMENT) -> list[tuple[int, str, dict]]:
-    """Parse and validate a wide survey CSV; returns [(line number, participant_id, {item: raw str})].
+def read_survey_csv(path: str | Path, ins: Instrument, study, double_entry: bool = False
+                    ) -> list[tuple[int, str, dict]]:
+    """Parse and validate a wide survey CSV for instrument `ins` of `study` (a StudyDefinition); returns
+    [(line number, participant_id, {item: raw str})].
 
-    Checks the structure and every value against the codebook (not the store); raises UserError.
+    Checks the structure, the ids against the study's pattern and every value against the codebook (not the
+    store); `double_entry` refuses attribute items. Raises UserError.
     """
-    ins = load_instrument(instrument)
     path = Path(path)
     if not path.is_file():
         raise UserError(f"survey file {path} not found")
@@ -53,7 +59,8 @@ def read_survey_csv(path: str | Path, instrument: str = DEFAULT_INSTRUMENT) -> l
         raise UserError(f"{path.name}: malformed CSV at line {reader.line_num}: {exc}") from None
     rows = [(n, r) for n, r in rows if any(c.strip() for c in r)]  # blank lines carry nothing
     if not rows:
-        raise UserError(f"{path.name}: empty file (expected a header participant_id,PU1,...)")
+        raise UserError(f"{path.name}: empty file (expected a header participant_id,"
+                        f"{','.join(response_items(ins)[:2])},...)")
     header = [c.strip() for c in rows[0][1]]
     if header[0] != "participant_id":
         raise UserError(f"{path.name}: malformed CSV: the first column must be participant_id, not {header[0]!r}")
@@ -61,14 +68,17 @@ def read_survey_csv(path: str | Path, instrument: str = DEFAULT_INSTRUMENT) -> l
     dup = sorted({c for c in items if items.count(c) > 1})
     if dup:
         raise UserError(f"{path.name}: duplicate column(s) {', '.join(dup)}")
-    allowed = response_items(ins)
-    unknown = [c for c in items if c not in allowed]
+    responses = response_items(ins)
+    filled = attribute_items(ins)
+    unknown = [c for c in items if c not in ins.items.index]
     if unknown:
-        demo = [c for c in unknown if c in ins.items.index and ins.items.loc[c, "construct"] == DEMO]
-        hint = (" (socio-demographic answers belong on the participant record: pedas-study participant add)"
-                if demo else "")
-        raise UserError(f"{path.name}: unknown item column(s) {', '.join(unknown)} for instrument {ins.name}{hint}")
-    required = [i for i in ins.required_items if i in allowed and i not in items]
+        raise UserError(f"{path.name}: unknown item column(s) {', '.join(unknown)} for instrument {ins.name}")
+    attr_cols = [c for c in items if c in filled]
+    if double_entry and attr_cols:
+        raise UserError(f"{path.name}: column(s) {', '.join(attr_cols)} fill participant attributes, which a double "
+                        f"entry does not compare; record them on the participant record (pedas-study participant "
+                        f"add ID --attr NAME=VALUE) or import the file as a single entry")
+    required = [i for i in ins.required_items if i in responses and i not in items]
     if required:
         raise UserError(f"{path.name}: required item column(s) missing: {', '.join(required)}")
 
@@ -80,8 +90,10 @@ def read_survey_csv(path: str | Path, instrument: str = DEFAULT_INSTRUMENT) -> l
             problems.append(f"line {line}: malformed CSV: {len(row)} fields, header has {len(header)}")
             continue
         pid = row[0].strip()
-        if not PARTICIPANT_ID_RE.match(pid):
-            problems.append(f"line {line}: participant id {pid!r} is not of the form P001")
+        try:
+            study.validate_id(pid)
+        except UserError as exc:
+            problems.append(f"line {line}: {exc}")
             continue
         if pid in seen:
             problems.append(f"line {line}: duplicate participant {pid} (also on line {seen[pid]})")
@@ -90,8 +102,10 @@ def read_survey_csv(path: str | Path, instrument: str = DEFAULT_INSTRUMENT) -> l
         answers = {}
         for item, raw in zip(items, row[1:]):
             try:
-                ins.parse(item, raw)
-            except ValueError as exc:
+                a = ins.parse(item, raw)
+                if item in filled:
+                    attribute_value(ins, item, a, study.attribute(filled[item]))
+            except (ValueError, UserError) as exc:
                 problems.append(f"line {line}, {exc}")
             answers[item] = raw
         out.append((line, pid, answers))
@@ -108,15 +122,19 @@ def _raise_first(path: Path, problems: list[str]) -> None:
 
 
 def import_survey(st, path: str | Path, entry: int | None = None,
-                  instrument: str = DEFAULT_INSTRUMENT) -> ImportResult:
-    """Import a wide survey CSV in ONE transaction (see the module docstring for the checks)."""
+                  instrument: str | None = None) -> ImportResult:
+    """Import a wide survey CSV in ONE transaction for `instrument` (None = the study's; see the module docstring
+    for the checks)."""
+    from study.studies import definition
+
     if entry not in (None, 1, 2):
         raise UserError(f"--entry must be 1 or 2, not {entry}")
-    ins = load_instrument(instrument)
+    ins = instrument_of(st, instrument)
+    instrument = ins.name
     path = Path(path)
-    rows = read_survey_csv(path, instrument)
     entry_round = entry or 1
     double = entry is not None
+    rows = read_survey_csv(path, ins, definition(st), double_entry=double)
     known = set(st.df("SELECT participant_id FROM participants")["participant_id"])
     problems = []
     for line, pid, _ in rows:
@@ -134,6 +152,7 @@ def import_survey(st, path: str | Path, entry: int | None = None,
             problems.append(f"line {line}: {pid} has no entry round 1 yet; import round 1 first")
     _raise_first(path, problems)
     n_items = len(response_items(ins))
+    filled = attribute_items(ins)
     answers = 0
     with st.transaction():
         for line, pid, raw in rows:
@@ -141,6 +160,6 @@ def import_survey(st, path: str | Path, entry: int | None = None,
                 save_entry(st, pid, entry_round, raw, instrument=instrument, double_entry=double, source="import")
             except UserError as exc:
                 raise UserError(f"{path.name}: line {line}: {exc}; nothing imported") from None
-            answers += sum(1 for v in raw.values() if v.strip())
+            answers += sum(1 for item, v in raw.items() if v.strip() and item not in filled)
     return ImportResult(participants=len(rows), answers=answers, missing=len(rows) * n_items - answers,
                         entry_round=entry_round, double_entry=double)

@@ -12,6 +12,8 @@ import pytest
 import pedas  # noqa: F401  (before anything imports numpy: the same SIMD paths as the CLI, see pedas/__init__.py)
 
 REPO = Path(__file__).resolve().parents[1]
+PAPER_STUDY = REPO / "studies" / "pedas_paper"
+LK_STUDY = REPO / "studies" / "lane_keeping"
 OUTPUT = REPO / "tests" / "output"  # screenshots and other artefacts a person may want to look at
 
 
@@ -26,6 +28,24 @@ class CliResult:
 def tmp_db(tmp_path) -> Path:
     """Path of a fresh (not yet initialised) store."""
     return tmp_path / "study.duckdb"
+
+
+@pytest.fixture
+def paper_db(tmp_db) -> Path:
+    """A fresh store serving the paper's study (studies/pedas_paper)."""
+    from pedas_study.cli import main
+
+    assert main([f"--db={tmp_db}", "init", "--study", str(PAPER_STUDY)]) == 0
+    return tmp_db
+
+
+@pytest.fixture
+def lk_db(tmp_db) -> Path:
+    """A fresh store serving the lane-keeping example study (studies/lane_keeping)."""
+    from pedas_study.cli import main
+
+    assert main([f"--db={tmp_db}", "init", "--study", str(LK_STUDY)]) == 0
+    return tmp_db
 
 
 @pytest.fixture

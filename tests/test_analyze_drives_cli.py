@@ -6,7 +6,7 @@ import pandas as pd
 import pytest
 
 from pedas.constants import KMH
-from tests.conftest import OUTPUT
+from tests.conftest import OUTPUT, PAPER_STUDY
 
 DT = 0.2
 
@@ -51,12 +51,15 @@ def build_drive(seed: int, condition: str) -> pd.DataFrame:
 
 
 def make_store(db, n=6, styles=("cautious", "normal", "sporty")):
+    """A store of the paper's study with `n` participants, both drives each; P002 excluded (objective scope)."""
     from study.drives import import_drive_frame
     from study.exclusions import exclude
     from study.participants import add_participant
     from study.store import Store
+    from study.studies import register
 
     with Store.open(db, actor="test") as st:
+        register(st, PAPER_STUDY)
         for i in range(1, n + 1):
             pid = f"P{i:03d}"
             add_participant(st, pid, style=styles[i % len(styles)])
@@ -131,21 +134,21 @@ def test_analyze_drives_other_participant_and_store_unchanged(cli, cohort_db, tm
 def test_analyze_drives_refuses_missing_store_and_store_without_drives(cli, tmp_db, tmp_path):
     r = cli("analyze", "drives", "--out", tmp_path / "x")
     assert r.code == 2 and "store not found" in r.err and len(r.err.strip().splitlines()) == 1
-    assert cli("init").code == 0
+    assert cli("init", "--study", PAPER_STUDY).code == 0
     r = cli("analyze", "drives", "--out", tmp_path / "x")
     assert r.code == 2 and "no drives" in r.err
     assert not (tmp_path / "x").exists()
 
 
-def test_analyze_drives_figure_skipped_when_no_pair(cli, tmp_db, tmp_path):
+def test_analyze_drives_figure_skipped_when_no_pair(cli, paper_db, tmp_path):
     from study.drives import import_drive_frame
     from study.participants import add_participant
     from study.store import Store
 
-    with Store.open(tmp_db, actor="test") as st:
+    with Store.open(paper_db, actor="test") as st:
         add_participant(st, "P001", style="normal")
         import_drive_frame(st, "P001", "baseline", build_drive(1, "baseline"))
-    r = cli("analyze", "drives", "--out", tmp_path / "y")
+    r = cli("analyze", "drives", "--out", tmp_path / "y", db=paper_db)
     assert r.code == 0, r.err
     assert "0 participants with both drives" in r.out and "1 without a complete pair" in r.out
     assert "fig9a not drawn" in r.out

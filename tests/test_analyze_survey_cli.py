@@ -8,8 +8,17 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.testing import simulate_responses
-from analysis.acceptance import COLUMNS, analyze_survey
+from analysis.acceptance import COLUMNS, analyze_survey as _analyze_survey
+from analysis.paper.published import paper_study
+from analysis.paper.synthetic import simulate_paper_responses as simulate_responses
+
+STUDY = paper_study()
+STUDY_DIR = "studies/pedas_paper"
+
+
+def analyze_survey(data, **kw):
+    """The analysis with the paper's study (its codebook, model file and settings)."""
+    return _analyze_survey(data, STUDY, **kw)
 
 CONTRACT_FILES = ["descriptives", "loadings", "fit", "reliability", "correlations", "htmt", "regressions", "hypotheses"]
 
@@ -46,7 +55,7 @@ def test_default_deletion_is_the_papers_final_model(res):
 def test_composites_and_regressions_are_consistent(res, data):
     from analysis.scoring import score_responses
 
-    s = score_responses(data).scored
+    s = score_responses(data, STUDY.instrument()).scored
     assert np.allclose(res.composites["ATT"], s[["ATT6", "ATT7", "ATT8", "ATT9"]].mean(axis=1))
     m1 = res.regressions[(res.regressions.model == "1") & (res.regressions.predictor == "PEoU")].iloc[0]
     r = res.correlations.set_index(["a", "b"]).loc[("PU", "PEoU"), "r"]
@@ -60,7 +69,7 @@ def test_reliability_uses_final_items(res):
     from analysis.scoring import score_responses
 
     rel = res.reliability.set_index("construct")
-    s = score_responses(simulate_responses(40, seed=11)).scored
+    s = score_responses(simulate_responses(40, seed=11), STUDY.instrument()).scored
     assert rel.loc["PEoU", "alpha"] == pytest.approx(cronbach_alpha(s[["PEoU1", "PEoU2", "PEoU4"]])[0])
     assert rel.loc["PEoU", "n_items"] == 3 and rel.loc["ATT", "n_items"] == 4
 
@@ -71,22 +80,32 @@ def test_same_seed_same_output(data, res):
         pd.testing.assert_frame_equal(getattr(res, name), getattr(again, name))
 
 
-def test_custom_config_and_models(data):
-    out = analyze_survey(data, n_boot=0, cfa_config={"drop": []},
-                         models=[{"name": "x", "dv": "BI", "steps": [["PU", "PEoU"]]}],
-                         hypotheses=[{"hypothesis": "Hx", "predictor": "PU", "dv": "BI", "model": "x", "step": 1}])
-    assert (out.loadings.loc[out.loadings.stage == "final", "item"].size == 25)
+def test_a_model_instead_of_the_studys(data):
+    """A model in lavaan syntax replaces the study's: no item dropped, one model, a two-sided hypothesis."""
+    inst = STUDY.instrument()
+    text = "\n".join(f"{c} =~ {' + '.join(items)}" for c, items in inst.constructs.items())
+    out = analyze_survey(data, n_boot=0, model=text + "\nBI ~ Hx*PU + PEoU\n")
+    assert out.loadings.loc[out.loadings.stage == "final", "item"].size == 25
+    assert out.loadings["retained"].all() and out.settings["dropped_items"] == []
     assert list(out.hypotheses["hypothesis"]) == ["Hx"] and out.regressions["boot_ci_low"].isna().all()
+    assert out.settings["hypothesis_signs"] == {"Hx": "!="}
+    h = out.hypotheses.iloc[0]
+    assert bool(h.supported) == bool(h.p < 0.05)  # two-sided: either sign
 
 
-@pytest.mark.parametrize("kwargs,match", [
-    ({"models": [{"name": "x", "dv": "BI", "steps": [["TRUST"]]}]}, "unknown construct 'TRUST'"),
-    ({"cfa_config": {"drop": ["ATT99"]}}, "drops unknown item"),
-    ({"cfa_config": {"drop": ["BI1"]}}, "at least 2 are needed"),
+FULL = "PU =~ PU1 + PU2\nPEoU =~ PEoU1 + PEoU2\nBI =~ BI1 + BI2\n"
+
+
+@pytest.mark.parametrize("model,match", [
+    (FULL + "BI ~ TRUST\n", "'TRUST' is neither a construct"),
+    (FULL.replace("PU2", "ATT99") + "BI ~ PU\n", "not scaled items of instrument pedas_acceptance_v1: ATT99"),
+    ("PU =~ PU1\nBI =~ BI1 + BI2\nBI ~ PU\n", "construct needs at least 2 items"),
+    (FULL + "BI ~ H1*gender\n", "H1: gender is a choice attribute"),
+    (FULL + "BI ~ age\n", "pass the participants' attributes"),
 ])
-def test_bad_specs(data, kwargs, match):
+def test_bad_models(data, model, match):
     with pytest.raises(ValueError, match=match):
-        analyze_survey(data, n_boot=0, **kwargs)
+        analyze_survey(data, n_boot=0, model=model)
 
 
 def test_constant_column_is_refused(data):
@@ -103,7 +122,8 @@ def test_cli_writes_the_design_files(cli, data, tmp_path):
     csv = tmp_path / "survey.csv"
     data.to_csv(csv, index=False)
     out = tmp_path / "out"
-    r = cli("analyze", "survey", "--responses", csv, "--out", out, "--bootstrap", "200", "--seed", "3")
+    r = cli("analyze", "survey", "--responses", csv, "--study", STUDY_DIR, "--out", out, "--bootstrap", "200",
+            "--seed", "3")
     assert r.code == 0, r.err
     assert "H7" in r.out and "40 participants" in r.out
     for name in CONTRACT_FILES:
@@ -120,36 +140,44 @@ def test_cli_bad_input_is_one_line(cli, data, tmp_path):
     csv = tmp_path / "bad.csv"
     data.assign(PU2=9).to_csv(csv, index=False)
     r = cli("analyze", "survey", "--responses", csv, "--out", tmp_path / "o")
+    assert r.code == 2 and r.err.count("\n") == 1 and "store not found" in r.err  # which study?
+    r = cli("analyze", "survey", "--responses", csv, "--study", STUDY_DIR, "--out", tmp_path / "o")
     assert r.code == 2 and r.err.count("\n") == 1 and "outside 1..5" in r.err
     r = cli("analyze", "survey", "--responses", tmp_path / "missing.csv", "--out", tmp_path / "o")
     assert r.code == 2 and "not found" in r.err
 
 
-def test_cli_from_the_store_applies_subjective_exclusions(cli, tmp_db, data, tmp_path):
+def test_cli_from_the_store_applies_subjective_exclusions(cli, paper_db, data, tmp_path):
     from study.exclusions import exclude
-    from study.instrument import load_instrument
     from study.store import Store
 
-    items = load_instrument().scaled_items
-    with Store.open(tmp_db, actor="tester") as st:
+    inst = STUDY.instrument()
+    with Store.open(paper_db, actor="tester") as st:
         with st.transaction():
             for pid in data["participant_id"]:
-                st.insert("participants", {"participant_id": pid})
-            long = data.melt(id_vars="participant_id", value_vars=items, var_name="item_id", value_name="value")
-            long["instrument"] = "pedas_acceptance_v1"
+                st.insert("participants", {"participant_id": pid, "protocol": STUDY.protocol().name})
+            long = data.melt(id_vars="participant_id", value_vars=inst.scaled_items, var_name="item_id",
+                             value_name="value")
+            long["instrument"] = inst.name
             long["entry_round"] = 1
             long["value"] = long["value"].astype(int)
             st.insert_df("responses", long[["participant_id", "instrument", "item_id", "entry_round", "value"]])
         exclude(st, "P040", "subjective", "motion_sickness")
         exclude(st, "P039", "objective", "technical_issue")  # does not affect the survey
     out = tmp_path / "store_out"
-    r = cli("analyze", "survey", "--out", out, "--bootstrap", "0")
+    r = cli("analyze", "survey", "--out", out, "--bootstrap", "0", db=paper_db)
     assert r.code == 0, r.err
-    assert "39 participants" in r.out
+    assert "39 participants" in r.out and "H7 PBC -> BI (expected beta > 0)" in r.out
     desc = pd.read_csv(out / "descriptives.csv")
     assert (desc["n"] == 39).all()
     expected = analyze_survey(data[data.participant_id != "P040"], n_boot=0)
     assert np.allclose(desc["mean"], expected.descriptives["mean"])
+    # a CSV analysed with the store's study gives the same regressions
+    csv = tmp_path / "survey.csv"
+    data[data.participant_id != "P040"].to_csv(csv, index=False)
+    r = cli("analyze", "survey", "--responses", csv, "--out", tmp_path / "csv_out", "--bootstrap", "0", db=paper_db)
+    assert r.code == 0, r.err
+    assert (tmp_path / "csv_out" / "regressions.csv").read_bytes() == (out / "regressions.csv").read_bytes()
 
 
 def test_tables_are_rendered_from_the_frames(res):

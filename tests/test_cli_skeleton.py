@@ -10,8 +10,8 @@ from pedas_study.cli import COMMAND_MODULES, Cli, build_cli, build_parser, main
 from study.errors import UserError
 
 REPO = Path(__file__).resolve().parents[1]
-COMMANDS = ["init", "participant", "session", "exclude", "drive", "export", "survey", "schedule", "simulate", "kpi",
-            "analyze", "paper", "report", "bench"]
+COMMANDS = ["init", "study", "participant", "session", "exclude", "drive", "export", "survey", "schedule", "simulate",
+            "kpi", "analyze", "paper", "report", "bench"]
 
 
 def test_every_command_module_registers():
@@ -25,7 +25,7 @@ def test_each_command_is_declared_once_in_its_own_module():
     assert list(cli.owners) == COMMANDS
     for name, module in cli.owners.items():
         assert module == f"pedas_study.cli.{name}", name
-    assert set(cli.groups) == {"participant", "session", "drive", "survey", "schedule", "simulate", "kpi",
+    assert set(cli.groups) == {"study", "participant", "session", "drive", "survey", "schedule", "simulate", "kpi",
                                "analyze", "paper", "bench"}
 
 
@@ -114,7 +114,8 @@ def test_a_mistyped_store_is_not_created(cli, tmp_path):
     db = tmp_path / "typo.duckdb"
     for args in (("survey", "status"), ("survey", "link", "P001"), ("participant", "list")):
         r = cli(*args, db=db)
-        assert r.code == 2 and r.err == f"pedas-study: error: no store at {db} (run `pedas-study init` first)\n"
+        assert r.code == 2
+        assert r.err == f"pedas-study: error: no store at {db} (run `pedas-study init --study DIR` first)\n"
     assert not db.exists()
 
 
@@ -136,3 +137,16 @@ def test_only_the_cli_parses_arguments(package):
 @pytest.mark.parametrize("package", ["pedas", "study", "analysis"])
 def test_the_domain_packages_do_not_import_the_top_layer(package):
     assert [str(f) for f, mod in _imports(package) if mod == "pedas_study"] == []
+
+
+def test_a_closed_pipe_ends_quietly(monkeypatch, capsys):
+    """Output into a pipe whose reader stopped is no error: exit 0, nothing on stderr (a real pipe:
+    tests/test_participants.py)."""
+    import pedas_study.cli.init as init
+
+    def handler(args):
+        raise BrokenPipeError(32, "Broken pipe")
+
+    monkeypatch.setattr(init, "_init", handler)
+    assert main(["init"]) == 0
+    assert capsys.readouterr().err == ""

@@ -6,6 +6,7 @@ import pytest
 
 from pedas.cohort import DriveTask, cohort_tasks, load_cached, participant_seed, simulate_cohort, task_key
 from pedas.drive import green_crossings
+from tests.conftest import PAPER_STUDY
 
 pytestmark = pytest.mark.sumo
 
@@ -78,7 +79,7 @@ def test_assisted_drives_cross_more_lights_in_green(cache):
 
 # ------------------------------------------------------------------------------------------------ the CLI
 def _people(cli):
-    assert cli("init").code == 0
+    assert cli("init", "--study", PAPER_STUDY).code == 0
     assert cli("participant", "add", "P001", "--style", "sporty").code == 0
     assert cli("participant", "add", "P002", "--style", "cautious").code == 0
     assert cli("participant", "add", "P003", "--style", "normal").code == 0
@@ -121,7 +122,7 @@ def test_cli_bad_input_leaves_the_store_unchanged(cli, tmp_db, cache):
 
 
 def test_cli_simulate_cohort_without_participants(cli, cache):
-    assert cli("init").code == 0
+    assert cli("init", "--study", PAPER_STUDY).code == 0
     r = cli("simulate", "cohort", "--cache-dir", str(cache))
     assert r.code == 2 and "no participants" in r.err
 
@@ -130,7 +131,7 @@ def test_cli_simulate_cohort_on_a_dask_scheduler(cli, tmp_db, tmp_path, cache):
     """`simulate cohort --scheduler ADDRESS` runs the drives on the cluster; the stored drives equal the pool's."""
     from distributed import LocalCluster
 
-    assert cli("init").code == 0
+    assert cli("init", "--study", PAPER_STUDY).code == 0
     assert cli("participant", "add", "P002", "--style", "cautious").code == 0
     with LocalCluster(n_workers=1, threads_per_worker=2, processes=True, dashboard_address=None) as lc:
         r = cli("simulate", "cohort", "--scheduler", lc.scheduler_address, "--no-progress",

@@ -66,11 +66,12 @@ def drive_state(db: Path) -> str:
 
 
 @pytest.fixture
-def setup(tmp_path, log):
-    db = tmp_path / "study.duckdb"
-    with Store.open(db) as st:
-        st.insert("participants", {"participant_id": "P001"})
-    return db, log
+def setup(paper_db, log):
+    from study.participants import add_participant
+
+    with Store.open(paper_db) as st:
+        add_participant(st, "P001")
+    return paper_db, log
 
 
 def test_kill_while_writing_samples(setup):

@@ -1,4 +1,5 @@
-"""Drive-log validation and import: CSV/Parquet, checksums, idempotency, --replace, bad input."""
+"""Drive-log validation and import of canonical logs (the paper's study): CSV/Parquet, checksums, idempotency,
+--replace, bad input. Mapped logs, routes, extra channels and FCD: tests/test_drive_mapping.py."""
 import numpy as np
 import pandas as pd
 import pytest
@@ -7,8 +8,14 @@ from hypothesis import given, settings, strategies as st_
 from study.drives import (COLUMNS, drive_samples, frame_checksum, import_drive_file, import_drive_frame,
                           validate_drive)
 from study.errors import UserError
-from study.participants import add_participant
 from study.store import Store
+
+
+def add_participant(st, pid):
+    """Register a participant row (the drive import only needs it to exist)."""
+    from study.studies import definition
+
+    st.insert("participants", {"participant_id": pid, "protocol": definition(st).protocol().name})
 
 
 def make_drive(n=500, seed=0, dt=0.1):
@@ -32,8 +39,8 @@ def snapshot(db):
 
 
 @pytest.fixture
-def st(tmp_db):
-    with Store.open(tmp_db, actor="tester") as s:
+def st(paper_db):
+    with Store.open(paper_db, actor="tester") as s:
         add_participant(s, "P001")
         add_participant(s, "P002")
         yield s
@@ -118,8 +125,10 @@ def test_frame_import_and_checksum(st):
     assert r.status == "imported"
     assert import_drive_frame(st, "P001", "pedas", df.copy(), seed=7).status == "unchanged"
     row = st.df("SELECT source, route, seed, meta FROM drives").iloc[0]
-    assert (row["source"], row["route"], row["seed"], row["meta"]) == ("simulation", "paper_route", 7,
-                                                                       '{"style": "normal"}')
+    # the caller's settings, plus where the energy comes from: the frame has no p_batt, the paper's study
+    # declares the vehicle model
+    assert (row["source"], row["route"], row["seed"], row["meta"]) == (
+        "simulation", "paper_route", 7, '{"energy_source": "modelled (Nissan Leaf parameters)", "style": "normal"}')
     df2 = df.copy()
     df2.loc[10, "v"] += 1e-9
     assert frame_checksum(validate_drive(df2)[0]) != frame_checksum(validate_drive(df)[0])
@@ -145,7 +154,14 @@ def test_frame_import_and_checksum(st):
 ])
 def test_validation_names_first_problem(mutate, msg):
     with pytest.raises(UserError, match=msg.replace("(", r"\(").replace("+", r"\+")):
-        validate_drive(mutate(make_drive(50)))
+        validate_drive(mutate(make_drive(50)), segments=("urban", "highway"))
+
+
+def test_segment_labels_are_free_without_a_route():
+    out, _ = validate_drive(make_drive(50).assign(segment="rural"))
+    assert set(out["segment"]) == {"rural"}
+    with pytest.raises(UserError, match="column segment row 1: 'xxxxx.*longer than 64"):
+        validate_drive(make_drive(50).assign(segment="x" * 65))
 
 
 def test_csv_text_in_numeric_column(tmp_path):
@@ -176,16 +192,17 @@ def test_valid_logs_pass_and_keep_values(n, seed):
 BAD_LOGS = {
     "nan_speed": lambda d: d.assign(v=d["v"].where(d.index != 17)),
     "negative_time_step": lambda d: d.assign(t=d["t"].where(d.index != 30, d["t"][29] - 0.05)),
-    "missing_column": lambda d: d.drop(columns="speed_limit"),
+    "missing_column": lambda d: d.drop(columns="v"),  # speed_limit and segment would come from the route
     "wrong_segment": lambda d: d.assign(segment=d["segment"].where(d.index != 40, "motorway")),
 }
 
 
 @pytest.mark.parametrize("fmt", ["csv", "parquet"])
 @pytest.mark.parametrize("case", sorted(BAD_LOGS))
-def test_cli_bad_log_changes_nothing(cli, tmp_db, tmp_path, case, fmt):
-    assert cli("init").code == 0
-    assert cli("participant", "add", "P001").code == 0
+def test_cli_bad_log_changes_nothing(cli, paper_db, tmp_path, case, fmt):
+    tmp_db = paper_db
+    with Store.open(tmp_db) as s:
+        add_participant(s, "P001")
     good = tmp_path / f"good.{fmt}"
     bad = tmp_path / f"bad.{fmt}"
     df = make_drive(100)
@@ -201,9 +218,9 @@ def test_cli_bad_log_changes_nothing(cli, tmp_db, tmp_path, case, fmt):
         assert snapshot(tmp_db) == before
 
 
-def test_cli_import_messages(cli, tmp_path):
-    cli("init")
-    cli("participant", "add", "P001")
+def test_cli_import_messages(cli, paper_db, tmp_path):
+    with Store.open(paper_db) as s:
+        add_participant(s, "P001")
     path = tmp_path / "d.csv"
     make_drive(100).to_csv(path, index=False)
     r = cli("drive", "import", "P001", "baseline", path)

@@ -1,4 +1,7 @@
 """Exclusion scopes and the one function analyses use."""
+import shutil
+from pathlib import Path
+
 import pandas as pd
 from hypothesis import HealthCheck, given, settings, strategies as st_
 import pytest
@@ -9,9 +12,20 @@ from study.participants import add_participant
 from study.store import Store
 
 
+@pytest.fixture(scope="module")
+def paper_store_file(tmp_path_factory) -> Path:
+    """An empty store of the paper's study, copied by tests that need many fresh stores."""
+    from pedas_study.cli import main
+
+    db = tmp_path_factory.mktemp("paper") / "template.duckdb"
+    assert main([f"--db={db}", "init", "--study", str(Path(__file__).resolve().parents[1] / "studies" /
+                                                      "pedas_paper")]) == 0
+    return db
+
+
 @pytest.fixture
-def st(tmp_db):
-    with Store.open(tmp_db) as s:
+def st(paper_db):
+    with Store.open(paper_db) as s:
         for i in range(1, 7):
             add_participant(s, f"P{i:03d}")
         yield s
@@ -26,9 +40,9 @@ def test_scopes(st):
     assert included_participants(st, "all") == ["P004", "P005", "P006"]
 
 
-def test_paper_counts(tmp_db):
+def test_paper_counts(paper_db):
     """44 volunteers, 3 motion sickness (all), 7 technical issues (objective) -> N=41 subjective, N=34 objective."""
-    with Store.open(tmp_db) as st:
+    with Store.open(paper_db) as st:
         with st.transaction():
             for i in range(1, 45):
                 add_participant(st, f"P{i:03d}")
@@ -74,9 +88,10 @@ def test_revoke_is_audited(st):
 
 @settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(st_.lists(st_.sets(st_.sampled_from(["all", "objective", "subjective"])), min_size=1, max_size=8))
-def test_scope_laws(tmp_path_factory, scopes_per_participant):
+def test_scope_laws(tmp_path_factory, paper_store_file, scopes_per_participant):
     """included(all) = included(objective) ∩ included(subjective); `all` excludes from both."""
     db = tmp_path_factory.mktemp("laws") / "s.duckdb"
+    shutil.copy(paper_store_file, db)
     with Store.open(db) as st:
         with st.transaction():
             for i, scopes in enumerate(scopes_per_participant, start=1):
@@ -89,3 +104,14 @@ def test_scope_laws(tmp_path_factory, scopes_per_participant):
         pid = f"P{i:03d}"
         assert (pid in obj) == (not scopes & {"all", "objective"})
         assert (pid in sub) == (not scopes & {"all", "subjective"})
+
+
+def test_any_study_ids(lk_db):
+    """Exclusions know nothing of the paper's ids: the lane-keeping study's LK-01 is excluded like P001."""
+    with Store.open(lk_db) as st:
+        add_participant(st, "LK-01", {"age": 30})
+        add_participant(st, "LK-02", {"age": 40})
+        exclude(st, "LK-02", "objective", "technical_issue")
+        assert included_participants(st, "objective") == ["LK-01"]
+        with pytest.raises(UserError, match="unknown participant P001"):
+            exclude(st, "P001", "all", "other")

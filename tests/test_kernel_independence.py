@@ -67,10 +67,11 @@ def test_drive_logs_and_fits_are_identical_under_every_kernel(tmp_path):
 SURVEY_SCRIPT = r"""
 import sys
 from analysis.acceptance import analyze_survey
+from analysis.paper.published import paper_study
 from pedas.paths import REFERENCE_DIR
 import pandas as pd
 responses = pd.read_csv(REFERENCE_DIR / "survey.csv")
-analyze_survey(responses).write(sys.argv[1])
+analyze_survey(responses, paper_study()).write(sys.argv[1])
 """
 
 

@@ -68,7 +68,7 @@ def test_segments_split_at_the_left_sample_and_sum_to_overall():
     assert list(k["segment"]) == ["urban", "highway", "overall"]
 
 
-def test_store_energy_matches_power_model(tmp_db):
+def test_store_energy_matches_power_model(paper_db):
     """A drive imported without p_batt: the importer fills it from the vehicle model, the KPI integrates it to
     the same Wh as the model's own trace energy (`kpi energy`)."""
     from analysis.kpis import store_kpis
@@ -78,7 +78,7 @@ def test_store_energy_matches_power_model(tmp_db):
     from study.store import Store
 
     log = ramp_log([(10, 15.0), (60, 15.0), (10, 0.0)])
-    with Store.open(tmp_db, actor="test") as st:
+    with Store.open(paper_db, actor="test") as st:
         add_participant(st, "P001", style="normal")
         import_drive_frame(st, "P001", "baseline", log)
         k = store_kpis(st)
@@ -89,7 +89,7 @@ def test_store_energy_matches_power_model(tmp_db):
     assert r["distance_m"] == pytest.approx(log["s"].iloc[-1])
 
 
-def test_store_fills_missing_power_and_acceleration_without_changing_store(tmp_db):
+def test_store_fills_missing_power_and_acceleration_without_changing_store(paper_db):
     from analysis.kpis import store_kpis
     from pedas.power import trace_energy
     from study.drives import import_drive_frame
@@ -97,7 +97,7 @@ def test_store_fills_missing_power_and_acceleration_without_changing_store(tmp_d
     from study.store import Store
 
     log = ramp_log([(8, 12.0), (30, 12.0), (8, 0.0)])
-    with Store.open(tmp_db, actor="test") as st:
+    with Store.open(paper_db, actor="test") as st:
         add_participant(st, "P002")
         d = import_drive_frame(st, "P002", "pedas", log)
         st.con.execute("UPDATE drive_samples SET p_batt = NULL, a = NULL WHERE drive_id = ?", [d.drive_id])

@@ -72,17 +72,21 @@ def test_shipped_cohort_is_the_default_seed(tmp_path):
         assert p.read_bytes() == (REFERENCE_DIR / p.name).read_bytes(), p.name
 
 
-def test_loads_into_a_real_store(tmp_db, cohort):
-    store = pytest.importorskip("study.store")
-    with store.Store.open(tmp_db, actor="test") as st:
+def test_loads_into_a_real_store(paper_db, cohort):
+    from study.store import Store
+
+    with Store.open(paper_db, actor="test") as st:
         C.load_into_store(st, cohort)
         assert st.df("SELECT count(*) AS n FROM participants")["n"].iloc[0] == 44
+        attrs = st.df("SELECT attribute, count(*) AS n FROM participant_attributes GROUP BY ALL ORDER BY attribute")
+        assert dict(zip(attrs["attribute"], attrs["n"])) == {a: 44 for a in ("age", "eco_familiarity", "gender",
+                                                                              "license_years", "style")}
+        p6 = st.df("SELECT attribute, value FROM participant_attributes WHERE participant_id = 'P006'")
+        assert dict(zip(p6["attribute"], p6["value"]))["style"] == "normal"
         ex = st.df("SELECT scope, reason, count(*) AS n FROM exclusions GROUP BY ALL ORDER BY reason")
         assert dict(zip(ex["reason"], ex["n"])) == {"incomplete_survey": 1, "motion_sickness": 3, "technical_issue": 7}
-        try:
-            from study.exclusions import included_participants
-        except ImportError:
-            return
+        from study.exclusions import included_participants
+
         assert len(included_participants(st, "objective")) == 34
         assert len(included_participants(st, "subjective")) == 40
 
@@ -91,3 +95,14 @@ def test_cli_cohort(cli, tmp_path):
     res = cli("paper", "cohort", "--out", tmp_path / "c", "--seed", "3")
     assert res.code == 0, res.err
     assert (tmp_path / "c" / "participants.csv").exists() and (tmp_path / "c" / "events.csv").exists()
+
+
+def test_a_store_of_another_study_is_refused(tmp_db, cohort):
+    from pedas_study.cli import main
+    from study.store import Store
+
+    assert main([f"--db={tmp_db}", "init", "--study", "studies/lane_keeping"]) == 0
+    with Store.open(tmp_db, actor="test") as st:
+        with pytest.raises(ValueError, match="belongs to study pedas_paper"):
+            C.load_into_store(st, cohort)
+        assert st.one("SELECT count(*) FROM participants") == 0

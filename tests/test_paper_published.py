@@ -1,5 +1,5 @@
-"""The transcription in data/paper/published.csv against the paper's LaTeX source (the cited lines, committed as
-data/paper/source_lines.txt)."""
+"""The transcription in studies/pedas_paper/published.csv against the paper's LaTeX source (the cited lines,
+committed as studies/pedas_paper/source_lines.txt)."""
 from __future__ import annotations
 
 import re

@@ -10,7 +10,6 @@ from analysis.paper import grim
 from analysis.paper import published as P
 from analysis.paper import reconstruct as R
 from pedas.paths import REFERENCE_DIR
-from study.instrument import load_instrument
 
 SHORT = (dict(w_r=1e5, w_sd=1e5, w_within=4, w_across=1, sweeps=3, temp0=3.0),
          dict(w_r=1e4, w_sd=1e4, w_within=0.3, w_across=0.05, w_t5=1.0, sweeps=2, temp0=0.1, max_pairs=60))
@@ -23,12 +22,12 @@ def shipped() -> pd.DataFrame:
 
 @pytest.fixture(scope="module")
 def scored(shipped) -> pd.DataFrame:
-    inst = load_instrument()
+    inst = P.paper_study().instrument()
     return inst.reverse(shipped[inst.scaled_items])
 
 
 def test_format_is_the_design_survey_csv(shipped):
-    inst = load_instrument()
+    inst = P.paper_study().instrument()
     assert shipped.columns.tolist() == ["participant_id"] + inst.scaled_items
     assert len(shipped) == R.N_IMPLIED and shipped["participant_id"].is_unique
     vals = shipped[inst.scaled_items]

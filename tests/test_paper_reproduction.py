@@ -78,7 +78,7 @@ def test_a_loading_is_credited_to_an_audit_finding_only_with_evidence_about_its_
 def reproduction():
     from analysis.acceptance import analyze_survey
 
-    analysis = analyze_survey(pd.read_csv(REFERENCE_DIR / "survey.csv"), n_boot=0, seed=1)
+    analysis = analyze_survey(pd.read_csv(REFERENCE_DIR / "survey.csv"), P.paper_study(), n_boot=0, seed=1)
     return RP.reproduce(analysis)
 
 

@@ -1,42 +1,75 @@
 """The protocol definition and the phase log: order, abort, completion, status."""
 import json
+from pathlib import Path
 
 import pytest
 
 from study.errors import UserError
 from study.exclusions import exclude
 from study.participants import add_participant
-from study.protocol import PROTOCOL_DIR, abort, advance, complete, load_protocol, status
+from study.protocol import abort, advance, complete, load_protocol, parse_protocol, protocol_of, status
 from study.store import Store
 
 PHASES = ("familiarisation", "baseline_drive", "pedas_intro", "practice", "pedas_drive", "survey")
+STUDIES = Path(__file__).resolve().parents[1] / "studies"
 
 
-def test_paper_protocol():
-    p = load_protocol()
-    assert p.phases == PHASES
+def test_paper_protocol_comes_from_the_stored_study(paper_db):
+    with Store.open(paper_db) as st:
+        p = load_protocol(st)
+        assert load_protocol(st, "counterbalanced_v1").name == "counterbalanced_v1"
+        with pytest.raises(UserError, match=r"unknown protocol 'paper_v9' \(study pedas_paper: paper_v1, "
+                                            r"counterbalanced_v1\)"):
+            load_protocol(st, "paper_v9")
+    assert p.name == "paper_v1" and p.phases == PHASES
     assert [s.condition for s in p.steps if s.drive] == ["baseline", "pedas"]
     assert all(s.planned_minutes and s.planned_minutes > 0 for s in p.steps)
 
 
-def test_loader_keeps_unknown_keys(tmp_path, monkeypatch):
-    data = json.loads((PROTOCOL_DIR / "paper_v1.json").read_text())
+def test_parser_keeps_unknown_keys():
+    data = json.loads((STUDIES / "pedas_paper" / "paper_v1.json").read_text())
     data["name"] = "x_v9"
     data["room"] = "sim-lab"
     data["phases"][0]["staff"] = 2
-    (tmp_path / "x_v9.json").write_text(json.dumps(data))
-    monkeypatch.setattr("study.protocol.PROTOCOL_DIR", tmp_path)
-    load_protocol.cache_clear()
-    try:
-        p = load_protocol("x_v9")
-        assert p.phases == PHASES and p.extra["room"] == "sim-lab" and p.steps[0].extra["staff"] == 2
-    finally:
-        load_protocol.cache_clear()
+    p = parse_protocol(json.dumps(data), "x_v9.json")
+    assert p.name == "x_v9" and p.phases == PHASES and p.extra["room"] == "sim-lab" and p.steps[0].extra["staff"] == 2
+
+
+@pytest.mark.parametrize("change, msg", [
+    (lambda d: d.update(phases=[]), "x.json: phases must be a non-empty list of distinct names"),
+    (lambda d: d["phases"].append(dict(d["phases"][0])), "distinct names"),
+    (lambda d: d["phases"][0].update(planned_minutes=-5), "planned_minutes must be a number >= 0"),
+    (lambda d: d.update(orders={"a": ["familiarisation"]}), "order 'a' must list each phase exactly once"),
+])
+def test_parser_refuses_bad_protocols(change, msg):
+    data = json.loads((STUDIES / "pedas_paper" / "paper_v1.json").read_text())
+    change(data)
+    with pytest.raises(UserError, match=msg):
+        parse_protocol(json.dumps(data), "x.json")
+    with pytest.raises(UserError, match=r"x.json:1: not valid JSON"):
+        parse_protocol("{", "x.json")
+
+
+def test_a_participant_follows_the_protocol_of_their_study(lk_db):
+    """Phases, conditions and orders are the lane-keeping study's: the first participant gets hud_first."""
+    with Store.open(lk_db) as st:
+        add_participant(st, "LK-01", {"age": 30})
+        add_participant(st, "LK-02", {"age": 40})
+        for pid in ("LK-01", "LK-02"):
+            advance(st, pid, "familiarisation", at="2026-05-04T09:00")
+        with pytest.raises(UserError, match="next is drive_no_hud, not drive_hud"):
+            advance(st, "LK-02", "drive_hud", at="2026-05-04T09:10")
+        advance(st, "LK-02", "drive_no_hud", at="2026-05-04T09:10")
+        p1, p2 = protocol_of(st, "LK-01"), protocol_of(st, "LK-02")
+        orders = dict(st.df("SELECT participant_id, order_name FROM order_assignments").values.tolist())
+    assert orders == {"LK-01": "hud_first", "LK-02": "no_hud_first"}
+    assert [s.condition for s in p1.steps if s.drive] == ["hud", "no_hud"]
+    assert [s.condition for s in p2.steps if s.drive] == ["no_hud", "hud"]
 
 
 @pytest.fixture
-def st(tmp_db):
-    with Store.open(tmp_db) as s:
+def st(paper_db):
+    with Store.open(paper_db) as s:
         add_participant(s, "P001")
         yield s
 

@@ -151,3 +151,37 @@ def test_property_r2_never_drops_and_f_change_matches_formula(seed, n):
     assert np.allclose(steps["f_change"], (steps["delta_r2"] / steps["df1"]) / ((1 - steps["r2"]) / steps["df2"]))
     one = out[(out.step == 1) & (out.predictor == "A")].iloc[0]
     assert one.beta == pytest.approx(d["A"].corr(d["Y"]), abs=1e-9)  # one predictor: beta = r
+
+
+def test_covariates_enter_numeric_as_is_and_choices_as_dummies():
+    """A choice attribute in a step: one 0/1 column per occurring level except the first declared one that occurs;
+    the step's block holds all of them (F change with df1 = 2 + 1), and the numbers are OLS on those columns."""
+    import statsmodels.api as sm
+
+    from analysis.acceptance import analyze_survey
+    from analysis.testing import simulate_study_participants, simulate_study_responses
+    from pedas.paths import REPO_ROOT
+    from study.definition import load
+
+    study = load(REPO_ROOT / "studies" / "lane_keeping")
+    answers = simulate_study_responses(study, 40, seed=5)
+    people = simulate_study_participants(study, 40, seed=5)
+    people["gender"] = (["female", "male", "diverse"] * 14)[:40]   # 'undisclosed' does not occur: no column
+    model = ("PE =~ PE1 + PE2 + PE3\nBI =~ BI1 + BI2 + BI3\n"
+             "BI ~ age\nBI ~ age + gender + km_per_year\nBI ~ age + gender + km_per_year + H1*PE\n")
+    res = analyze_survey(answers, study, attributes=people, model=model, n_boot=0)
+    reg = res.regressions
+    assert res.settings["covariates"] == {"age": ["age"], "gender": ["gender_male", "gender_diverse"],
+                                          "km_per_year": ["km_per_year"]}
+    s2 = reg[reg.step == 2]
+    assert list(s2["predictor"]) == ["(Constant)", "age", "gender_male", "gender_diverse", "km_per_year"]
+    assert (s2["df1"] == 3).all() and (reg[reg.step == 3]["df1"] == 1).all()
+    X = pd.DataFrame({"age": people["age"].astype(float), "gender_male": (people["gender"] == "male") * 1.0,
+                      "gender_diverse": (people["gender"] == "diverse") * 1.0, "km_per_year": people["km_per_year"],
+                      "PE": res.composites["PE"].to_numpy()})
+    fit = sm.OLS(res.composites["BI"].to_numpy(), sm.add_constant(X)).fit()
+    s3 = reg[reg.step == 3].set_index("predictor")
+    for term in X.columns:
+        assert s3.loc[term, "b"] == pytest.approx(fit.params[term], rel=1e-9)
+        assert s3.loc[term, "p"] == pytest.approx(fit.pvalues[term], rel=1e-7)
+    assert list(res.hypotheses["hypothesis"]) == ["H1"] and res.hypotheses.loc[0, "step"] == 3

@@ -141,6 +141,8 @@ def test_report_on_reduced_reference_cohort(tmp_path):
     assert len(rep) > 100 and not (rep["status"] == "miss").any()
     html = (out / "index.html").read_text()
     assert "figures/fig9a_savings.png" in html and "reproduction.md" in html
+    assert "Verdict: every published value is met or explained." in html
+    assert "Mean energy savings were larger in " in html  # a figure's reading from the numbers
 
     # warm: nothing changed -> every step but the always-run collection is cached
     res = run_report(cfg)
@@ -175,6 +177,9 @@ def test_report_on_a_lab_store_without_paper_comparison(cli, tmp_path):
     assert not (out / "reproduction.md").exists() and not (out / "paper").exists()
     assert (out / "drives" / "objective.md").read_text().count("no drives") == 1
     _check_tables_parse(out / "tables")
+    doc = (out / "index.html").read_text()
+    assert "Skipped: the comparison with the paper was not asked for (--compare-paper)." in doc
+    assert "Hierarchical regression analysis on TAM and TPB models" in doc and "4 of 7 hypotheses supported" in doc
     # asked for the paper comparison afterwards: the survey step stays cached, the comparison still runs
     r = cli("report", "--out", out, "--bootstrap", "50", "--compare-paper", "--cache-dir", tmp_path / "cache", db=db)
     assert r.code == 0, r.err
@@ -206,15 +211,37 @@ def test_a_step_that_fails_keeps_its_previous_outputs(tmp_path):
     assert (out / "kpis.csv").read_text() == "new" and sorted(tmp_path.iterdir()) == [out]
 
 
-def test_failing_step_is_named_and_exits_non_zero(cli, tmp_path):
-    """A store without survey answers: the survey step fails, names itself, and the run stops."""
+def test_a_store_without_a_study_is_one_line_error(cli, tmp_path):
+    """The report is about the store's study: a store without one says how to add it and writes nothing."""
     from study.store import Store
 
     db = tmp_path / "empty.duckdb"
     Store.open(db).close()
     r = cli("report", "--out", tmp_path / "r", "--cache-dir", tmp_path / "c", db=db)
-    assert r.code != 0
-    assert r.err.strip().splitlines()[-1].startswith("pedas-study: error: report step 'survey' failed: ")
+    assert r.code == 2
+    assert r.err.strip().splitlines() == [f"pedas-study: error: store {db} has no study; run `pedas-study init "
+                                          f"--study DIR` (e.g. studies/pedas_paper)"]
+    assert not (tmp_path / "r").exists()
+
+
+def test_missing_data_skips_its_part_with_a_reason_and_the_rest_is_produced(cli, paper_db, tmp_path):
+    """The paper's study with registered participants but no survey answers and no drives: the survey and drive
+    parts are skipped with their reasons (printed and in the document), the participant flow is still drawn."""
+    assert cli("participant", "add", "P001", "--attr", "age=30", "--attr", "style=normal").code == 0
+    assert cli("session", "advance", "P001", "familiarisation").code == 0
+    out = tmp_path / "r"
+    r = cli("report", "--out", out, "--cache-dir", tmp_path / "c", "--compare-paper")
+    assert r.code == 0, r.err
+    assert "skipped survey: the store has no survey answers of included participants" in r.out
+    assert "skipped drives: the store has no drives, so there are no drive KPIs" in r.out
+    assert "skipped reproduction: needs the survey analysis, which was skipped" in r.out
+    assert (out / "survey" / "skipped.txt").exists() and not (out / "survey" / "table3.md").exists()
+    assert not (out / "reproduction.csv").exists()
+    assert (out / "figures" / "participant_flow.png").exists() and (out / "paper" / "audit.csv").exists()
+    doc = (out / "index.html").read_text()
+    assert "Skipped: the store has no survey answers of included participants." in doc
+    assert "Skipped: the store has no drives, so there are no drive KPIs." in doc
+    assert "<td>familiarisation</td><td class=\"r\">0</td><td class=\"r\">0</td><td class=\"r\">1</td>" in doc
 
 
 @pytest.mark.slow

@@ -1,13 +1,19 @@
-"""Per-participant effects of pEDAS, the summary by style and the reproduction bands (analysis.savings)."""
+"""Per-participant effects of pEDAS, the summary by style and the reproduction bands (analysis.savings), with the
+comparison the paper's study declares (studies/pedas_paper/kpis.toml)."""
 from __future__ import annotations
 
 import numpy as np
 import pandas as pd
 import pytest
 
+from analysis.kpi_spec import parse
 from analysis.savings import (participant_effects, objective_results, reduction_pct, reproduction_bands,
                               summarise)
 from analysis.tables_drives import style_table
+from tests.conftest import PAPER_STUDY
+
+PAPER = parse((PAPER_STUDY / "kpis.toml").read_text(encoding="utf-8"))
+STYLES = {"style": ["cautious", "normal", "sporty"]}
 
 
 def kpi_rows(pid, cond, energy, urban, viol_share=0.1, red=2, green=3, jerk=1.0):
@@ -34,7 +40,8 @@ def test_participant_effects_hand_worked():
             + kpi_rows("P002", "baseline", 1000.0, 500.0, viol_share=0.0, red=0)
             + kpi_rows("P002", "pedas", 1100.0, 500.0, viol_share=0.05, red=1)
             + kpi_rows("P003", "baseline", 1000.0, 500.0))           # no pEDAS drive: not in the table
-    per = participant_effects(pd.DataFrame(rows), {"P001": "normal", "P002": "sporty"})
+    per = participant_effects(pd.DataFrame(rows), PAPER.comparison,
+                              pd.DataFrame({"style": {"P001": "normal", "P002": "sporty"}}))
     assert list(per["participant_id"]) == ["P001", "P002"]
     p1, p2 = per.iloc[0], per.iloc[1]
     assert p1["style"] == "normal"
@@ -55,7 +62,7 @@ def test_summary_by_style_skips_undefined_and_pools_red_stops():
         "saving_highway_pct": [12.0, 25.0, 8.0, 3.0], "violation_reduction_pct": [50.0, np.nan, 40.0, 30.0],
         "red_stop_reduction_pct": [100.0, 50.0, np.nan, 0.0], "jerk_reduction_pct": [1.0, 2.0, 3.0, 4.0],
         "red_stops_baseline": [2, 2, 0, 1], "red_stops_pedas": [0, 1, 1, 1]})
-    s = summarise(per).set_index(["style", "metric"])
+    s = summarise(per, PAPER.comparison, STYLES).set_index(["style", "metric"])
     assert s.loc[("all", "saving_overall_pct"), "mean"] == pytest.approx(9.5)
     assert s.loc[("all", "saving_overall_pct"), "median"] == pytest.approx(8.0)
     assert s.loc[("normal", "saving_overall_pct"), "mean"] == pytest.approx(15.0)
@@ -63,7 +70,7 @@ def test_summary_by_style_skips_undefined_and_pools_red_stops():
     assert s.loc[("all", "violation_reduction_pct"), "n"] == 3
     assert s.loc[("all", "violation_reduction_pct"), "mean"] == pytest.approx(40.0)
     assert s.loc[("all", "red_stop_reduction_pooled_pct"), "mean"] == pytest.approx(100 * (5 - 3) / 5)
-    wide = style_table(summarise(per)).set_index("style")
+    wide = style_table(summarise(per, PAPER.comparison, STYLES), PAPER.comparison).set_index("style")
     assert list(wide.index) == ["cautious", "normal", "sporty", "all"]
     assert wide.loc["sporty", "saving_highway_pct_mean"] == pytest.approx(8.0)
     assert wide.loc["all", "red_stop_reduction_pct_n"] == 3
@@ -77,7 +84,7 @@ def test_reproduction_bands_take_paper_values_from_published_data():
         "saving_overall_pct": [8.0, 12.0], "saving_urban_pct": [4.0, 6.0], "saving_highway_pct": [12.0, 14.0],
         "violation_reduction_pct": [20.0, 30.0], "red_stop_reduction_pct": [50.0, 70.0],
         "jerk_reduction_pct": [0.0, 0.0], "red_stops_baseline": [2, 2], "red_stops_pedas": [1, 1]})
-    b = reproduction_bands(summarise(per)).set_index("band")
+    b = reproduction_bands(summarise(per, PAPER.comparison, STYLES)).set_index("band")
     assert list(b["holds"]) == [True, True, False, True]               # violations: 25 % < 30 %
     overall = b.iloc[0]
     assert overall["our_value"] == pytest.approx(10.0)
@@ -85,7 +92,7 @@ def test_reproduction_bands_take_paper_values_from_published_data():
     assert b.iloc[1]["our_value"] == pytest.approx(13.0 - 5.0)
 
 
-def test_objective_results_respect_exclusions(tmp_db):
+def test_objective_results_respect_exclusions(paper_db):
     from study.drives import import_drive_frame
     from study.exclusions import exclude
     from study.participants import add_participant
@@ -98,7 +105,7 @@ def test_objective_results_respect_exclusions(tmp_db):
         return pd.DataFrame({"t": t, "s": s, "v": v, "segment": np.where(t < 30, "urban", "highway"),
                              "speed_limit": 14.0})
 
-    with Store.open(tmp_db, actor="test") as st:
+    with Store.open(paper_db, actor="test") as st:
         for pid, style in (("P001", "normal"), ("P002", "sporty"), ("P003", "cautious")):
             add_participant(st, pid, style=style)
             import_drive_frame(st, pid, "baseline", log(16.0))
@@ -113,14 +120,14 @@ def test_objective_results_respect_exclusions(tmp_db):
     assert (res.per_participant["violation_reduction_pct"] == 100.0).all()   # 16 m/s > 14 + 3 km/h; 13 is not
 
 
-def test_reproduction_bands_without_published_values(monkeypatch, tmp_path):
-    import analysis.paper.published as published
+def test_reproduction_bands_without_published_values():
+    from analysis.paper.published import load_published
 
-    monkeypatch.setattr(published, "PAPER_DIR", tmp_path)          # no published.csv there
+    none = load_published().iloc[0:0]                               # a study without published values
     per = pd.DataFrame({"participant_id": ["P001"], "style": ["normal"], "saving_overall_pct": [20.0],
                         "saving_urban_pct": [5.0], "saving_highway_pct": [3.0], "violation_reduction_pct": [45.0],
                         "red_stop_reduction_pct": [np.nan], "jerk_reduction_pct": [0.0],
                         "red_stops_baseline": [0], "red_stops_pedas": [0]})
-    b = reproduction_bands(summarise(per))
+    b = reproduction_bands(summarise(per, PAPER.comparison, STYLES), published=none)
     assert b["paper_value"].isna().all()
     assert list(b["holds"]) == [False, False, True, False]         # 20 % > 15 %; highway < urban; no red stops

@@ -13,7 +13,7 @@ from study.scheduling import (
 )
 from study.store import Store
 
-FUTURE = datetime.now().replace(microsecond=0, second=0, minute=0) + timedelta(days=30)
+FUTURE = (datetime.now() + timedelta(days=30)).replace(hour=9, minute=0, second=0, microsecond=0)  # a morning: +3 h stays that day
 
 
 def _counts(st) -> dict[str, int]:
@@ -21,23 +21,23 @@ def _counts(st) -> dict[str, int]:
 
 
 @pytest.fixture
-def st(tmp_db):
-    with Store.open(tmp_db, actor="tester") as st:
+def st(paper_db):
+    with Store.open(paper_db, actor="tester") as st:
         from study.participants import add_participant
         for i in range(1, 4):
             add_participant(st, f"P{i:03d}", style="normal")
         yield st
 
 
-def test_paper_protocol_is_data_with_planned_durations():
-    proto = load_protocol("paper_v1")
+def test_paper_protocol_is_data_with_planned_durations(st):
+    proto = load_protocol(st, "paper_v1")
     assert proto.phases == ("familiarisation", "baseline_drive", "pedas_intro", "practice", "pedas_drive", "survey")
     assert planned_minutes(proto) == sum(p.planned_minutes for p in proto.steps) > 0
     assert protocol_orders(proto) == {"default": proto.phases}
 
 
-def test_counterbalanced_protocol_has_two_orders_with_pedas_first_in_one():
-    orders = protocol_orders(load_protocol("counterbalanced_v1"))
+def test_counterbalanced_protocol_has_two_orders_with_pedas_first_in_one(st):
+    orders = protocol_orders(load_protocol(st, "counterbalanced_v1"))
     assert set(orders) == {"baseline_first", "pedas_first"}
     assert orders["pedas_first"].index("pedas_drive") < orders["pedas_first"].index("baseline_drive")
     assert orders["baseline_first"].index("baseline_drive") < orders["baseline_first"].index("pedas_drive")
@@ -45,7 +45,21 @@ def test_counterbalanced_protocol_has_two_orders_with_pedas_first_in_one():
 
 def test_slot_length_is_protocol_plus_buffer(st):
     row = book(st, "P001", FUTURE, buffer_minutes=20)
-    assert row["ends_at"] - row["starts_at"] == timedelta(minutes=planned_minutes(load_protocol("paper_v1")) + 20)
+    assert row["ends_at"] - row["starts_at"] == timedelta(minutes=planned_minutes(load_protocol(st, "paper_v1")) + 20)
+    assert planned_minutes(load_protocol(st, "paper_v1")) == 10 + 20 + 10 + 10 + 20 + 15  # the file's phases
+
+
+def test_slot_length_is_the_participants_protocol(lk_db):
+    """A lane-keeping participant's slot lasts that study's protocol (5 + 8 + 8 + 10 min) plus the buffer."""
+    from study.participants import add_participant
+
+    with Store.open(lk_db) as st:
+        add_participant(st, "LK-01", {"age": 30})
+        row = book(st, "LK-01", FUTURE, buffer_minutes=15)
+        assert row["protocol"] == "lk_counterbalanced_v1"
+        assert row["ends_at"] - row["starts_at"] == timedelta(minutes=31 + 15)
+        # booking a counterbalanced participant assigns the order
+        assert st.one("SELECT order_name FROM order_assignments") == "hud_first"
 
 
 def test_overlap_on_same_simulator_refused_and_store_unchanged(st):
@@ -106,13 +120,13 @@ def test_bad_times_refused(st, bad, msg):
     assert _counts(st) == before
 
 
-def test_balanced_orders_with_dropouts(tmp_db):
+def test_balanced_orders_with_dropouts(paper_db):
     """10 participants on the counterbalanced protocol, 3 drop out: completed orders differ by at most one."""
     from study.exclusions import exclude
     from study.participants import add_participant
     from study.protocol import advance
 
-    with Store.open(tmp_db, actor="tester") as st:
+    with Store.open(paper_db, actor="tester") as st:
         dropouts = {"P002", "P005", "P006"}
         completed: dict[str, str] = {}
         t = datetime(2026, 1, 5, 8, 0)
@@ -121,7 +135,7 @@ def test_balanced_orders_with_dropouts(tmp_db):
             add_participant(st, pid, protocol="counterbalanced_v1")
             order = assign_order(st, pid)
             assert assign_order(st, pid) == order  # stored once
-            phases = protocol_orders(load_protocol("counterbalanced_v1"))[order]
+            phases = protocol_orders(load_protocol(st, "counterbalanced_v1"))[order]
             if pid in dropouts:
                 advance(st, pid, phases[0], at=t)
                 exclude(st, pid, "all", "withdrawn")
@@ -140,11 +154,11 @@ def test_balanced_orders_with_dropouts(tmp_db):
         assert st.one("SELECT count(*) FROM audit_log WHERE table_name = 'order_assignments'") == 10
 
 
-def test_counterbalanced_participant_follows_assigned_order(tmp_db):
+def test_counterbalanced_participant_follows_assigned_order(paper_db):
     from study.participants import add_participant
     from study.protocol import advance
 
-    with Store.open(tmp_db, actor="tester") as st:
+    with Store.open(paper_db, actor="tester") as st:
         add_participant(st, "P001", protocol="counterbalanced_v1")
         add_participant(st, "P002", protocol="counterbalanced_v1")
         assert assign_order(st, "P001") == "baseline_first"  # tie -> first order in the file
@@ -156,12 +170,12 @@ def test_counterbalanced_participant_follows_assigned_order(tmp_db):
 
 
 @pytest.mark.parametrize("phase, msg", [("warmup", "unknown phase"), ("baseline_drive", "out of order")])
-def test_refused_first_step_assigns_no_order(tmp_db, phase, msg):
+def test_refused_first_step_assigns_no_order(paper_db, phase, msg):
     """The first step of a counterbalanced participant assigns the order; a refused one leaves no trace."""
     from study.participants import add_participant
     from study.protocol import advance
 
-    with Store.open(tmp_db, actor="tester") as st:
+    with Store.open(paper_db, actor="tester") as st:
         add_participant(st, "P001", protocol="counterbalanced_v1")
         before = _counts(st)
         with pytest.raises(UserError, match=msg):
@@ -199,8 +213,7 @@ def test_day_agenda_and_durations(st):
                                                                                    "planned_minutes"])
 
 
-def test_cli_schedule_flow(cli, tmp_path):
-    assert cli("init").code == 0
+def test_cli_schedule_flow(cli, paper_db, tmp_path):
     assert cli("participant", "add", "P001").code == 0
     assert cli("participant", "add", "P002").code == 0
     at = FUTURE.strftime("%Y-%m-%dT%H:%M")
@@ -211,7 +224,7 @@ def test_cli_schedule_flow(cli, tmp_path):
     r = cli("session", "schedule", "P002", "--at", "not-a-date")
     assert r.code != 0 and "malformed" in r.err
     r = cli("participant", "add", "P003", "--protocol", "no_such_protocol")
-    assert r.code != 0 and "unknown protocol" in r.err
+    assert r.code == 2 and "unknown protocol 'no_such_protocol'" in r.err
     r = cli("schedule", "day", FUTURE.date().isoformat(), "--format", "csv")
     assert r.code == 0 and "P001" in r.out and "P002" not in r.out
     ics = tmp_path / "lab.ics"
@@ -219,10 +232,9 @@ def test_cli_schedule_flow(cli, tmp_path):
     assert r.code == 0 and ics.read_bytes().count(b"BEGIN:VEVENT") == 1
 
 
-def test_cli_appointment_life_cycle(cli, tmp_db):
+def test_cli_appointment_life_cycle(cli, paper_db):
     """reschedule, cancel, no-show, attended, assign and durations through the CLI: each changes what it says,
     is audited, and a refused one leaves the store as it was."""
-    assert cli("init").code == 0
     for args in (("P001",), ("P002",), ("P003", "--protocol", "counterbalanced_v1")):
         assert cli("participant", "add", *args).code == 0
     at, later = FUTURE.strftime("%Y-%m-%dT%H:%M"), (FUTURE + timedelta(hours=3)).strftime("%Y-%m-%dT%H:%M")
@@ -236,7 +248,7 @@ def test_cli_appointment_life_cycle(cli, tmp_db):
     assert cli("session", "attended", "P001").code == 0
     r = cli("session", "assign", "P003")
     assert r.code == 0 and "order" in r.out
-    with Store.open(tmp_db, read_only=True) as st:
+    with Store.open(paper_db, read_only=True) as st:
         statuses = st.df("SELECT participant_id, status, note FROM appointments ORDER BY appointment_id")
         assert statuses[["participant_id", "status"]].values.tolist() == [
             ["P001", "attended"], ["P002", "cancelled"], ["P002", "no_show"]]
@@ -252,7 +264,7 @@ def test_cli_appointment_life_cycle(cli, tmp_db):
                       (("session", "reschedule", "P404", "--at", later), "P404")):
         r = cli(*args)
         assert r.code == 2 and msg in r.err and len(r.err.strip().splitlines()) == 1, r.err
-    with Store.open(tmp_db, read_only=True) as st:
+    with Store.open(paper_db, read_only=True) as st:
         assert _counts(st) == before
     # planned vs actual durations from the recorded phases
     t0 = FUTURE - timedelta(days=40)

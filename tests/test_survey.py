@@ -11,20 +11,26 @@ from hypothesis import given, settings
 from hypothesis import strategies as hs
 
 from study import survey as sv
+from study.definition import load
 from study.errors import UserError
-from study.instrument import Answer, load_instrument
+from study.instrument import Answer
+from study.participants import add_participant, participant_attributes
 from study.store import Store
+from study.studies import register
 from study.survey_import import import_survey
+from tests.conftest import PAPER_STUDY
 
-INS = load_instrument()
+INS = load(PAPER_STUDY).instrument()
 SCALED = INS.scaled_items
+ATTRIBUTE_ITEMS = ["AGE", "GENDER", "LICENSE_YEARS", "STYLE", "ECO_FAM"]
 
 
 def make_store(path, pids=("P001", "P002", "P003")) -> Store:
+    """A store serving the paper's study with participants `pids` (no attributes recorded)."""
     st = Store.open(path, actor="tester")
-    with st.transaction():
-        for p in pids:
-            st.insert("participants", {"participant_id": p})
+    register(st, PAPER_STUDY)
+    for p in pids:
+        add_participant(st, p)
     return st
 
 
@@ -77,13 +83,23 @@ def test_codebook_has_every_appendix_item():
     assert INS.items.loc["SN2", "text"].endswith("I should use pEDAS") and "should pEDAS" in INS.items.loc["SN2", "source"]
 
 
-def test_codebook_demographic_block():
-    assert INS.demographic_items == ["AGE", "GENDER", "LICENSE_YEARS", "STYLE", "ECO_FAM"]
+def test_codebook_attribute_items():
+    assert sv.attribute_items(INS) == {"AGE": "age", "GENDER": "gender", "LICENSE_YEARS": "license_years",
+                                       "STYLE": "style", "ECO_FAM": "eco_familiarity"}
+    assert sv.response_items(INS) == SCALED + INS.text_items
     assert list(INS.choices("STYLE").values()) == ["Cautious", "Normal", "Sporty"]
     eco = INS.choices("ECO_FAM")
     assert list(eco) == [1, 2, 3, 4, 5]
     assert "never heard of eco-driving" in eco[1] and "regularly use" in eco[5]
-    assert set(sv.DEMOGRAPHIC_CODES["GENDER"]) == set(INS.choices("GENDER"))
+    study = load(PAPER_STUDY)
+    # a choice item's code k is the attribute's k-th choice; numbers are taken as they are
+    assert sv.attribute_value(INS, "GENDER", Answer(value=4), study.attribute("gender")) == "undisclosed"
+    assert sv.attribute_value(INS, "STYLE", Answer(value=1), study.attribute("style")) == "cautious"
+    assert sv.attribute_value(INS, "ECO_FAM", Answer(value=3), study.attribute("eco_familiarity")) == 3
+    assert sv.attribute_value(INS, "AGE", Answer(), study.attribute("age")) is None
+    assert sv.item_answer(INS, "GENDER", study.attribute("gender"), "undisclosed") == 4
+    with pytest.raises(UserError, match="AGE: age must be between 16 and 110, not 120"):
+        sv.attribute_value(INS, "AGE", Answer(value=120), study.attribute("age"))
 
 
 def test_parse_answers():
@@ -147,8 +163,9 @@ def test_link_draft_submit(st):
     assert st.one("SELECT count(*) FROM responses WHERE item_id = 'Q2' AND value IS NULL AND text IS NULL") == 1
     assert st.one("SELECT count(*) FROM responses WHERE value = 0 OR text = ''") == 0   # missing, never 0 / ''
     assert got.loc["Q1", "text"] == "feedback 3"
-    p = st.df("SELECT * FROM participants WHERE participant_id = 'P001'").iloc[0]
+    p = participant_attributes(st, ["P001"]).iloc[0]
     assert (p["age"], p["gender"], p["license_years"], p["style"], p["eco_familiarity"]) == (33, "undisclosed", 8, "cautious", 4)
+    assert st.one("SELECT count(*) FROM responses WHERE item_id IN ('AGE', 'GENDER')") == 0   # attributes only
     assert st.one("SELECT count(*) FROM survey_drafts") == 0
     assert st.one("SELECT count(*) FROM audit_log WHERE table_name = 'responses' AND actor = 'tester'") == 28
     assert sv.resolve_token(st, token).submitted
@@ -180,13 +197,28 @@ def test_tokens_are_per_participant_and_revocable(st):
 
 
 def test_license_years_cannot_exceed_age_minus_16(st):
+    """The study's [[checks]] apply to the attributes a survey fills; a refusal stores nothing."""
     ans = full_answers(0)
     ans.update(AGE=20, LICENSE_YEARS=6)
     sv.save_draft(st, "P001", ans)
     before = st.counts()
-    with pytest.raises(UserError, match="more than age 20 minus 16"):
+    with pytest.raises(UserError, match=r"license years impossible at this age \(licence from 16\)"):
         sv.submit_web(st, "P001")
     assert st.counts() == before
+    assert sv.submission(st, "P001", 1) is None and len(sv.draft(st, "P001")) == len(ans)
+
+
+def test_survey_answer_replaces_a_recorded_attribute(st):
+    """An attribute recorded at registration and answered differently on the form: the participant's answer is
+    stored (an audited update), as the form is their own statement."""
+    add_participant(st, "P010", attributes={"age": 40, "gender": "female"})
+    sv.save_draft(st, "P010", dict(full_answers(0), AGE=41, GENDER=1))
+    sv.submit_web(st, "P010")
+    p = participant_attributes(st, ["P010"]).iloc[0]
+    assert (p["age"], p["gender"], p["style"]) == (41, "female", "cautious")
+    audit = st.df("SELECT action, old, new FROM audit_log WHERE table_name = 'participant_attributes' "
+                  "AND row_key LIKE '%P010%' AND row_key LIKE '%\"age\"%' ORDER BY \"at\"")
+    assert audit["action"].tolist() == ["insert", "update"] and json.loads(audit["new"][1])["value"] == "41"
 
 
 def test_bad_draft_answer_stores_nothing(st):
@@ -237,17 +269,18 @@ def test_entry_rules(st):
     sv.save_entry(st, "P001", 1, {"PU1": 2}, replace=True)    # correction of the same round
     assert sv.entry_answers(st, "P001", 1)["PU1"] == Answer(value=2)
     assert st.one("SELECT count(*) FROM audit_log WHERE table_name = 'responses' AND action = 'update'") == 1
-    paper = {k: v for k, v in full_answers(1).items() if k not in INS.demographic_items}
+    paper = {k: v for k, v in full_answers(1).items() if k not in ATTRIBUTE_ITEMS}
     sv.save_entry(st, "P003", 1, paper, double_entry=False, source="import")
     with pytest.raises(UserError, match="single import entry"):
         sv.save_entry(st, "P003", 2, paper)
-    with pytest.raises(UserError, match="unknown item"):
-        sv.save_entry(st, "P002", 1, {"AGE": 30})             # demographics are not responses
+    with pytest.raises(UserError, match="AGE fills the participant attribute age"):
+        sv.save_entry(st, "P002", 1, {"AGE": 30})             # a double entry does not fill attributes
 
 
 @pytest.fixture(scope="module")
 def prop_store(tmp_path_factory):
     s = Store.open(tmp_path_factory.mktemp("prop") / "study.duckdb", actor="first")
+    register(s, PAPER_STUDY)
     yield s
     s.close()
 
@@ -264,7 +297,7 @@ def test_final_rule_property(prop_store, e1, e2, fix, resolved_to):
     """final = resolution where recorded, else the agreed value; a participant with an open discrepancy is left out."""
     st = prop_store
     pid = f"P{next(_pid_counter)}"
-    st.insert("participants", {"participant_id": pid})
+    add_participant(st, pid)
     items = ENTRY_ITEMS[:3]
     sv.save_entry(st, pid, 1, {i: ("" if v is None else v) for i, v in zip(items, e1)})
     with sv.acting_as(st, "second"):
@@ -301,6 +334,26 @@ def test_import_single_entry_is_final(st, tmp_path):
                   "AND value IS NULL") == 1
 
 
+def test_import_fills_attributes_single_entry_only(st, tmp_path):
+    data = {"P001": full_answers(0), "P002": full_answers(1)}
+    header, rows = csv_rows(data)
+    header += ATTRIBUTE_ITEMS
+    for r, pid in zip(rows, data):
+        r += [data[pid][i] for i in ATTRIBUTE_ITEMS]
+    path = write_csv(tmp_path / "a.csv", header, rows)
+    before = st.counts()
+    with pytest.raises(UserError, match="AGE, GENDER, LICENSE_YEARS, STYLE, ECO_FAM fill participant attributes"):
+        import_survey(st, path, entry=1)
+    assert st.counts() == before
+    r = import_survey(st, path)
+    assert r.answers == 2 * (len(SCALED) + 1)                    # Q1 answered; attribute items are not responses
+    attrs = participant_attributes(st, ["P001", "P002"]).set_index("participant_id")
+    assert attrs.loc["P001"].tolist() == [30, "female", 5, "cautious", 1]
+    assert attrs.loc["P002"].tolist() == [31, "male", 6, "normal", 2]
+    final = sv.final_responses(st).set_index("participant_id")
+    assert final.loc["P002", ATTRIBUTE_ITEMS].tolist() == [31, 2, 6, 2, 2]
+
+
 def test_import_double_entry(st, tmp_path):
     one = {"P001": full_answers(0), "P002": full_answers(1)}
     two = {"P001": dict(full_answers(0)), "P002": full_answers(1)}
@@ -322,8 +375,11 @@ BAD_CASES = {
     "unknown_participant": (lambda h, r: (h, r + [["P077"] + r[0][1:]]), "unknown participant P077"),
     "missing_required_column": (lambda h, r: ([c for c in h if c != "BI2"], [x[:-4] + x[-3:] for x in r]),
                                 "required item column(s) missing: BI2"),
-    "demographic_column": (lambda h, r: (h + ["AGE"], [x + ["30"] for x in r]), "belong on the participant record"),
-    "bad_id": (lambda h, r: (h, [["X1"] + r[0][1:]] + r[1:]), "'X1' is not of the form P001"),
+    "attribute_out_of_range": (lambda h, r: (h + ["AGE"], [x + ["30"] for x in r[:1]] + [x + ["7"] for x in r[1:]]),
+                               "line 3, AGE: value 7 outside 18-99"),
+    "attribute_check": (lambda h, r: (h + ["AGE", "LICENSE_YEARS"], [x + ["20", "6"] for x in r]),
+                        "license years impossible at this age"),
+    "bad_id": (lambda h, r: (h, [["X1"] + r[0][1:]] + r[1:]), "bad participant id 'X1'"),
     "first_column": (lambda h, r: (["pid"] + h[1:], r), "first column must be participant_id"),
 }
 
@@ -386,7 +442,7 @@ def test_cli_import_link_discrepancies_resolve(cli, tmp_db, tmp_path):
     out = tmp_path / "final.csv"
     assert cli("survey", "final", "--out", out).code == 0
     final = pd.read_csv(out)
-    assert list(final.columns) == ["participant_id"] + SCALED + ["Q1", "Q2", "Q3"]
+    assert list(final.columns) == ["participant_id"] + ATTRIBUTE_ITEMS + SCALED + ["Q1", "Q2", "Q3"]
     assert final.loc[0, "SN1"] == full_answers(0)["SN1"]
     r = cli("survey", "link", "P002", "--base-url", "http://127.0.0.1:9000/")
     assert r.code == 0 and r.out.startswith("http://127.0.0.1:9000/s/") and len(r.out.strip().rsplit("/", 1)[1]) == 43
@@ -416,10 +472,15 @@ def test_cli_import_then_final_round_trips(cli, tmp_db, tmp_path):
     data["P003"]["SN2"] = ""
     header, rows = csv_rows(data)
     header, rows = header[:26], [[str(v) for v in r[:26]] for r in rows]     # scaled items only
+    header[1:1] = ["AGE", "GENDER"]                                            # and two attribute items
+    for r, (age, gender) in zip(rows, (("30", "1"), ("", "2"), ("71", ""))):
+        r[1:1] = [age, gender]
     src = tmp_path / "in.csv"
     src.write_text("\n".join(",".join(r) for r in [header] + rows) + "\n")
     assert cli("survey", "import", src).code == 0
     out = tmp_path / "out.csv"
     assert cli("survey", "final", "--out", out).code == 0
     lines = out.read_text().splitlines()
-    assert [",".join(line.split(",")[:26]) for line in lines] == src.read_text().splitlines()
+    keep = [k for k, c in enumerate(lines[0].split(",")) if c in header]         # LICENSE_YEARS... stay empty
+    assert [",".join(line.split(",")[k] for k in keep) for line in lines] == src.read_text().splitlines()
+    assert all(line.split(",")[3:6] == ["", "", ""] for line in lines[1:])

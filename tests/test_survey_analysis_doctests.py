@@ -13,7 +13,7 @@ import io
 import pytest
 
 MODULES = ["analysis.reliability", "analysis.validity", "analysis.regression", "analysis.cfa", "analysis.hypotheses",
-           "analysis.scoring", "analysis.descriptives", "analysis.render", "analysis.acceptance"]
+           "analysis.scoring", "analysis.descriptives", "analysis.render", "analysis.acceptance", "analysis.testing"]
 
 
 def _flags(config) -> int:
@@ -48,10 +48,11 @@ def test_the_public_statistics_functions_have_examples():
               "analysis.regression": ["ols", "f_change", "bootstrap_coefs", "bootstrap_ci",
                                       "hierarchical_regression"],
               "analysis.cfa": ["fit_indices", "srmr", "heywood_cases", "model_description"],
-              "analysis.hypotheses": ["judge_hypotheses", "load_hypotheses"],
-              "analysis.scoring": ["composites", "score_responses", "check_not_constant"],
+              "analysis.hypotheses": ["judge_hypotheses", "load_hypotheses", "supported"],
+              "analysis.scoring": ["composites", "score_responses", "check_not_constant", "resolve_instrument"],
               "analysis.descriptives": ["item_descriptives"],
-              "analysis.acceptance": ["SurveyAnalysis"]}
+              "analysis.acceptance": ["SurveyAnalysis", "survey_plan", "covariate_frame", "table_titles"],
+              "analysis.testing": ["simulate_study_responses", "simulate_study_participants", "participant_ids"]}
     parser = doctest.DocTestParser()
     for mod, names in wanted.items():
         module = importlib.import_module(mod)

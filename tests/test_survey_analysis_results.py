@@ -8,6 +8,7 @@ import pandas as pd
 import pytest
 
 from analysis.acceptance import TEXT_COLUMNS, SurveyAnalysis, analyze_survey
+from analysis.paper.published import paper_study
 from pedas.paths import REFERENCE_DIR
 
 PAPER = ("table3", "table4", "table5")
@@ -15,7 +16,7 @@ PAPER = ("table3", "table4", "table5")
 
 @pytest.fixture(scope="module")
 def reference():
-    return analyze_survey(pd.read_csv(REFERENCE_DIR / "survey.csv"), n_boot=50, seed=3)
+    return analyze_survey(pd.read_csv(REFERENCE_DIR / "survey.csv"), paper_study(), n_boot=50, seed=3)
 
 
 @pytest.fixture(scope="module")
@@ -24,7 +25,7 @@ def holes():
     data = pd.read_csv(REFERENCE_DIR / "survey.csv")
     for pid, item in (("P001", "PU2"), ("P002", "SN1"), ("P003", "PU2")):
         data.loc[data["participant_id"] == pid, item] = np.nan
-    return analyze_survey(data, n_boot=30, seed=5, listwise=False)
+    return analyze_survey(data, paper_study(), n_boot=30, seed=5, listwise=False)
 
 
 @pytest.fixture(scope="module")

@@ -16,12 +16,16 @@ from concurrent.futures import ThreadPoolExecutor
 import pytest
 
 from study import survey as sv
-from study.instrument import load_instrument
+from study.definition import load
+from study.participants import add_participant, participant_attributes
 from study.store import Store
 from study.webapp import SurveyServer, create_app
+from tests.conftest import LK_STUDY, PAPER_STUDY
 
-INS = load_instrument()
+PAPER = load(PAPER_STUDY)
+INS = PAPER.instrument()
 SCALED = INS.scaled_items
+ATTRIBUTE_ITEMS = list(sv.attribute_items(INS))
 PASSWORD = "correct horse"
 
 
@@ -33,11 +37,10 @@ def seeded_answers(seed: int) -> dict[str, str]:
 
 
 @pytest.fixture
-def store(tmp_db):
-    st = Store.open(tmp_db, actor="lab")
-    with st.transaction():
-        for i in range(1, 4):
-            st.insert("participants", {"participant_id": f"P00{i}"})
+def store(paper_db):
+    st = Store.open(paper_db, actor="lab")
+    for i in range(1, 4):
+        add_participant(st, f"P00{i}")
     yield st
     st.close()
 
@@ -80,6 +83,12 @@ def test_participant_page_shows_the_instrument(store, client):
         assert f'<textarea id="in-{item}" name="{item}"' in html
     assert html.count("Strongly disagree") >= 16 and "Not at all annoying" in html
     assert "I find the pEDAS when I am driving to be:" in html
+    # the texts come from studies/pedas_paper/study.toml, the section titles from its codebook
+    assert f"<h1>{PAPER.title}</h1>" in html and PAPER.description.split(".")[0] in html
+    assert f"<title>Questionnaire – {PAPER.title}</title>" in html
+    assert [f'<h2 id="sec-{k}">{title}</h2>' in html for k, (title, _) in enumerate(INS.sections, start=1)] == \
+        [True] * len(INS.sections)
+    assert '<p class="hint">1 = strongly disagree, 5 = strongly agree</p>' in html
     for label in INS.choices("ECO_FAM").values():
         assert label in html
     assert "https://" not in html and "http://" not in html     # nothing from a CDN
@@ -163,7 +172,7 @@ def test_researcher_mode_requires_password_and_csrf(store, client):
 def test_researcher_double_entry_discrepancy_resolution(store, app):
     a, b = app.test_client(), app.test_client()
     ca, cb = login(a, "Ann"), login(b, "Ben")
-    paper = {k: v for k, v in seeded_answers(2).items() if k not in INS.demographic_items}
+    paper = {k: v for k, v in seeded_answers(2).items() if k not in ATTRIBUTE_ITEMS}
     assert a.post("/r/entry/P002/1", data={**paper, "csrf": ca}).status_code == 303
     form2 = b.get("/r/entry/P002/2").get_data(as_text=True)
     assert 'value="' + paper["PU1"] + '" aria-label="PU1' not in form2     # blind: round 1 not shown
@@ -186,6 +195,86 @@ def test_researcher_double_entry_discrepancy_resolution(store, app):
     assert r.status_code == 400 and "outside 1-5" in r.get_data(as_text=True)
 
 
+# ---------------------------------------------------------------------------------------------- any study
+LK_ITEMS = ["PE1", "PE2", "PE3", "EE1", "EE2", "EE3", "SI1", "SI2", "SI3", "BI1", "BI2", "BI3"]
+
+
+@pytest.fixture
+def lk_store(lk_db):
+    st = Store.open(lk_db, actor="lab")
+    add_participant(st, "LK-01", attributes={"age": 30})
+    yield st
+    st.close()
+
+
+def test_seven_point_form_and_server_side_validation(lk_store):
+    """The lane-keeping study's form: its own title, 7 radios per item, attribute items; POSTs are checked against
+    the codebook (range, required, the attribute's declaration) and a refused POST changes nothing."""
+    study = load(LK_STUDY)
+    client = create_app(lk_store, PASSWORD).test_client()
+    token = sv.issue_link(lk_store, "LK-01")
+    html = client.get(f"/s/{token}").get_data(as_text=True)
+    assert f"<h1>{study.title}</h1>" in html and "pEDAS" not in html
+    for item in LK_ITEMS:
+        assert html.count(f'name="{item}" value=') == 7
+        assert f'name="{item}" value="8"' not in html
+    assert html.count('<p class="hint">1 = strongly disagree, 7 = strongly agree</p>') == 4
+    assert html.count('name="GENDER" value=') == 4 and 'id="in-AGE"' in html
+    before = lk_store.counts()
+    for item, value, msg in (("PE1", "8", "PE1: value 8 outside 1-7"), ("EE3", "0", "EE3: value 0 outside 1-7"),
+                             ("AGE", "17", "AGE: value 17 outside 18-90"), ("GENDER", "5", "outside 1-4")):
+        r = client.post(f"/s/{token}/answer", data={"item": item, "value": value})
+        assert r.status_code == 400 and msg in r.json["error"]
+    r = client.post(f"/s/{token}", data={**{i: "4" for i in LK_ITEMS}, "PE2": "9", "action": "submit"})
+    assert r.status_code == 400 and "PE2: value 9 outside 1-7" in r.get_data(as_text=True)
+    assert lk_store.counts() == before                                  # nothing stored, not even a draft
+    r = client.post(f"/s/{token}", data={**{i: "4" for i in LK_ITEMS[1:]}, "AGE": "44", "action": "submit"})
+    assert r.status_code == 400 and 'href="#q-PE1"' in r.get_data(as_text=True)   # required PE1 unanswered
+    assert lk_store.one("SELECT count(*) FROM responses") == 0
+    r = client.post(f"/s/{token}", data={"PE1": "7", "GENDER": "2", "action": "submit"})
+    assert r.status_code == 303
+    got = lk_store.df("SELECT item_id, value FROM responses WHERE participant_id = 'LK-01'").set_index("item_id")
+    assert got.loc["PE1", "value"] == 7 and got.loc["EE3", "value"] == 4 and len(got) == 13   # 12 + REMARKS
+    attrs = participant_attributes(lk_store, ["LK-01"]).iloc[0]
+    assert (attrs["age"], attrs["gender"]) == (44, "male")
+
+
+def test_a_question_the_form_cannot_show_is_an_error(store):
+    """A response type without a widget is refused when the app is made, never shown as a question without
+    inputs."""
+    from study.errors import UserError
+    from study.instrument import Instrument
+    from study.webapp import check_renderable, widget
+
+    assert [widget(k) for k in ("likert7", "semantic11", "likert", "choice", "number", "text")] == \
+        ["scale", "scale", "scale", "choice", "number", "text"]
+    items = INS.items.copy()
+    items.loc["PU2", "response_type"] = "matrix"
+    with pytest.raises(UserError, match="instrument pedas_acceptance_v1, item PU2: the web form cannot show "
+                                        "response type 'matrix'"):
+        check_renderable(Instrument(INS.name, items))
+    check_renderable(INS)
+
+
+def test_fully_labelled_points_are_shown(store):
+    """A Likert item whose codebook labels every point shows each label with its radio (no anchors)."""
+    from flask import render_template_string
+
+    items = INS.items.copy()
+    items.loc["PU1", "choices"] = "1=never|2=rarely|3=sometimes|4=often|5=always"
+    from study.instrument import Instrument
+
+    ins = Instrument(INS.name, items)
+    app = create_app(store, PASSWORD)
+    with app.test_request_context():
+        html = render_template_string('{% from "_widgets.html" import scale_item %}'
+                                      '{{ scale_item("PU1", row, none, labels) }}',
+                                      row=ins.items.loc["PU1"], labels=ins.choices("PU1"))
+    assert html.count('type="radio"') == 5 and "anchor" not in html
+    assert [w in html for w in ("never", "rarely", "sometimes", "often", "always")] == [True] * 5
+    assert 'class="item scale-item likert labelled wide"' in html
+
+
 # ---------------------------------------------------------------------------------------------- running server
 def http(url: str, data: dict | None = None, timeout: float = 60) -> tuple[int, str]:
     body = None if data is None else urllib.parse.urlencode(data).encode()
@@ -196,13 +285,12 @@ def http(url: str, data: dict | None = None, timeout: float = 60) -> tuple[int, 
         return e.code, e.read().decode()
 
 
-def test_twenty_concurrent_submissions(tmp_db):
+def test_twenty_concurrent_submissions(paper_db):
     n = 20
-    st = Store.open(tmp_db, actor="lab")
+    st = Store.open(paper_db, actor="lab")
     pids = [f"P{100 + i}" for i in range(n)]
-    with st.transaction():
-        for p in pids:
-            st.insert("participants", {"participant_id": p})
+    for p in pids:
+        add_participant(st, p)
     tokens = {p: sv.issue_link(st, p) for p in pids}
     answers = {p: seeded_answers(i) for i, p in enumerate(pids)}
     with SurveyServer(create_app(st, PASSWORD), quiet=True) as srv:
@@ -258,8 +346,8 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
-def test_survey_serve_process(tmp_db):
-    Store.open(tmp_db, actor="lab").close()
+def test_survey_serve_process(paper_db):
+    tmp_db = paper_db
     port = free_port()
     env = {**os.environ, "PEDAS_SURVEY_PASSWORD": ""}
     proc = subprocess.Popen([sys.executable, "-m", "pedas_study.cli", f"--db={tmp_db}", "survey", "serve",

@@ -1,12 +1,14 @@
-"""A lab day through the CLI on a temporary store: three participants, three different ways through the protocol,
-and the refused steps (each leaves the store unchanged)."""
+"""A lab day through the CLI on a temporary store of the paper's study (`init --study studies/pedas_paper`): three
+participants, three different ways through the protocol, and the refused steps (each leaves the store unchanged)."""
 import json
+from pathlib import Path
 
 import pytest
 
 from study.exclusions import included_participants
 from study.store import Store
 
+PAPER_STUDY = Path(__file__).resolve().parents[1] / "studies" / "pedas_paper"
 PHASES = ["familiarisation", "baseline_drive", "pedas_intro", "practice", "pedas_drive", "survey"]
 
 
@@ -25,10 +27,10 @@ def status(cli, pid):
 
 
 def test_walkthrough(cli, tmp_db):
-    ok(cli("init"))
-    ok(cli("participant", "add", "P001", "--age", "34", "--gender", "female", "--license-years", "15",
-           "--style", "normal", "--eco-familiarity", "3"))
-    ok(cli("participant", "add", "P002", "--age", "27", "--gender", "male", "--style", "sporty"))
+    ok(cli("init", "--study", PAPER_STUDY))
+    ok(cli("participant", "add", "P001", "--attr", "age=34", "--attr", "gender=female", "--attr", "license_years=15",
+           "--attr", "style=normal", "--attr", "eco_familiarity=3"))
+    ok(cli("participant", "add", "P002", "--attr", "age=27", "--attr", "gender=male", "--style", "sporty"))
     ok(cli("participant", "add", "P003", "--age", "52", "--gender", "male", "--style", "cautious"))
 
     # P001: the full protocol
@@ -71,13 +73,16 @@ def test_walkthrough(cli, tmp_db):
 
     listing = json.loads(ok(cli("participant", "list", "--format", "json")).out)
     assert {p["participant_id"]: p["excluded"] for p in listing} == {"P001": "", "P002": "all", "P003": "objective"}
+    assert {p["participant_id"]: (p["age"], p["style"]) for p in listing} == {
+        "P001": (34, "normal"), "P002": (27, "sporty"), "P003": (52, "cautious")}
 
 
 @pytest.mark.parametrize("case", ["unknown_phase", "out_of_order", "duplicate_participant", "bad_id",
-                                  "abort_without_phase", "exclude_twice"])
+                                  "unknown_attribute", "attribute_out_of_range", "abort_without_phase",
+                                  "exclude_twice"])
 def test_refused_step_changes_nothing(cli, tmp_db, case):
-    ok(cli("init"))
-    ok(cli("participant", "add", "P001", "--age", "30"))
+    ok(cli("init", "--study", PAPER_STUDY))
+    ok(cli("participant", "add", "P001", "--attr", "age=30"))
     ok(cli("session", "advance", "P001", "familiarisation"))
     ok(cli("exclude", "P001", "--scope", "subjective", "--reason", "other"))
     ok(cli("session", "complete", "P001"))
@@ -85,8 +90,11 @@ def test_refused_step_changes_nothing(cli, tmp_db, case):
     argv, msg = {
         "unknown_phase": (("session", "advance", "P001", "warmup"), "unknown phase 'warmup'"),
         "out_of_order": (("session", "advance", "P001", "pedas_drive"), "phase out of order"),
-        "duplicate_participant": (("participant", "add", "P001", "--age", "44"), "already exists"),
+        "duplicate_participant": (("participant", "add", "P001", "--attr", "age=44"), "already exists"),
         "bad_id": (("participant", "add", "alice"), "bad participant id"),
+        "unknown_attribute": (("participant", "add", "P002", "--attr", "shoe_size=44"),
+                              "unknown participant attribute 'shoe_size'"),
+        "attribute_out_of_range": (("participant", "add", "P002", "--attr", "age=7"), "age must be between 16"),
         "abort_without_phase": (("session", "abort", "P001", "--reason", "x"), "no phase in progress"),
         "exclude_twice": (("exclude", "P001", "--scope", "subjective", "--reason", "withdrawn"), "already excluded"),
     }[case]

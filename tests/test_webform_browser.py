@@ -1,6 +1,7 @@
 """The survey form in Debian's headless Chromium driven by Playwright (never a downloaded browser): a participant
 fills the whole form by mouse and keyboard, reloads midway, submits; a second link cannot see the first
-participant's answers; paper forms typed in twice with one deliberate discrepancy, detected and resolved."""
+participant's answers; paper forms typed in twice with one deliberate discrepancy, detected and resolved; the
+lane-keeping study's 7-point form filled and submitted."""
 from __future__ import annotations
 
 import os
@@ -9,15 +10,17 @@ from pathlib import Path
 import pytest
 
 from study import survey as sv
-from study.instrument import load_instrument
+from study.definition import load
+from study.participants import add_participant, participant_attributes
 from study.store import Store
 from study.webapp import SurveyServer, create_app
+from tests.conftest import LK_STUDY, PAPER_STUDY
 
 CHROMIUM = Path("/usr/bin/chromium")
 ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
         "--disable-background-networking", "--disable-component-update", "--disable-sync"]
 OUTPUT = Path(__file__).resolve().parent / "output"
-INS = load_instrument()
+INS = load(PAPER_STUDY).instrument()
 SCALED = INS.scaled_items
 PASSWORD = "pw for tests"
 
@@ -39,14 +42,26 @@ def browser():
         b.close()
 
 
-@pytest.fixture
-def served(tmp_db):
-    st = Store.open(tmp_db, actor="lab")
-    with st.transaction():
-        for pid in ("P001", "P002", "P003"):
-            st.insert("participants", {"participant_id": pid})
+def serve(db, participants: dict[str, dict]):
+    """(store, running server, the app's store lock) of the study store `db` with `participants` added."""
+    st = Store.open(db, actor="lab")
+    for pid, attributes in participants.items():
+        add_participant(st, pid, attributes=attributes)
     srv = SurveyServer(create_app(st, PASSWORD), quiet=True).start()
-    lock = srv.app.extensions["survey"]["lock"]
+    return st, srv, srv.app.extensions["survey"]["lock"]
+
+
+@pytest.fixture
+def served(paper_db):
+    st, srv, lock = serve(paper_db, {"P001": {}, "P002": {}, "P003": {}})
+    yield st, srv, lock
+    srv.close()
+    st.close()
+
+
+@pytest.fixture
+def served_lk(lk_db):
+    st, srv, lock = serve(lk_db, {"LK-07": {"age": 52, "gender": "female"}})
     yield st, srv, lock
     srv.close()
     st.close()
@@ -129,8 +144,7 @@ def test_participant_fills_reloads_and_submits(browser, served):
 
     with lock:
         got = st.df("SELECT item_id, value, text, entry_round FROM responses WHERE participant_id = 'P001'")
-        part = st.df("SELECT age, gender, license_years, style, eco_familiarity FROM participants "
-                     "WHERE participant_id = 'P001'").iloc[0].tolist()
+        part = participant_attributes(st, ["P001"]).iloc[0].tolist()[1:]
     got = got.set_index("item_id")
     assert {i: int(got.loc[i, "value"]) for i in SCALED} == want     # the store holds exactly what was clicked
     assert got.loc["Q1", "text"] == "The arrow is easy to see." and got.loc["Q3", "text"] == "Navigation hints, please."
@@ -259,3 +273,41 @@ def test_double_entry_discrepancy_detected_and_resolved(browser, served):
     assert sorted(actors) == ["Ann", "Ben"]
     ann.context.close()
     ben.context.close()
+
+
+def test_seven_point_form_of_another_study(browser, served_lk):
+    """studies/lane_keeping: 12 items on 7-point scales (EE3 reverse-coded, stored as ticked), age and gender as
+    attribute items; filled by mouse and keyboard in Chromium, submitted, and the store holds what was ticked."""
+    st, srv, lock = served_lk
+    study = load(LK_STUDY)
+    ins = study.instrument()
+    with lock:
+        token = sv.issue_link(st, "LK-07")
+    want = {item: 1 + (k * 5 + 2) % 7 for k, item in enumerate(ins.scaled_items)}
+    assert set(want.values()) == set(range(1, 8))                      # every point of the scale is used
+    page = browser.new_page(viewport={"width": 1024, "height": 768})
+    page.goto(f"{srv.url}/s/{token}")
+    assert page.inner_text("h1") == study.title
+    for item in ins.scaled_items:
+        assert page.locator(f"#q-{item} input[type=radio]").count() == 7
+    page.fill("#in-AGE", "53")                                          # replaces the recorded 52
+    page.get_by_label("Diverse", exact=True).check()
+    for k, item in enumerate(ins.scaled_items):
+        (pick_by_keyboard if k % 2 else pick_by_click)(page, item, want[item])
+    page.fill("#in-REMARKS", "The lane bar is easy to read.")
+    wait_saved(page)
+    OUTPUT.mkdir(exist_ok=True)
+    page.screenshot(path=str(OUTPUT / "survey_form_lane_keeping_1024x768.png"))
+    assert page.inner_text("#progress") == "13 of 13 questions answered."
+    page.click("#submit-btn")
+    page.wait_for_selector("text=Thank you!")
+    page.close()
+    with lock:
+        got = st.df("SELECT item_id, value, text FROM responses WHERE participant_id = 'LK-07'").set_index("item_id")
+        attrs = participant_attributes(st, ["LK-07"]).iloc[0]
+        final = sv.final_responses(st).set_index("participant_id")
+    assert {i: int(got.loc[i, "value"]) for i in ins.scaled_items} == want
+    assert got.loc["REMARKS", "text"] == "The lane bar is easy to read."
+    assert (attrs["age"], attrs["gender"]) == (53, "diverse")
+    assert final.loc["LK-07", "EE3"] == want["EE3"]                    # raw, not reversed
+    assert final.loc["LK-07", ["AGE", "GENDER"]].tolist() == [53, 3]

@@ -1,4 +1,5 @@
-"""The paper's published numbers as data (`data/paper/published.csv`), transcribed once from the LaTeX source.
+"""The paper's published numbers as data (`studies/pedas_paper/published.csv`, the file the paper's study declares as
+``[files] published``), transcribed once from the LaTeX source.
 
 One row per printed number with its provenance: ``table`` (table3 | table4 | table5 | cohort | kpi), ``section``,
 ``line`` (1-based line of the LaTeX source), ``quantity``, ``row``, ``column``, ``printed`` (the string as printed,
@@ -6,7 +7,7 @@ stars kept, e.g. ``0.450**``), ``value`` (the parsed number), ``decimals`` (digi
 ``unit`` and ``note``. The accessors below reshape it into tidy frames keyed like the analysis outputs of
 docs/contracts.md.
 
-The lines of the LaTeX source that these values cite are kept beside them (``data/paper/source_lines.txt``,
+The lines of the LaTeX source that these values cite are kept beside them (``studies/pedas_paper/source_lines.txt``,
 :func:`load_source_lines`), so the transcription stays checkable from the repository alone.
 """
 from __future__ import annotations
@@ -17,10 +18,24 @@ from pathlib import Path
 
 import pandas as pd
 
-from pedas.paths import PAPER_DIR
+from pedas.paths import REPO_ROOT
 
+#: the paper's study folder (docs/study_folder.md): codebook, protocols, model file and the published values
+PAPER_STUDY_DIR = REPO_ROOT / "studies" / "pedas_paper"
 PUBLISHED_CSV = "published.csv"
 SOURCE_LINES = "source_lines.txt"
+
+
+@lru_cache(maxsize=1)
+def paper_study():
+    """The paper's study definition (:func:`study.definition.load` of :data:`PAPER_STUDY_DIR`)."""
+    from study.definition import load
+
+    return load(PAPER_STUDY_DIR)
+
+
+def _published_path() -> Path:
+    return PAPER_STUDY_DIR / paper_study().paths.get("published", PUBLISHED_CSV)
 # first and last line of each table body in the LaTeX source; the excerpt keeps them whole, so a test can check that
 # no number printed in a table is missing from published.csv
 TABLE_BODIES = {"table3": (509, 541), "table4": (559, 564), "table5": (586, 619)}
@@ -53,7 +68,7 @@ def _load(path: str) -> pd.DataFrame:
 
 def load_published(path: str | Path | None = None) -> pd.DataFrame:
     """All transcribed values (a copy), one row per printed number, in source order."""
-    return _load(str(Path(path) if path else PAPER_DIR / PUBLISHED_CSV)).copy()
+    return _load(str(Path(path) if path else _published_path())).copy()
 
 
 def excerpt_lines(published: pd.DataFrame | None = None) -> list[int]:
@@ -81,7 +96,7 @@ def write_source_lines(latex_source: str | Path, out: str | Path | None = None,
                        published: pd.DataFrame | None = None) -> Path:
     """Write the excerpt of the paper's LaTeX source (``latex_source``) that the published values cite.
 
-    ``out`` defaults to ``data/paper/source_lines.txt``. Run once when published.csv changes its citations."""
+    ``out`` defaults to ``studies/pedas_paper/source_lines.txt``. Run once when published.csv changes its citations."""
     raw = Path(latex_source).read_bytes()
     src = raw.decode("utf-8").split("\n")
     wanted = excerpt_lines(published)
@@ -90,14 +105,14 @@ def write_source_lines(latex_source: str | Path, out: str | Path | None = None,
     bodies = ", ".join(f"{a}-{b}" for a, b in TABLE_BODIES.values())
     text = _SOURCE_HEADER.format(bodies=bodies, digest=hashlib.sha256(raw).hexdigest())
     text += "".join(f"{n}\t{src[n - 1].rstrip()}\n" for n in wanted)
-    path = Path(out) if out else PAPER_DIR / SOURCE_LINES
+    path = Path(out) if out else PAPER_STUDY_DIR / SOURCE_LINES
     path.write_text(text, encoding="utf-8")
     return path
 
 
 def load_source_lines(path: str | Path | None = None) -> dict[int, str]:
     """The committed excerpt of the LaTeX source: line number in the full source -> the line's text."""
-    p = Path(path) if path else PAPER_DIR / SOURCE_LINES
+    p = Path(path) if path else PAPER_STUDY_DIR / SOURCE_LINES
     out: dict[int, str] = {}
     for row in p.read_text(encoding="utf-8").split("\n"):
         if row and not row.startswith("#"):

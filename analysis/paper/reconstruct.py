@@ -34,7 +34,6 @@ import pandas as pd
 from analysis.paper import audit as A
 from analysis.paper import grim
 from analysis.paper import published as P
-from study.instrument import load_instrument
 
 N_IMPLIED = 40
 DEFAULT_SEED = 20240
@@ -133,7 +132,7 @@ def choose_pair_counts(c1: np.ndarray, c2: np.ndarray, alpha: float, n: int) -> 
 def build_targets(published: pd.DataFrame | None = None, n: int = N_IMPLIED) -> Targets:
     """Derive the reconstruction targets from the published values (see the module docstring)."""
     pub = published if published is not None else P.load_published()
-    inst = load_instrument()
+    inst = P.paper_study().instrument()
     t3 = P.table3(pub).set_index("item")
     tc = P.table3_constructs(pub).set_index("construct")
     items = [i for i in inst.scaled_items if i in t3.index]
@@ -458,7 +457,7 @@ class Reconstruction:
     info: dict
 
     def scored(self) -> pd.DataFrame:
-        return load_instrument().reverse(self.data[self.targets.items])
+        return P.paper_study().instrument().reverse(self.data[self.targets.items])
 
     def write(self, path: str | Path) -> Path:
         """Write the survey CSV (byte-identical for the same seed)."""
@@ -529,6 +528,6 @@ def reconstruct(seed: int = DEFAULT_SEED, published: pd.DataFrame | None = None,
     if len(participant_ids) != n:
         raise ValueError(f"{len(participant_ids)} participant ids for {n} respondents")
     scored = pd.DataFrame(X, columns=targets.items)
-    raw = load_instrument().reverse(scored)          # reversing twice = raw answers
+    raw = P.paper_study().instrument().reverse(scored)          # reversing twice = raw answers
     data = pd.concat([pd.DataFrame({"participant_id": list(participant_ids)}), raw.astype(int)], axis=1)
     return Reconstruction(data=data, targets=targets, seed=seed, info=info)

@@ -143,13 +143,29 @@ def _events(ids, motion, technical, missing_survey, rng) -> pd.DataFrame:
 
 
 def load_into_store(st, cohort: Cohort) -> None:
-    """Insert the cohort into an open ``study.store.Store`` in one transaction (participants, phase_events,
-    exclusions). The caller opens the store; nothing is written if any row is refused."""
+    """Insert the cohort into an open ``study.store.Store`` that serves the paper's study (``init --study
+    studies/pedas_paper``) in one transaction: participants on the study's default protocol with their attributes
+    (each checked and typed by the study's declaration), phase_events, exclusions. The caller opens the store;
+    nothing is written if any row is refused."""
+    from study.studies import definition, version
+
+    study = definition(st)
+    from analysis.paper.published import paper_study
+
+    if study.study_id != paper_study().study_id:
+        raise ValueError(f"the reference cohort belongs to study {paper_study().study_id}; the store serves "
+                         f"{study.study_id}")
+    protocol, ver = study.protocol().name, version(st)
+    names = [a.name for a in study.attributes]
     with st.transaction():
-        for r in cohort.participants.itertuples(index=False):
-            st.insert("participants", {"participant_id": r.participant_id, "age": int(r.age), "gender": r.gender,
-                                       "license_years": int(r.license_years), "style": r.style,
-                                       "eco_familiarity": int(r.eco_familiarity)})
+        for r in cohort.participants.to_dict("records"):
+            pid = study.validate_id(r["participant_id"])
+            st.insert("participants", {"participant_id": pid, "protocol": protocol, "study_version": ver})
+            for name in names:
+                value = study.attribute(name).parse(r.get(name))
+                if value is not None:
+                    st.insert("participant_attributes", {"participant_id": pid, "attribute": name,
+                                                         "value": str(value)})
         for r in cohort.events.itertuples(index=False):
             if r.kind == "phase":
                 st.insert("phase_events", {"participant_id": r.participant_id, "phase": r.phase,

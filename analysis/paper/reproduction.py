@@ -189,7 +189,7 @@ def render_markdown(table: pd.DataFrame, source: str = "") -> str:
     s = summary(table)
     lines = ["# Reproduction of the paper's Tables 3-5", "",
              f"Computed by `analyze_survey` on {source or 'the survey data'} and compared with "
-             "`data/paper/published.csv`. Status: `match` (prints as published), `within tolerance`, "
+             "`studies/pedas_paper/published.csv`. Status: `match` (prints as published), `within tolerance`, "
              "`audit finding #k` (the published value contradicts other published values; see audit.md), `miss`.", "",
              "## Summary", ""] + md(s, ["status", "count"]) + ["", "## Three largest deltas", ""]
     lines += md(largest_deltas(table), cols) + ["", "Among values that are not audit findings:", ""]
@@ -219,7 +219,7 @@ def reproduce_files(responses: str | Path | None, out_dir: str | Path, n_boot: i
     path = Path(responses) if responses else REFERENCE_DIR / "survey.csv"
     if not path.exists():
         raise FileNotFoundError(f"survey CSV not found: {path}")
-    analysis = analyze_survey(pd.read_csv(path), n_boot=n_boot, seed=seed)
+    analysis = analyze_survey(pd.read_csv(path), P.paper_study(), n_boot=n_boot, seed=seed)
     table = reproduce(analysis)
     write_reproduction(table, out_dir, source=f"`{path.name}`")
     return table

@@ -5,8 +5,10 @@ The synthetic table is generated inside DuckDB (``range()`` and the seeded ``has
 DuckDB file and deleted afterwards. Each sample: ``t = idx * 0.1`` s; ``v = A (1 + sin(w t + phi)) + noise`` so that
 every drive stops, speeds and crosses lights; ``s`` the exact integral of the noise-free speed; urban first half
 (50 km/h), highway second half (100 km/h); a light every 500 samples with a 90 s cycle; a simple road-load battery
-power. The pandas peer is :func:`analysis.testing.kpis_pandas`, the independent implementation of the same
-definitions that the tests check the SQL against.
+power; an extra channel ``lat_pos`` (lateral position in the lane, m: a slow sway plus noise). Besides the built-in
+KPIs one user KPI is timed, the SDLP ``stddev_samp(lat_pos)`` per segment and drive (:data:`BENCH_SQL_KPIS`).
+The pandas peer is :func:`analysis.testing.kpis_pandas`, the independent implementation of the same definitions that
+the tests check the SQL against, plus the SDLP by a pandas group-by (:func:`sdlp_pandas`).
 """
 from __future__ import annotations
 
@@ -20,12 +22,27 @@ from pathlib import Path
 
 import numpy as np
 
+import pandas as pd
+
+from analysis.kpi_spec import SqlKpi
 from analysis.kpis import KPI_FIELDS, kpis_from_relation
 from analysis.testing import kpis_pandas
 
 FULL_ROWS = 100_000_000
 SAMPLES_PER_DRIVE = 10_000
 PEER_SHARE = 10  # pandas gets 1/PEER_SHARE of the rows
+#: the user KPI of the bench: standard deviation of the lateral position, per segment and drive
+BENCH_SQL_KPIS = (SqlKpi("sdlp", "stddev_samp(lat_pos)", per_segment=True, unit="m", label="SDLP"),)
+
+
+def sdlp_pandas(samples: pd.DataFrame, kpis: pd.DataFrame) -> pd.DataFrame:
+    """``kpis`` (rows drive_id, segment as :func:`analysis.testing.kpis_pandas` returns them) with the column
+    sdlp: the sample standard deviation of ``lat_pos`` per drive and segment, and per drive for ``overall``."""
+    per_seg = samples.groupby(["drive_id", "segment"], sort=False)["lat_pos"].std(ddof=1)
+    per_drive = samples.groupby("drive_id", sort=False)["lat_pos"].std(ddof=1)
+    seg_vals = per_seg.reindex(pd.MultiIndex.from_frame(kpis[["drive_id", "segment"]])).to_numpy()
+    drive_vals = per_drive.reindex(kpis["drive_id"]).to_numpy()
+    return kpis.assign(sdlp=np.where(kpis["segment"] == "overall", drive_vals, seg_vals))
 
 
 def synthetic_sql(n_rows: int, samples_per_drive: int = SAMPLES_PER_DRIVE, seed: int = 1) -> str:
@@ -58,7 +75,8 @@ def synthetic_sql(n_rows: int, samples_per_drive: int = SAMPLES_PER_DRIVE, seed:
            CASE WHEN idx % 500 < 400 THEN 'TL' || (idx // 500)::VARCHAR END AS tl_id,
            CASE WHEN (idx + drive_id * 37) % 900 < 400 THEN 'green'
                 WHEN (idx + drive_id * 37) % 900 < 430 THEN 'yellow' ELSE 'red' END AS tl_state,
-           (CASE WHEN idx % 500 < 400 THEN (400 - idx % 500) * 0.5 END)::DOUBLE AS d_tl
+           (CASE WHEN idx % 500 < 400 THEN (400 - idx % 500) * 0.5 END)::DOUBLE AS d_tl,
+           (0.3 * sin(0.013 * t + phi) + 0.2 * ({u('i', 4)} - 0.5))::DOUBLE AS lat_pos
     FROM kin
     """
 
@@ -101,6 +119,7 @@ class KpiBench:
             f"bench kpi: {self.rows:,} samples ({self.drives:,} drives), pandas peer on {self.peer_rows:,}; "
             f"median of {self.repeat}; DuckDB threads={self.threads} memory_limit={self.memory_limit}",
             f"  generate (DuckDB, not timed in the goal): {self.generate_s:.1f} s",
+            f"  KPIs: the built-ins and the user KPI {', '.join(f'{k.name} = {k.sql}' for k in BENCH_SQL_KPIS)}",
             f"  DuckDB KPIs : {self.duckdb_s:8.2f} s  {self.duckdb_rows_per_s / 1e6:8.2f} M rows/s",
             f"  pandas KPIs : {self.pandas_s:8.2f} s  {self.pandas_rows_per_s / 1e6:8.2f} M rows/s",
             f"  per-row speed-up DuckDB vs pandas: {self.per_row_speedup:.2f}x (goal >= {self.goal_speedup:g}x)",
@@ -143,7 +162,7 @@ def run_bench(rows: int = FULL_ROWS, repeat: int = 1, seed: int = 1, samples_per
             duck_runs, result = [], None
             for _ in range(max(1, repeat)):
                 t0 = time.perf_counter()
-                result = kpis_from_relation(con, "drive_samples", workers=int(nthreads))
+                result = kpis_from_relation(con, "drive_samples", workers=int(nthreads), sql_kpis=BENCH_SQL_KPIS)
                 duck_runs.append(time.perf_counter() - t0)
 
             peer = con.execute(f"SELECT * FROM drive_samples WHERE drive_id < {peer_drives} "
@@ -154,12 +173,12 @@ def run_bench(rows: int = FULL_ROWS, repeat: int = 1, seed: int = 1, samples_per
     pandas_runs, peer_res = [], None
     for _ in range(max(1, repeat)):
         t0 = time.perf_counter()
-        peer_res = kpis_pandas(peer)
+        peer_res = sdlp_pandas(peer, kpis_pandas(peer))
         pandas_runs.append(time.perf_counter() - t0)
     del peer
 
     mine = result[result["drive_id"] < peer_drives].reset_index(drop=True)
-    num = [c for c in KPI_FIELDS if c not in ("drive_id", "segment")]
+    num = [c for c in (*KPI_FIELDS, *(k.name for k in BENCH_SQL_KPIS)) if c not in ("drive_id", "segment")]
     a_, b_ = mine[num].astype(float).to_numpy(), peer_res[num].astype(float).to_numpy()
     diff = np.abs(a_ - b_) / np.maximum(np.abs(b_), 1.0)  # relative above 1, absolute below
     max_diff = float(np.nanmax(diff)) if diff.size else 0.0

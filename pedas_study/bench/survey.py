@@ -6,24 +6,26 @@ import time
 
 import numpy as np
 
-from analysis.testing import simulate_responses
 from pedas_study.extras import require
 
 
 def bench_survey(n: int = 40, n_boot: int = 2000, repeats: int = 3, seed: int = 1) -> dict:
-    """Median wall time of `analyze_survey` on `n` synthetic rows with `n_boot` resamples, and the share of it
-    the bootstrap takes (ratio to the same run with n_boot = 0)."""
+    """Median wall time of `analyze_survey` on `n` synthetic rows of the paper's study with `n_boot` resamples, and
+    the share of it the bootstrap takes (ratio to the same run with n_boot = 0)."""
     from analysis.acceptance import analyze_survey
+    from analysis.paper.published import paper_study
+    from analysis.paper.synthetic import simulate_paper_responses
 
-    data = simulate_responses(n, seed)
-    analyze_survey(data, n_boot=0)  # warm-up: imports, semopy compile paths
+    study = paper_study()
+    data = simulate_paper_responses(n, seed)
+    analyze_survey(data, study, n_boot=0)  # warm-up: imports, semopy compile paths
     full, none = [], []
     for _ in range(repeats):
         t0 = time.perf_counter()
-        analyze_survey(data, n_boot=n_boot, seed=seed)
+        analyze_survey(data, study, n_boot=n_boot, seed=seed)
         full.append(time.perf_counter() - t0)
         t0 = time.perf_counter()
-        analyze_survey(data, n_boot=0)
+        analyze_survey(data, study, n_boot=0)
         none.append(time.perf_counter() - t0)
     med_full, med_none = float(np.median(full)), float(np.median(none))
     return {"n": n, "n_boot": n_boot, "repeats": repeats, "median_s": med_full, "median_s_no_bootstrap": med_none,

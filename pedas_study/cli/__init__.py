@@ -9,6 +9,7 @@ so that ``--help`` and small commands start fast.
 Errors: an exception reaching :func:`main` is printed as one line ``pedas-study: error: ...``. Bad input exits 2:
 ``ValueError`` (with ``study.errors.UserError``), ``FileNotFoundError`` and argparse's usage errors. Anything else
 is a bug: exit 1, ``pedas-study: error: internal error: ...``. ``PEDAS_STUDY_DEBUG=1`` shows the traceback.
+Output into a pipe whose reader stopped (``... | head``) ends the command quietly with exit 0.
 """
 from __future__ import annotations
 
@@ -22,7 +23,7 @@ from typing import Callable, Sequence
 from pedas_study.cli.common import DEFAULT_DB, is_user_error
 
 COMMAND_MODULES: tuple[str, ...] = tuple(f"pedas_study.cli.{name}" for name in (
-    "init", "participant", "session", "exclude", "drive", "export",   # the study store
+    "init", "study", "participant", "session", "exclude", "drive", "export",   # the study and its store
     "survey", "schedule", "simulate",                                  # survey, appointments, virtual cohort
     "kpi", "analyze", "paper", "report",                               # analysis
     "bench",                                                           # benchmarks
@@ -120,11 +121,25 @@ def error_line(exc: BaseException) -> str:
     return f"pedas-study: error: internal error: {type(exc).__name__}{': ' + text if text else ''}{hint}"
 
 
+def _silence_stdout() -> None:
+    """Point stdout at the null device: the reader of a pipe stopped reading (``pedas-study participant list |
+    head``), and Python's final flush of stdout must not fail again (the recipe of the `signal` module's docs)."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):  # no real file descriptor (stdout replaced in-process)
+        pass
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run `pedas-study` with `argv` (default: the process arguments); the exit code."""
     args = build_parser().parse_args(argv)
     try:
         code = args.func(args)
+        sys.stdout.flush()  # a closed pipe shows here, inside the handling below, not at interpreter exit
+    except BrokenPipeError:
+        _silence_stdout()
+        return 0
     except KeyboardInterrupt:
         print("pedas-study: interrupted", file=sys.stderr)
         return 130

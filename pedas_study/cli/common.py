@@ -35,7 +35,7 @@ def open_store(args: argparse.Namespace, must_exist: bool = True, read_only: boo
 
     path = db_path(args)
     if must_exist and not path.exists():
-        raise UserError(f"no store at {path} (run `pedas-study init` first)")
+        raise UserError(f"no store at {path} (run `pedas-study init --study DIR` first)")
     return Store.open(path, actor=getattr(args, "actor", None), read_only=read_only)
 
 

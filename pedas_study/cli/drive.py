@@ -14,13 +14,17 @@ def _import(args) -> None:
 
     with open_store(args) as st:
         r = import_drive_file(st, args.id, args.condition, args.file, replace=args.replace, route=args.route,
-                              progress=progress if args.verbose else None)
+                              progress=progress if args.verbose else None, mapping=args.map, fmt=args.log_format,
+                              vehicle=args.vehicle, force=args.force)
     extra = f"; ignored columns: {', '.join(r.ignored_columns)}" if r.ignored_columns else ""
     if r.status == "unchanged":
         print(f"{args.id} {args.condition}: unchanged (same log already stored as drive {r.drive_id})")
-    else:
-        print(f"{args.id} {args.condition}: {r.status} drive {r.drive_id}, {r.n_samples} samples "
-              f"in {r.seconds:.2f} s ({r.rows_per_second:,.0f} rows/s){extra}")
+        return
+    channels = f"; channels: {', '.join(r.channels)}" if r.channels else ""
+    print(f"{args.id} {args.condition}: {r.status} drive {r.drive_id}, {r.n_samples} samples "
+          f"in {r.seconds:.2f} s ({r.rows_per_second:,.0f} rows/s); energy: {r.energy_source}{channels}{extra}")
+    for problem in r.overridden:
+        print(f"note: imported with --force despite: {problem}", file=sys.stderr)
 
 
 def _list(args) -> None:
@@ -28,6 +32,13 @@ def _list(args) -> None:
 
     with open_store(args) as st:
         print(format_frame(list_drives(st), args.format))
+
+
+def _channels(args) -> None:
+    from study.drives import list_channels
+
+    with open_store(args, read_only=True) as st:
+        print(format_frame(list_channels(st), args.format))
 
 
 def _simulate(args) -> None:
@@ -45,22 +56,32 @@ def _simulate(args) -> None:
 
 def register(cli) -> None:
     """Declare the `drive` group."""
+    import study.drives  # noqa: F401  (registers the study checks of [drives], the log mapping and the route)
     from pedas.vocabulary import CONDITIONS
 
     g = cli.group("drive", "drive logs")
-    p = g.command("import", "import a simulator drive log (CSV or Parquet) for a participant", _import)
+    p = g.command("import", "import a drive log (CSV, Parquet or SUMO FCD XML) for a participant", _import)
     p.add_argument("id", metavar="ID")
-    p.add_argument("condition", choices=CONDITIONS)
+    p.add_argument("condition", metavar="CONDITION", help="a condition the study declares")
     p.add_argument("file", metavar="FILE")
+    p.add_argument("--map", default=None, metavar="FILE",
+                   help="log mapping (TOML) for this file instead of the study's; 'none' = a canonical log")
+    p.add_argument("--format", dest="log_format", default=None, choices=("csv", "parquet", "sumo-fcd"),
+                   help="log format (default: from the file name; .xml = sumo-fcd)")
+    p.add_argument("--vehicle", default=None, metavar="ID", help="the vehicle of a SUMO FCD file")
+    p.add_argument("--force", default=None, metavar="REASON",
+                   help="import despite plausibility problems (distance, sampling); the reason is recorded")
     p.add_argument("--replace", action="store_true", help="replace a different log stored for this drive")
-    p.add_argument("--route", default=None, help="route name stored with the drive")
+    p.add_argument("--route", default=None, help="route name stored with the drive (default: the study's route)")
     p.add_argument("--verbose", "-v", action="store_true", help="report progress on stderr")
     p = g.command("list", "list stored drives", _list)
+    add_format_option(p)
+    p = g.command("channels", "list the extra channels stored with drive samples", _channels)
     add_format_option(p)
 
     p = g.command("simulate", "simulate one drive of a participant (virtual driver in SUMO traffic)", _simulate)
     p.add_argument("id", metavar="ID")
-    p.add_argument("condition", choices=CONDITIONS)
+    p.add_argument("condition", choices=CONDITIONS, help="a condition the simulator drives")
     p.add_argument("--seed", type=int, default=0, help="cohort seed: the virtual person is derived from (seed, ID)")
     p.add_argument("--replace", action="store_true", help="replace a different drive stored for this condition")
     p.add_argument("--cache-dir", dest="cache_dir", default=None, help=DRIVE_CACHE_HELP)

@@ -1,16 +1,36 @@
-"""`pedas-study init`: create the study store or upgrade its schema."""
+"""`pedas-study init [--study DIR [--new-version]]`: create the study store, upgrade its schema, store its study."""
 from __future__ import annotations
 
 from pedas_study.cli.common import db_path, open_store
 
 
 def _init(args) -> None:
+    from study.studies import register, version
+
     existed = db_path(args).exists()
+    if not existed and not args.study:
+        from study.errors import UserError
+
+        raise UserError("a new store needs its study: pedas-study init --study DIR (e.g. studies/pedas_paper; "
+                        "`pedas-study study new DIR` writes a template)")
+    if args.study:  # a folder with problems is refused before a new store is created
+        from study.definition import load
+
+        load(args.study)
     with open_store(args, must_exist=False) as st:
         what = "created" if not existed else "upgraded" if st.applied else "up to date"
         print(f"store {st.path} {what} (schema v{st.schema_version})")
+        if args.study:
+            done, ver = register(st, args.study, new_version=args.new_version)
+            print(f"study {st.one('SELECT study_id FROM study_definitions WHERE version = ?', [ver])} "
+                  f"version {ver} {done}")
+        elif version(st) is None:
+            print("the store has no study yet: run pedas-study init --study DIR")
 
 
 def register(cli) -> None:
     """Declare `init`."""
-    cli.command("init", "create the study store (or upgrade its schema)", _init)
+    p = cli.command("init", "create the study store (or upgrade its schema) and store its study definition", _init)
+    p.add_argument("--study", metavar="DIR", help="study folder to store (see docs/study_folder.md)")
+    p.add_argument("--new-version", action="store_true", dest="new_version",
+                   help="store a changed study as a new version while the store holds data")

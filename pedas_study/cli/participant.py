@@ -1,16 +1,47 @@
-"""`pedas-study participant add | list`: register and list participants."""
+"""`pedas-study participant add | list`: register and list participants of the store's study."""
 from __future__ import annotations
 
 from pedas_study.cli.common import add_format_option, format_frame, open_store
+from study.errors import UserError
+
+#: options kept from the paper's fixed demographics; each names the study attribute it fills
+ALIASES = (("age", "--age"), ("gender", "--gender"), ("license_years", "--license-years"), ("style", "--style"),
+           ("eco_familiarity", "--eco-familiarity"))
+
+
+def attributes_of(args) -> dict[str, str]:
+    """{attribute: raw text} from ``--attr NAME=VALUE`` (repeatable) and the alias options."""
+    out: dict[str, str] = {}
+    for item in args.attr or []:
+        name, sep, value = item.partition("=")
+        name = name.strip()
+        if not sep or not name:
+            raise UserError(f"--attr {item!r}: use NAME=VALUE, e.g. --attr age=30")
+        if name in out:
+            raise UserError(f"attribute {name} given twice")
+        out[name] = value
+    for name, option in ALIASES:
+        value = getattr(args, name, None)
+        if value is None:
+            continue
+        if name in out:
+            raise UserError(f"attribute {name} given twice ({option} and --attr)")
+        out[name] = value
+    return out
 
 
 def _add(args) -> None:
     from study.participants import add_participant
+    from study.studies import definition
 
     with open_store(args) as st:
-        row = add_participant(st, args.id, age=args.age, gender=args.gender, license_years=args.license_years,
-                              style=args.style, eco_familiarity=args.eco_familiarity, protocol=args.protocol)
-    print(f"participant {row['participant_id']} added")
+        study = definition(st)
+        for name, option in ALIASES:  # an alias of an attribute this study does not declare is bad input
+            if getattr(args, name, None) is not None and name not in {a.name for a in study.attributes}:
+                raise UserError(f"{option}: study {study.study_id} has no attribute {name} (attributes: "
+                                f"{', '.join(a.name for a in study.attributes) or 'none'})")
+        row = add_participant(st, args.id, attributes_of(args), protocol=args.protocol)
+    print(f"participant {row['participant_id']} added (protocol {row['protocol']})")
 
 
 def _list(args) -> None:
@@ -22,18 +53,18 @@ def _list(args) -> None:
 
 def register(cli) -> None:
     """Declare the `participant` group."""
-    from pedas.vocabulary import STYLES
-    from study.participants import GENDERS
-
     g = cli.group("participant", "register and list participants")
-    p = g.command("add", "register a participant (pseudonymous ID such as P001)", _add)
+    p = g.command("add", "register a participant (a pseudonymous id matching the study's id pattern)", _add)
     p.add_argument("id", metavar="ID")
-    p.add_argument("--age", type=int)
-    p.add_argument("--gender", choices=GENDERS)
-    p.add_argument("--license-years", type=int, dest="license_years")
-    p.add_argument("--style", choices=STYLES, help="self-reported driving style")
-    p.add_argument("--eco-familiarity", type=int, choices=range(1, 6), dest="eco_familiarity",
-                   metavar="1-5", help="1 never heard of eco-driving ... 5 uses a similar system regularly")
-    p.add_argument("--protocol", default=None, help="protocol file name (default paper_v1)")
-    p = g.command("list", "list participants with protocol position and exclusions", _list)
+    p.add_argument("--attr", action="append", metavar="NAME=VALUE",
+                   help="a participant attribute the study declares (repeatable), e.g. --attr age=30")
+    p.add_argument("--protocol", default=None, help="one of the study's protocols (default: the first declared)")
+    # the paper's demographics as options; each is an attribute of that name, refused by studies without it
+    p.add_argument("--age", help="same as --attr age=AGE")
+    p.add_argument("--gender", help="same as --attr gender=GENDER")
+    p.add_argument("--license-years", dest="license_years", help="same as --attr license_years=N")
+    p.add_argument("--style", help="same as --attr style=STYLE (self-reported driving style)")
+    p.add_argument("--eco-familiarity", dest="eco_familiarity", metavar="N",
+                   help="same as --attr eco_familiarity=N")
+    p = g.command("list", "list participants with their attributes, protocol position and exclusions", _list)
     add_format_option(p)

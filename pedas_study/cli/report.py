@@ -1,5 +1,7 @@
-"""`pedas-study report`: regenerate every table and figure, the audit and the reproduction verdict
-(`analysis.report`). Exit code 3 when published values are missed."""
+"""`pedas-study report`: regenerate every table and figure, the audit and the reproduction verdict, and the report
+document `index.html` for the store's study (`analysis.report`, `analysis.document`). Parts the study or its store
+does not have are skipped with a reason (printed, and shown in the document). Exit code 3 when published values are
+missed."""
 from __future__ import annotations
 
 import os
@@ -32,7 +34,9 @@ def _report(args) -> int:
         raise
     ran = sum(s.status == "ran" for s in res.steps)
     print(f"report written to {res.out}/ ({len(res.files)} files; {ran} steps ran, "
-          f"{len(res.steps) - ran} up to date)")
+          f"{len(res.steps) - ran} up to date); open {res.out}/index.html")
+    for part, reason in sorted(res.skipped.items()):
+        print(f"skipped {part}: {reason}")
     if res.verdict:
         counts = ", ".join(f"{k} {v}" for k, v in sorted(res.verdict["counts"].items()))
         print(f"reproduction: {counts}")
@@ -44,7 +48,8 @@ def _report(args) -> int:
 
 def register(cli) -> None:
     """Declare `report`."""
-    p = cli.command("report", "regenerate every table and figure, the audit and the reproduction verdict", _report)
+    p = cli.command("report", "regenerate every table and figure, the audit, the reproduction verdict and the "
+                    "report document (index.html) for the store's study", _report)
     p.add_argument("--out", default="reports", help="output folder (default reports)")
     p.add_argument("--reference", action="store_true",
                    help="build the given --db from data/reference and simulate the reference cohort")

@@ -111,8 +111,8 @@ def register(cli) -> None:
     g = cli.group("session", "walk a participant through the protocol phases")
     p = g.command("advance", "start the next protocol phase (completes the one in progress)", _advance)
     p.add_argument("id", metavar="ID")
-    p.add_argument("phase", metavar="PHASE", help="familiarisation, baseline_drive, pedas_intro, practice, "
-                                                   "pedas_drive, survey (in this order)")
+    p.add_argument("phase", metavar="PHASE", help="the next phase of the participant's protocol (the study's "
+                                                   "protocol file; `session status ID` lists them in order)")
     p.add_argument("--note", default=None)
     _add_time(p)
     p = g.command("abort", "abort the phase in progress (e.g. motion sickness)", _abort)

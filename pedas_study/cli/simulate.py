@@ -1,5 +1,7 @@
 """`pedas-study simulate cohort`: both drives of every participant not excluded from the objective analysis,
-simulated with virtual drivers in SUMO traffic and stored (all drives are simulated before the store is written)."""
+simulated with virtual drivers in SUMO traffic and stored (all drives are simulated before the store is written).
+The store's study must declare the conditions the simulator drives; each participant's ``style`` attribute chooses
+the virtual driver (study.simulated)."""
 from __future__ import annotations
 
 from pedas_study.cli.common import DRIVE_CACHE_HELP, open_store, simulate_and_store
@@ -10,13 +12,15 @@ def _cohort(args) -> None:
     from pedas.cohort import cohort_tasks
     from pedas_study.extras import require
     from study.exclusions import included_participants
-    from study.simulated import participants_to_simulate
+    from study.simulated import check_simulable, participants_to_simulate
+    from study.studies import definition
 
     if args.workers is not None and args.workers < 1:
         raise UserError("--workers must be >= 1")
     if args.scheduler is not None:
         require("distributed", "dask", "--scheduler")
     with open_store(args, read_only=True) as st:
+        check_simulable(definition(st))
         ids = included_participants(st, "objective")
         if not ids:
             raise UserError("no participants to simulate (none registered or all excluded from objective analyses)")

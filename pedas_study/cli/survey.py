@@ -59,12 +59,13 @@ def _final(args):
     from pathlib import Path
 
     from study import survey as sv
-    from study.instrument import load_instrument
 
     with open_store(args, read_only=True) as st:
         df = sv.final_responses(st, args.instrument)
-    for item in load_instrument(args.instrument).scaled_items:
-        df[item] = df[item].astype("Int64")  # whole numbers as ticked: "4", not "4.0"
+    for item in df.columns[1:]:
+        col = df[item]
+        if col.dtype == "float64" and (col.dropna() % 1 == 0).all():
+            df[item] = col.astype("Int64")  # whole numbers as ticked: "4", not "4.0"
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     df.to_csv(out, index=False, lineterminator="\n")
@@ -103,9 +104,7 @@ def _serve(args):
 
 
 def _instrument_option(p) -> None:
-    from study.instrument import DEFAULT_INSTRUMENT
-
-    p.add_argument("--instrument", default=DEFAULT_INSTRUMENT, help="codebook name (default %(default)s)")
+    p.add_argument("--instrument", default=None, help="instrument name (default: the study's instrument)")
 
 
 def register(cli) -> None:

@@ -16,7 +16,7 @@ from pathlib import Path
 from flask import Flask, render_template, request, session
 
 from study.errors import UserError
-from study.instrument import DEFAULT_INSTRUMENT, load_instrument
+from study.instrument import is_scaled
 from study.webapp import participant, researcher
 from study.webapp.context import new_state
 from study.webapp.server import SurveyServer
@@ -27,17 +27,43 @@ CSP = ("default-src 'self'; script-src 'self'; style-src 'self'; img-src 'self';
        "frame-ancestors 'none'")
 
 
-def create_app(st, researcher_password: str, instrument: str = DEFAULT_INSTRUMENT,
+def widget(response_type: str) -> str:
+    """The form widget of a codebook response type: 'scale' (k radios), 'choice', 'number' or 'text'.
+
+    A type the form cannot show raises UserError: a question without inputs must never be offered."""
+    if is_scaled(response_type):
+        return "scale"
+    if response_type in ("choice", "number", "text"):
+        return response_type
+    raise UserError(f"the web form cannot show response type {response_type!r}")
+
+
+def check_renderable(ins) -> None:
+    """UserError naming the first item of `ins` the web form cannot show (checked before the server starts)."""
+    for item, kind in ins.items["response_type"].items():
+        try:
+            widget(kind)
+        except UserError as exc:
+            raise UserError(f"instrument {ins.name}, item {item}: {exc}") from None
+
+
+def create_app(st, researcher_password: str, instrument: str | None = None,
                secret_key: str | None = None) -> Flask:
-    """The Flask app over an open, writable Store `st` (the app serialises all access to it)."""
+    """The Flask app over an open, writable Store `st` (the app serialises all access to it), showing the store's
+    study (title, description) and `instrument` (None = the study's)."""
+    from study.studies import definition
+    from study.survey import instrument_of
+
     if not researcher_password:
         raise UserError("a researcher password is required")
-    ins = load_instrument(instrument)
+    study = definition(st)
+    ins = instrument_of(st, instrument)
+    check_renderable(ins)
     app = Flask(__name__, template_folder=str(HERE / "templates"), static_folder=str(HERE / "static"))
     app.config.update(SECRET_KEY=secret_key or secrets.token_hex(32), SESSION_COOKIE_SAMESITE="Strict",
                       SESSION_COOKIE_HTTPONLY=True, MAX_CONTENT_LENGTH=256 * 1024)
     app.extensions["survey"] = new_state(st, ins, researcher_password)
-    app.jinja_env.globals.update(instrument=ins)
+    app.jinja_env.globals.update(instrument=ins, study=study, widget=widget)
     app.register_blueprint(participant.bp)
     app.register_blueprint(researcher.bp)
 

@@ -1,0 +1,177 @@
+"""The report document (`index.html`, analysis.document) of a small survey-only study: the lane-keeping example
+with 24 registered participants, the committed survey answers and no drives. Read as HTML, and rendered in Debian's
+headless Chromium (Playwright): headings in order, every image loaded, tables visible, no horizontal overflow at
+1280 px; a full-page screenshot is kept in tests/output/report_document.png."""
+from __future__ import annotations
+
+import html
+import os
+import re
+from html.parser import HTMLParser
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from analysis.document import SECTIONS, markdown_to_html
+
+REPO = Path(__file__).resolve().parents[1]
+LK_STUDY = REPO / "studies" / "lane_keeping"
+LK_DATA = REPO / "tests" / "data" / "lane_keeping"
+OUTPUT = REPO / "tests" / "output"
+CHROMIUM = Path("/usr/bin/chromium")
+ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+        "--disable-background-networking", "--disable-component-update", "--disable-sync"]
+
+
+def run(db: Path, *args) -> None:
+    from pedas_study.cli import main
+
+    assert main([f"--db={db}", *map(str, args)]) == 0, args
+
+
+@pytest.fixture(scope="module")
+def lk_report(tmp_path_factory):
+    """(output folder, store) of a report on a lane-keeping store with answers, phases and two exclusions."""
+    tmp = tmp_path_factory.mktemp("lk_report")
+    db = tmp / "lk.duckdb"
+    run(db, "init", "--study", LK_STUDY)
+    people = pd.read_csv(LK_DATA / "participants.csv", dtype={"participant_id": str})
+    for r in people.itertuples():
+        run(db, "participant", "add", r.participant_id, "--attr", f"age={r.age}")
+    run(db, "session", "advance", "LK-01", "familiarisation")
+    run(db, "session", "advance", "LK-02", "familiarisation")
+    run(db, "session", "abort", "LK-02", "--reason", "motion sickness")
+    run(db, "exclude", "LK-02", "--scope", "all", "--reason", "motion_sickness")
+    run(db, "exclude", "LK-03", "--scope", "subjective", "--reason", "withdrawn")
+    run(db, "survey", "import", LK_DATA / "survey.csv")
+    out = tmp / "reports"
+    run(db, "report", "--out", out, "--bootstrap", "50", "--cache-dir", tmp / "cache")
+    return out, db
+
+
+class _Outline(HTMLParser):
+    def __init__(self):
+        super().__init__()
+        self.headings: list[tuple[str, str]] = []
+        self.images: list[str] = []
+        self.refs: list[str] = []
+        self._in: str | None = None
+        self.tags: set[str] = set()
+
+    def handle_starttag(self, tag, attrs):
+        a = dict(attrs)
+        self.tags.add(tag)
+        if tag in ("h1", "h2"):
+            self._in = tag
+            self.headings.append((tag, ""))
+        if tag == "img":
+            self.images.append(a["src"])
+        for k in ("src", "href"):
+            if a.get(k):
+                self.refs.append(a[k])
+
+    def handle_endtag(self, tag):
+        if tag == self._in:
+            self._in = None
+
+    def handle_data(self, data):
+        if self._in:
+            tag, text = self.headings[-1]
+            self.headings[-1] = (tag, text + data)
+
+
+def test_document_reads_top_to_bottom(lk_report):
+    out, _ = lk_report
+    doc = (out / "index.html").read_text(encoding="utf-8")
+    outline = _Outline()
+    outline.feed(doc)
+    assert outline.headings == [("h1", "Acceptance of a lane-keeping head-up display")] + \
+        [("h2", s) for s in SECTIONS]
+    # the study summary: 24 registered, 22 in the survey analysis (LK-02 excluded from all, LK-03 from the survey)
+    assert "24 registered; 22 included in the survey analysis" in doc
+    assert "<code>hud</code> (Drive with the lane-keeping HUD)" in doc
+    # LK-01 in familiarisation, LK-02 aborted in it: completed 0, aborted 1, in progress 1
+    assert "<td>familiarisation</td><td class=\"r\">0</td><td class=\"r\">1</td><td class=\"r\">1</td>" in doc
+    # methods from the declaration: software versions, estimators, age in step 1, signs
+    assert re.search(r"semopy \d+\.\d+", doc) and re.search(r"statsmodels \d+\.\d+", doc)
+    assert "model 1, BI: step 1: age; step 2: PE + EE + SI" in doc
+    assert "H1: PE -&gt; BI in model 1 step 2 (expected positive, one-sided)" in doc
+    assert "reverse-scored: EE3" in doc and "7-point" in doc
+    # the survey results: the study's regression table and the three verdicts
+    assert "UTAUT models" in doc
+    hyp = pd.read_csv(out / "survey" / "hypotheses.csv")
+    assert list(hyp["hypothesis"]) == ["H1", "H2", "H3"]
+    n_ok = int(hyp["supported"].astype(str).str.lower().isin(["true", "1"]).sum())
+    assert f"{n_ok} of 3 hypotheses supported at α = 0.05." in doc
+    for h in ("H1", "H2", "H3"):
+        assert re.search(rf"<tr><td>{h}</td><td>[A-Z]+ -&gt; BI</td><td>positive</td>", doc), h
+    # what the study does not have is skipped with its reason, not failed
+    assert "Skipped: the store has no drives, so there are no drive KPIs." in doc
+    assert "Skipped: study lane_keeping declares no published values to compare with ([files] published)." in doc
+    assert html.escape("Skipped: the simulation core's figures belong to studies the simulator drives") in doc
+    # every figure written is shown with its caption, and has a reading from the numbers
+    pngs = sorted(f"figures/{p.name}" for p in (out / "figures").glob("*.png"))
+    assert pngs == ["figures/likert_items.png", "figures/participant_flow.png"]
+    assert sorted(outline.images) == pngs
+    assert "24 enrolled; 22 in the survey sample" in doc
+    # self-contained: no scripts, no external resources, every relative link points at a written file
+    assert "script" not in outline.tags and "link" not in outline.tags
+    for ref in outline.refs:
+        assert not re.match(r"^[a-z]+:", ref) and not ref.startswith("/"), ref
+        assert (out / ref.split("#")[0]).is_file(), ref
+    # every table written into tables/ is inline
+    for md in (out / "tables").glob("*.md"):
+        assert f"id=\"tab-{md.stem}\"" in doc, md.stem
+
+
+def test_document_bytes_are_deterministic(lk_report, tmp_path):
+    """A second run with nothing changed renders the same bytes (no times, no absolute paths)."""
+    out, db = lk_report
+    before = (out / "index.html").read_bytes()
+    run(db, "report", "--out", out, "--bootstrap", "50", "--cache-dir", out.parent / "cache")
+    assert (out / "index.html").read_bytes() == before
+    assert str(out.parent).encode() not in before
+
+
+def test_markdown_cells_and_text_are_escaped():
+    md = "**Title <b>**\n\n| a | b\\|c |\n|---|---:|\n| <script>x</script> | 1 |\n\n_note & more_\n"
+    out = markdown_to_html(md)
+    assert "<caption>Title &lt;b&gt;</caption>" in out
+    assert "<th>a</th><th class=\"r\">b|c</th>" in out
+    assert "<td>&lt;script&gt;x&lt;/script&gt;</td><td class=\"r\">1</td>" in out
+    assert "<p class=\"note\"><em>note &amp; more</em></p>" in out
+    assert "<script>" not in out
+
+
+@pytest.mark.browser
+@pytest.mark.skipif(not CHROMIUM.exists() and not os.environ.get("CI"),
+                    reason="needs Debian's chromium at /usr/bin/chromium (apt-get install chromium)")
+def test_document_in_chromium(lk_report):
+    from playwright.sync_api import sync_playwright
+
+    out, _ = lk_report
+    OUTPUT.mkdir(exist_ok=True)
+    shot = OUTPUT / "report_document.png"
+    shot.unlink(missing_ok=True)
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=str(CHROMIUM), args=ARGS)
+        try:
+            page = browser.new_page(viewport={"width": 1280, "height": 900})
+            page.goto((out / "index.html").as_uri())
+            page.wait_for_load_state("load")
+            headings = page.eval_on_selector_all("h1, h2", "els => els.map(e => e.tagName + ' ' + e.textContent)")
+            assert headings == ["H1 Acceptance of a lane-keeping head-up display"] + [f"H2 {s}" for s in SECTIONS]
+            images = page.eval_on_selector_all("img", "els => els.map(e => [e.getAttribute('src'), e.complete, "
+                                                      "e.naturalWidth])")
+            assert len(images) == 2 and all(done and width > 0 for _, done, width in images), images
+            tables = page.locator("table")
+            assert tables.count() >= 10
+            for k in range(tables.count()):
+                assert tables.nth(k).is_visible(), k
+            width = page.evaluate("[document.documentElement.scrollWidth, document.documentElement.clientWidth]")
+            assert width[0] <= width[1] == 1280, width
+            page.screenshot(path=str(shot), full_page=True)
+        finally:
+            browser.close()
+    assert shot.stat().st_size > 10_000
