@@ -471,9 +471,11 @@ def _methods_section(out: Path, st, study) -> list[str]:
                      "(statsmodels) on the construct scores and declared participant attributes, predictors "
                      "entered block by block with the F test of ΔR²." + boot_txt + "</p><ul>" + "".join(regs)
                      + "</ul>")
-        signs = {">": "expected positive, one-sided", "<": "expected negative, one-sided", "!=": "two-sided"}
+        # the p value is the two-sided one as printed in the regression table; the sign is the expected direction
+        signs = {">": "expected positive: β > 0 and two-sided p < α",
+                 "<": "expected negative: β < 0 and two-sided p < α", "!=": "no expected sign: two-sided p < α"}
         hyps = "".join(f"<li>{esc(h.hypothesis)}: {esc(h.path)} in model {esc(h.model)} step {h.step} "
-                       f"({signs.get(h.sign, h.sign)})</li>" for h in model.hypotheses)
+                       f"({esc(signs.get(h.sign, h.sign))})</li>" for h in model.hypotheses)
         if hyps:
             parts.append(f"<p><strong>Hypotheses</strong> at α = {esc(study.alpha)}:</p><ul>{hyps}</ul>")
     src = st.df("SELECT source, count(*) AS n FROM drives GROUP BY source ORDER BY source")

@@ -604,7 +604,7 @@ def _check_files(study: StudyDefinition, problems: _Problems) -> None:
         for ph in proto.steps:
             if ph.condition is not None and ph.condition not in conditions:
                 problems.add(rel, _json_line(study.files[rel], ph.name), f"phases.{ph.name}.condition",
-                             f"{ph.condition!r} is not a declared condition ({'|'.join(conditions)})")
+                             f"{ph.condition!r} is not a declared condition ({'|'.join(study.condition_names)})")
     rel = study.paths.get("model")
     if rel in study.files:
         model = parse_model(study.files[rel], rel, problems)

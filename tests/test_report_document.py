@@ -96,7 +96,7 @@ def test_document_reads_top_to_bottom(lk_report):
     # methods from the declaration: software versions, estimators, age in step 1, signs
     assert re.search(r"semopy \d+\.\d+", doc) and re.search(r"statsmodels \d+\.\d+", doc)
     assert "model 1, BI: step 1: age; step 2: PE + EE + SI" in doc
-    assert "H1: PE -&gt; BI in model 1 step 2 (expected positive, one-sided)" in doc
+    assert "H1: PE -&gt; BI in model 1 step 2 (expected positive: β &gt; 0 and two-sided p &lt; α)" in doc
     assert "reverse-scored: EE3" in doc and "7-point" in doc
     # the survey results: the study's regression table and the three verdicts
     assert "UTAUT models" in doc
