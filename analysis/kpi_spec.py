@@ -441,11 +441,10 @@ def _check_study(study, problems) -> None:
 
 
 def register() -> None:
-    """Register the KPI-file check with the study loader (idempotent)."""
-    from study import definition
+    """Register the KPI-file check with the study loader (study.definition imports this module by name)."""
+    from study.definition import register_file_check
 
-    if _check_study not in definition._FILE_CHECKS:
-        definition.register_file_check(_check_study)
+    register_file_check(_check_study)
 
 
 register()

@@ -631,8 +631,10 @@ CHECK_MODULES = ("study.logmap", "study.route_file", "study.drives", "study.expo
 
 
 def register_file_check(fn) -> Any:
-    """Register ``fn(study, problems)`` to be run by every parse (problems.add(file, line, field, message))."""
-    _FILE_CHECKS.append(fn)
+    """Register ``fn(study, problems)`` to be run by every parse (problems.add(file, line, field, message)); a
+    function registered twice runs once."""
+    if fn not in _FILE_CHECKS:
+        _FILE_CHECKS.append(fn)
     return fn
 
 

@@ -14,7 +14,6 @@ import numpy as np
 import pandas as pd
 import pytest
 
-import study.drives  # noqa: F401  (registers the study checks of [drives], the log mapping and the route)
 from study.definition import check as check_study
 from study.drives import drive_samples, import_drive_file, import_drive_frame, list_channels, validate_drive
 from study.errors import UserError

@@ -56,7 +56,6 @@ def _simulate(args) -> None:
 
 def register(cli) -> None:
     """Declare the `drive` group."""
-    import study.drives  # noqa: F401  (registers the study checks of [drives], the log mapping and the route)
     from pedas.vocabulary import CONDITIONS
 
     g = cli.group("drive", "drive logs")

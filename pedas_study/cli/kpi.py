@@ -70,11 +70,7 @@ def _energy(args) -> int:
 
 
 def register(cli) -> None:
-    """Declare the `kpi` group; registers the check of a study's KPI file (analysis.kpi_spec) with the study
-    loader, so that `study check` and `init --study` report its problems."""
-    from analysis.kpi_spec import register as register_kpi_check
-
-    register_kpi_check()
+    """Declare the `kpi` group."""
     g = cli.group("kpi", "key performance indicators of traces")
     p = g.command("energy", "battery energy (Wh, Wh/km) of a speed trace CSV with columns t, v[, grade, p_batt]: "
                   "measured from p_batt when present, else from the vehicle model", _energy)
