@@ -17,7 +17,6 @@ from __future__ import annotations
 import hashlib
 import importlib
 import io
-import json
 import re
 import tomllib
 from dataclasses import dataclass, field
@@ -178,16 +177,6 @@ class AnalysisModel:
     measurement: dict[str, tuple[str, ...]]
     regressions: tuple[RegressionModel, ...]
     hypotheses: tuple[Hypothesis, ...]
-
-    @property
-    def covariates(self) -> list[str]:
-        """Regression predictors that are not constructs (participant attributes), in order of appearance."""
-        out: list[str] = []
-        for m in self.regressions:
-            for p in m.steps[-1]:
-                if p not in self.measurement and p not in out:
-                    out.append(p)
-        return out
 
 
 @dataclass(frozen=True)
@@ -785,11 +774,6 @@ def _check_model_names(study: StudyDefinition, model: AnalysisModel, instrument,
                                                        f"nor a participant attribute")
         if m.dv in attrs:
             problems.add(rel, line_of(m.dv), m.dv, "the dependent variable must be a construct")
-
-
-def dump(study: StudyDefinition) -> str:
-    """The stored form of a definition's files (JSON, sorted keys)."""
-    return json.dumps(study.files, sort_keys=True, ensure_ascii=False)
 
 
 def _num(x: float | None) -> str:
