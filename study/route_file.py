@@ -126,20 +126,10 @@ class RouteFile:
 
 # ---------------------------------------------------------------------------------------------- parsing
 def _line(text: str, table: str, nth: int = 0, key: str | None = None) -> int | None:
-    lines = text.splitlines()
-    hdr = re.compile(rf"^\s*\[\[?\s*{re.escape(table)}\s*\]\]?\s*(#.*)?$")
-    hits = [i for i, ln in enumerate(lines) if hdr.match(ln)]
-    if not hits:
-        return None
-    start = hits[min(nth, len(hits) - 1)]
-    if key is None:
-        return start + 1
-    for i in range(start + 1, len(lines)):
-        if re.match(r"^\s*\[", lines[i]):
-            break
-        if re.match(rf"^\s*{re.escape(key)}\s*=", lines[i]):
-            return i + 1
-    return start + 1
+    """1-based line of the nth `[table]` / `[[table]]` header, or of `key = ...` inside it."""
+    from study.definition import _line_of
+
+    return _line_of(text, key or "", table, nth)
 
 
 def _number(v: Any) -> bool:
