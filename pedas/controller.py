@@ -24,6 +24,7 @@ these stages in order:
 """
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -47,7 +48,7 @@ class Advisory:
 
     v_advice: m/s, the optimal speed v_h,opt (first planned step, or the corrected speed of eq. 11);
     controller 'rt'|'cf'; mode 'green_wave'|'dp'|'stop'|'follow'; ft, fb: first planned forces (N);
-    hud_arrow -1|0|1, arrow_len 0..1, hud_in_band, warning, tl_countdown (s or None), icon; solve_status (OSQP
+    hud_arrow -1|0|1, arrow_len 0..1, hud_in_band, warning, tl_countdown (s or None), icon; solve_status (QP
     status text, 'speed_correction' or 'fallback:<status>'), fallback flag, plan_v: N predicted speeds v_1..v_N.
     """
 
@@ -113,7 +114,7 @@ class _Solution(NamedTuple):
     ctrl: str                 # 'rt' | 'cf'
     mode: str                 # the reference mode, or 'follow'
     plan: MpcPlan
-    status: str               # OSQP status, or 'fallback:<status>'
+    status: str               # the QP backend's status, or 'fallback:<status>'
     fallback: bool
     psi: float | None         # m, d_rel - d_s (car following only)
 
@@ -122,8 +123,9 @@ class PedasController:
     """pEDAS for one route: both MPCs built once, then :meth:`step` per sample.
 
     ``settings`` (:class:`pedas.params.ControllerParams`, default :data:`pedas.params.CONTROLLER`) holds the MPC
-    weights, OSQP settings and every threshold of the controller, HUD and green wave. ``osqp_settings`` (a mapping
-    of OSQP options) overrides ``settings.osqp`` for solver experiments (``pedas-study bench mpc``).
+    weights, the QP backend (``qp_backend``: DAQP or OSQP) and its settings, and every threshold of the controller, HUD
+    and green wave. ``osqp_settings`` (a mapping of :class:`pedas.params.OsqpSettings` fields) overrides
+    ``settings.osqp`` for solver experiments (``pedas-study bench mpc``).
     """
 
     def __init__(self, route, params: VehicleParams = LEAF, v_dp=None, n: int = N_HORIZON, dt: float = DT, *,
@@ -131,9 +133,12 @@ class PedasController:
         self.route, self.params, self.n, self.dt = route, params, n, dt
         self.settings = settings
         self.model = vehicle_model(params)
-        osqp = {**settings.osqp.as_dict(), **osqp_settings} if osqp_settings else settings.osqp
-        self.rt = ReferenceTrackingMpc(self.model, settings.rt_weights, n=n, dt=dt, settings=osqp)
-        self.cf = CarFollowingMpc(self.model, settings.cf_weights, n=n, dt=dt, settings=osqp)
+        if osqp_settings:   # the one place where OSQP overrides meet settings.osqp
+            settings = dataclasses.replace(settings, osqp=dataclasses.replace(settings.osqp, **osqp_settings))
+            self.settings = settings
+        qp = dict(backend=settings.qp_backend, osqp=settings.osqp, daqp=settings.daqp)
+        self.rt = ReferenceTrackingMpc(self.model, settings.rt_weights, n=n, dt=dt, **qp)
+        self.cf = CarFollowingMpc(self.model, settings.cf_weights, n=n, dt=dt, **qp)
         self.h_s, self.d_min = settings.cf_weights.h_s, settings.cf_weights.d_min
         self._hud_kw = dict(arrow_full_scale=settings.arrow_full_scale, icon_range=settings.icon_range,
                             warn_delay=settings.warn_delay, standstill=settings.standstill,
@@ -175,7 +180,9 @@ class PedasController:
         self.reset()
 
     def reset(self) -> None:
-        """Forget the drive state (plans, stop-sign dwell, counters)."""
+        """Forget the drive state (plans, stop-sign dwell, counters, the solvers' hot starts)."""
+        self.rt.reset()
+        self.cf.reset()
         self._tl_i = 0
         self._ss_i = 0
         self._dwell = 0.0

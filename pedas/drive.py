@@ -174,14 +174,15 @@ def _setup(net_file: str):
 
 def drive(participant_seed: int, style: str, condition: str, *, traffic_seed: int | None = None,
           driver: DriverParams | None = None, net_file: str | Path | None = None,
-          max_duration: float = MAX_DURATION) -> pd.DataFrame:
+          max_duration: float = MAX_DURATION, settings=None) -> pd.DataFrame:
     """Drive the study route once; the drive log (docs/contracts.md columns, every DT s) as a DataFrame.
 
     participant_seed: the virtual person (driver parameters, :func:`pedas.drivers.sample_driver`); style:
     cautious|normal|sporty; condition: baseline (own style) | pedas (tracking the HUD advisory). traffic_seed:
     the surrounding traffic (default: the participant seed, so both conditions of a person meet the same
-    demand). Raises SafetyViolation when an invariant fails. ``df.attrs['drive']`` holds a :class:`DriveInfo`
-    as dict.
+    demand). settings: the controller's :class:`pedas.params.ControllerParams` (default
+    :data:`pedas.params.CONTROLLER`). Raises SafetyViolation when an invariant fails. ``df.attrs['drive']`` holds a
+    :class:`DriveInfo` as dict.
     """
     if condition not in CONDITIONS:
         raise ValueError(f"unknown condition {condition!r} (expected baseline|pedas)")
@@ -195,7 +196,9 @@ def drive(participant_seed: int, style: str, condition: str, *, traffic_seed: in
     if assisted:
         from pedas.controller import PedasController
 
-        ctrl = PedasController(route, v_dp=v_dp)
+        from pedas.params import CONTROLLER
+
+        ctrl = PedasController(route, v_dp=v_dp, settings=settings or CONTROLLER)
     guard = SafetyGuard(route)
     alive = LivenessGuard()
     lights = tuple(route.lights)

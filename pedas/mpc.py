@@ -1,12 +1,13 @@
-"""Shared building blocks of the two pEDAS MPCs (Sec. 3.5): one sparse QP, built once and solved with OSQP.
+"""Shared building blocks of the two pEDAS MPCs (Sec. 3.5): one sparse QP, built once and solved by a QP backend
+(:mod:`pedas.qp`: DAQP by default, OSQP as the cross-check).
 
 The QP keeps the speed ``v_k``, the distance to the next stop sign / traffic light ``d_ITS,k`` and (car following)
 the gap ``d_rel,k`` as explicit states tied together by equality rows (eq. 3a-3c), so that the sparsity pattern
 *and* the values of ``P`` and ``A`` never change. Each control step only rewrites the vectors ``q``, ``l`` and
-``u`` in place and updates OSQP's vectors (``OSQP.update(q=, l=, u=)``) — no re-setup.
+``u`` in place and hands them to the backend's vector update — no re-setup.
 
 Decision vector (forces in kN and power in kW inside the QP so that all entries are O(1..100), which keeps
-ADMM well conditioned; the public plan is returned in SI units)::
+ADMM and the active-set factorisations well conditioned; the public plan is returned in SI units)::
 
     x = [ v_0..v_N | d_0..d_N | (r_0..r_N) | Ft_0..Ft_{N-1} | Fb_0.. | e1_0.. | e2_0.. | (e3_0..) ]
 
@@ -27,22 +28,21 @@ convexification; it is exact on the nominal trajectory and keeps ``P`` constant.
 """
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
-import osqp
 import scipy.sparse as sp
 
 from pedas.constants import DT, N_HORIZON
-from pedas.params import CONTROLLER, LEAF, MpcWeights, OsqpSettings
+from pedas.params import CONTROLLER, LEAF, DaqpSettings, MpcWeights, OsqpSettings
 from pedas.power import PowerMap
+from pedas.qp import BACKENDS, DaqpBackend, OsqpBackend, residual
 
 KN = 1000.0  # N per kN: forces inside the QP are in kN
 LU = 1.0  # m per length unit of distances inside the QP (10 m and 0.1 m were tried: more iterations)
 KW = 1000.0  # W per kW: the power cost inside the QP is in kW
 INF = np.inf
-BIG = 1e30  # OSQP's infinity: the bound vectors hold +-BIG for unbounded rows, so no per-step clipping
+BIG = 1e30  # OSQP's infinity: the bound vectors hold +-BIG for unbounded rows (DAQP gets them as +-DaqpSettings.bound)
 
 @dataclass(frozen=True)
 class MpcModel:
@@ -89,19 +89,18 @@ class MpcPlan:
     x: np.ndarray = field(repr=False, default=None)
 
 
-_STATUS_OK = {"solved"}
-_STATUS_CHECK = {"solved inaccurate", "maximum iterations reached", "solved_inaccurate", "max_iter_reached"}
-
-
 class SparseMpc:
-    """The sparse QP of eq. (9) (``follow=False``) or eq. (10) (``follow=True``), set up once in OSQP.
+    """The sparse QP of eq. (9) (``follow=False``) or eq. (10) (``follow=True``), set up once in its QP backend.
 
-    Per step call :meth:`solve` with the measured state and the horizon profiles; it updates q, l, u in place,
-    solves, checks the status and the constraint residual, and returns an :class:`MpcPlan`.
+    ``backend``: "daqp" or "osqp" (:mod:`pedas.qp`), with complete :class:`pedas.params.OsqpSettings` /
+    :class:`pedas.params.DaqpSettings`. Per step call :meth:`set_step` with the measured state and the horizon
+    profiles (q, l, u updated in place) and :meth:`solve`; the backend checks status, finiteness and primal
+    feasibility, and only a checked solution becomes an :class:`MpcPlan` with ``ok=True``.
     """
 
     def __init__(self, model: MpcModel, weights: MpcWeights, follow: bool, n: int = N_HORIZON, dt: float = DT,
-                 settings: OsqpSettings | Mapping | None = None) -> None:
+                 backend: str = CONTROLLER.qp_backend, osqp: OsqpSettings = CONTROLLER.osqp,
+                 daqp: DaqpSettings = CONTROLLER.daqp) -> None:
         self.model, self.w, self.follow, self.n, self.dt = model, weights, follow, n, dt
         N = n
         # ---- variable layout -------------------------------------------------------------------------------
@@ -262,19 +261,17 @@ class SparseMpc:
             self.l[R["safe"]] = w.d_min / LU
             self.u[R["comfort"]] = w.d_min / LU
         self.dFt = w.dFt_max / KN
-        # settings: complete OsqpSettings, or a mapping of OSQP options overriding CONTROLLER.osqp (`bench mpc`)
-        if isinstance(settings, OsqpSettings):
-            self.settings = settings.as_dict()
+        if backend not in BACKENDS:
+            raise ValueError(f"unknown QP backend {backend!r}; one of {BACKENDS}")
+        self.backend = backend
+        self.settings = {k: v for k, v in osqp.as_dict().items() if k != "shift_warm_start"}  # OSQP's keywords
+        self.shift_warm_start = bool(osqp.shift_warm_start) and backend == "osqp"
+        if backend == "osqp":
+            self.qp = OsqpBackend(self.P, self.A, self.q, self.l, self.u, osqp)
         else:
-            self.settings = {**CONTROLLER.osqp.as_dict(), **(settings or {})}
-        self.shift_warm_start = bool(self.settings.pop("shift_warm_start"))
-        self.solver = osqp.OSQP()
-        self.solver.setup(P=self.P, q=self.q, A=self.A, l=self.l, u=self.u, **self.settings)
-        core = getattr(self.solver, "_solver", None)
-        self._core = core if core is not None and hasattr(core, "update_data_vec") and hasattr(core, "solution") \
-            else None
+            eq = np.concatenate([self.rows[k] for k in self.rows if k.startswith(("init_", "dyn_"))])
+            self.qp = DaqpBackend(self.P, self.A, self.l, self.u, np.sort(eq), daqp)
         self.x_prev: np.ndarray | None = None
-        self.y_prev: np.ndarray | None = None
         self.last_solve_time = 0.0
         self.last_iter = 0
         self.const = 0.0  # objective constant of the current step (power offsets), for reporting the true cost
@@ -349,40 +346,25 @@ class SparseMpc:
         self.const = const
 
     def solve(self) -> MpcPlan:
-        """Update OSQP's vectors, solve, check the status and the residual, and unpack the plan (SI)."""
-        if self.shift_warm_start and self.x_prev is not None and self.y_prev is not None:
-            self.solver.warm_start(x=self.x_prev[self._shift_x], y=self.y_prev[self._shift_y])
-        if self._core is not None:
-            # the extension object behind OSQP.update/solve: same calls without the wrapper's per-call overhead
-            core = self._core
-            core.update_data_vec(q=self.q, l=self.l, u=self.u)
-            core.solve()
-            info = core.info
-            status, iters, run_time, obj = info.status, int(info.iter), float(info.run_time), info.obj_val
-            sol = core.solution
-            x, y = sol.x, sol.y
-        else:
-            self.solver.update(q=self.q, l=self.l, u=self.u)
-            res = self.solver.solve(raise_error=False)
-            status, iters, run_time, obj = res.info.status, int(res.info.iter), float(res.info.run_time), \
-                res.info.obj_val
-            x, y = res.x, res.y
-        self.last_solve_time = run_time   # s, OSQP's own timer
-        self.last_iter = iters
-        finite = x is not None and bool(np.isfinite(x).all())
-        ok = status in _STATUS_OK and finite
-        if not ok and status in _STATUS_CHECK and finite:
-            ok = self.residual(x) <= 1e-2   # accept an inaccurate solution only if it actually satisfies Ax in [l, u]
-        if not ok:
-            return MpcPlan(status, False, *([None] * 8), float("nan"), iters, None)
-        self.x_prev = x
-        self.y_prev = y
-        return self.unpack(x, status, float(obj) + self.const, iters)
+        """Solve this step's QP with the backend; a plan only from a checked result (status, finite, feasible)."""
+        if self.shift_warm_start and self.x_prev is not None and self.qp.y is not None:
+            self.qp.warm_start(self.x_prev[self._shift_x], self.qp.y[self._shift_y])
+        res = self.qp.solve(self.q, self.l, self.u)
+        self.last_solve_time = res.run_time   # s, the solver's own timer
+        self.last_iter = res.iterations
+        if not res.ok:
+            return MpcPlan(res.status, False, *([None] * 8), float("nan"), res.iterations, None)
+        self.x_prev = res.x
+        return self.unpack(res.x, res.status, res.objective + self.const, res.iterations)
+
+    def reset(self) -> None:
+        """Forget the previous solution and start the backend cold (a new drive)."""
+        self.x_prev = None
+        self.qp.cold_start()
 
     def residual(self, x: np.ndarray) -> float:
         """Largest violation of l <= A x <= u (QP units)."""
-        Ax = self.A @ x
-        return float(max(np.max(self.l - Ax, initial=0.0), np.max(Ax - self.u, initial=0.0)))
+        return residual(self.A, self.l, self.u, x)
 
     def unpack(self, x: np.ndarray, status: str, obj: float, iters: int) -> MpcPlan:
         return MpcPlan(
@@ -397,10 +379,11 @@ class SparseMpc:
         x[self.iv] = v
         x[self.ift] = ft / KN
         x[self.ifb] = fb / KN
-        self.solver.warm_start(x=x)
+        self.qp.warm_start(x)
 
     def qp_data(self) -> tuple[sp.csc_matrix, np.ndarray, sp.csc_matrix, np.ndarray, np.ndarray, float]:
-        """(P upper triangle, q, A, l, u, constant) of the current step — the exact QP OSQP solves, for peers."""
+        """(P upper triangle, q, A, l, u, constant) of the current step — the exact QP the backend solves (DAQP:
+        before its equality rows are folded into the Hessian), infinite bounds as +-inf, for peers."""
         l = np.where(self.l <= -BIG, -np.inf, self.l)
         u = np.where(self.u >= BIG, np.inf, self.u)
         return self.P, self.q.copy(), self.A, l, u, self.const
@@ -420,11 +403,13 @@ def vehicle_model(params=None) -> MpcModel:
 
 
 def solve_qp_cvxpy(P: sp.spmatrix, q: np.ndarray, A: sp.spmatrix, l: np.ndarray, u: np.ndarray,
-                   solver: str = "CLARABEL") -> tuple[str, float, np.ndarray | None]:
+                   solver: str = "CLARABEL", tol: float | None = None) -> tuple[str, float, np.ndarray | None]:
     """The same QP (min 1/2 x'Px + q'x, l <= Ax <= u; P given as its upper triangle) built from scratch in cvxpy
     and solved by an independent interior-point solver (Clarabel). Returns (status, objective, x).
 
-    The peer of the OSQP solution in the tests and in ``pedas-study bench mpc``.
+    ``tol``: Clarabel's gap and feasibility tolerances (e.g. 1e-10 for the reference of ``bench mpc`` and the
+    accuracy tests; default: Clarabel's own, 1e-8). The peer of the MPC solutions in the tests and in
+    ``pedas-study bench mpc``.
     """
     import cvxpy as cp
 
@@ -444,5 +429,6 @@ def solve_qp_cvxpy(P: sp.spmatrix, q: np.ndarray, A: sp.spmatrix, l: np.ndarray,
         cons.append(A[hi] @ x <= u[hi])
     obj = cp.Minimize(0.5 * cp.quad_form(x, cp.psd_wrap(Pfull)) + q @ x)
     prob = cp.Problem(obj, cons)
-    prob.solve(solver=solver)
+    opts = {} if tol is None else dict(tol_gap_abs=tol, tol_gap_rel=tol, tol_feas=tol, tol_ktratio=tol)
+    prob.solve(solver=solver, **opts)
     return str(prob.status), float(prob.value) if prob.value is not None else float("nan"), x.value

@@ -14,7 +14,8 @@ from pedas.params import CONTROLLER, MpcWeights
 
 
 class CarFollowingMpc(SparseMpc):
-    """Eq. (10) as a sparse OSQP problem built once; :meth:`plan` updates the vectors and solves."""
+    """Eq. (10) as a sparse QP built once (DAQP or OSQP, :mod:`pedas.qp`); :meth:`plan` updates the vectors and
+    solves."""
 
     def __init__(self, model: MpcModel, weights: MpcWeights = CONTROLLER.cf_weights, **kw) -> None:
         super().__init__(model, weights, follow=True, **kw)

@@ -13,7 +13,8 @@ from pedas.params import CONTROLLER, MpcWeights
 
 
 class ReferenceTrackingMpc(SparseMpc):
-    """Eq. (9) as a sparse OSQP problem built once; :meth:`plan` updates the vectors and solves."""
+    """Eq. (9) as a sparse QP built once (DAQP or OSQP, :mod:`pedas.qp`); :meth:`plan` updates the vectors and
+    solves."""
 
     def __init__(self, model: MpcModel, weights: MpcWeights = CONTROLLER.rt_weights, **kw) -> None:
         super().__init__(model, weights, follow=False, **kw)

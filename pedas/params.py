@@ -5,9 +5,10 @@ printing the numbers. Every value below therefore comes from public manufacturer
 engineering assumption; the source is written next to each value and collected in docs/vehicle_and_references.md.
 Constants the paper prints (DT, N, alphas, ...) live in `pedas.constants`, not here.
 
-The second half holds the controller's tuning: :class:`ControllerParams` (weights of both MPCs, OSQP settings, the
-thresholds of the pEDAS logic, the HUD and the green wave), one settings object per controller in the manner of
-do-mpc's settings dict, with the default :data:`CONTROLLER`. docs/controller.md gives the reasoning of each value.
+The second half holds the controller's tuning: :class:`ControllerParams` (weights of both MPCs, QP backend and its
+settings, the thresholds of the pEDAS logic, the HUD and the green wave), one settings object per controller in the
+manner of do-mpc's settings dict, with the default :data:`CONTROLLER`. docs/controller.md gives the reasoning of each
+value.
 """
 from __future__ import annotations
 
@@ -165,6 +166,23 @@ class OsqpSettings:
 
 
 @dataclass(frozen=True)
+class DaqpSettings:
+    """Settings of the DAQP backend (:class:`pedas.qp.DaqpBackend`; see docs/controller.md).
+
+    primal_tol: DAQP's primal feasibility tolerance (QP units: m/s, m, kN); iter_limit: active-set iterations per
+    solve; residual_tol: largest violation of l <= A x <= u a solution may have to be used (QP units); rho: weight of
+    the equality rows folded into the Hessian (H = P + rho A_eq'A_eq); bound: magnitude that replaces an infinite
+    bound (QP units; far beyond any speed, distance or force of a drive).
+    """
+
+    primal_tol: float = 1e-6
+    iter_limit: int = 1000
+    residual_tol: float = 1e-5
+    rho: float = 1.0
+    bound: float = 1e4
+
+
+@dataclass(frozen=True)
 class ControllerParams:
     """Every tuning value of :class:`pedas.controller.PedasController`, frozen and hashable.
 
@@ -181,8 +199,12 @@ class ControllerParams:
                                         zeta_v=5.0)
     # m, the planned gap keeps this margin above d_s (constraint tightening vs solver tolerance)
     safe_backoff: float = 1.0
+    # QP backend of both MPCs: "daqp" (exact active set, hot-started) or "osqp" (ADMM); docs/controller.md
+    qp_backend: str = "daqp"
     # OSQP settings of both MPCs (see OsqpSettings)
     osqp: OsqpSettings = OsqpSettings()
+    # DAQP settings of both MPCs (see DaqpSettings)
+    daqp: DaqpSettings = DaqpSettings()
 
     # ---- reference speed and stop logic (pedas.controller) -------------------------------------------------------
     # m/s^2, deceleration of the stop / curve approach envelope of v_ref (early and gentle)

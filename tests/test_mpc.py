@@ -37,14 +37,24 @@ def test_power_map_is_indefinite_but_the_qp_hessian_is_psd(rt, cf):
         assert np.linalg.eigvalsh(full).min() >= -1e-9
 
 
-def test_structure_built_once(monkeypatch):
+@pytest.mark.parametrize("backend", ["osqp", "daqp"])
+def test_structure_built_once(monkeypatch, backend):
     """Setup happens in the constructor only; solving many steps never re-runs it and P, A never change."""
+    import daqp
     import osqp
 
     calls = []
-    orig = osqp.OSQP.setup
-    monkeypatch.setattr(osqp.OSQP, "setup", lambda self, *a, **k: (calls.append(1), orig(self, *a, **k))[1])
-    mpc = ReferenceTrackingMpc(MODEL)
+    if backend == "osqp":
+        orig = osqp.OSQP.setup
+        monkeypatch.setattr(osqp.OSQP, "setup", lambda self, *a, **k: (calls.append(1), orig(self, *a, **k))[1])
+    else:   # daqp.Model is an extension type: count through a subclass
+        class Counted(daqp.Model):
+            def setup(self, *a, **k):
+                calls.append(1)
+                return super().setup(*a, **k)
+
+        monkeypatch.setattr(daqp, "Model", Counted)
+    mpc = ReferenceTrackingMpc(MODEL, backend=backend)
     P0, A0 = mpc.P.copy(), mpc.A.copy()
     for v0 in np.linspace(0, 25, 15):
         plan = mpc.plan(v0, np.full(N, 12.0), np.zeros(N), np.full(N, 30.0), np.zeros(N))

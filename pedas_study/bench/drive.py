@@ -1,5 +1,5 @@
-"""Time of simulated drives (`pedas-study bench drive`): real-time factor of single drives, the cohort's worker
-speed-up.
+"""Time of simulated drives (`pedas-study bench drive`): real-time factor of single drives (baseline, pEDAS with the
+default QP backend, and pEDAS with the other backend), the cohort's worker speed-up.
 
 A drive's wall time counts the drive loop only (SUMO start, traffic, driver, controller, invariants); the
 one-time setup per process (network build check, route, DP reference) is reported separately. The cohort
@@ -17,25 +17,35 @@ from pedas.vocabulary import CONDITIONS, STYLES
 
 
 def bench_drive(repeats: int = 1, cohort: int = 3, seed: int = 1, style: str = "normal") -> dict:
-    """{'setup_s', 'baseline': {...}, 'pedas': {...}, 'pedas_over_baseline', 'cohort': {...}|None}."""
+    """{'setup_s', 'baseline': {...}, 'pedas': {...}, 'pedas_<backend>': {...}, 'pedas_over_baseline',
+    'cohort': {...}|None}. 'pedas' runs the default QP backend (CONTROLLER.qp_backend), 'pedas_<backend>' the other
+    one on the same drive."""
+    import dataclasses
+
     from pedas.drive import _setup, drive
     from pedas.network import build_network
+    from pedas.params import CONTROLLER
+    from pedas.qp import BACKENDS
 
     t0 = time.perf_counter()
     net = str(build_network())
     _setup(net)
     setup = time.perf_counter() - t0
     out: dict = {"setup_s": setup}
-    for cond in CONDITIONS:
+    other = [b for b in BACKENDS if b != CONTROLLER.qp_backend]
+    runs = [(cond, cond, None) for cond in CONDITIONS] + [
+        (f"pedas_{b}", "pedas", dataclasses.replace(CONTROLLER, qp_backend=b)) for b in other]
+    for key, cond, settings in runs:
         walls, info = [], None
         for _ in range(repeats):
-            df = drive(seed, style, cond, net_file=net)
+            df = drive(seed, style, cond, net_file=net, settings=settings)
             info = df.attrs["drive"]
             walls.append(info["wall_s"])
         wall = statistics.median(walls)
-        out[cond] = {"sim_s": info["duration_s"], "wall_s_median": wall, "repeats": repeats,
-                     "rtf_median": info["duration_s"] / wall, "ms_per_step": 1000.0 * wall / info["steps"],
-                     "max_vehicles": info["max_vehicles"]}
+        out[key] = {"sim_s": info["duration_s"], "wall_s_median": wall, "repeats": repeats,
+                    "rtf_median": info["duration_s"] / wall, "ms_per_step": 1000.0 * wall / info["steps"],
+                    "max_vehicles": info["max_vehicles"],
+                    "backend": (settings or CONTROLLER).qp_backend if cond == "pedas" else None}
     out["pedas_over_baseline"] = out["pedas"]["wall_s_median"] / out["baseline"]["wall_s_median"]
     out["cohort"] = _cohort_speedup(cohort, seed) if cohort > 0 else None
     return out

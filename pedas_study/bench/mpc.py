@@ -3,9 +3,10 @@
 The sequence: a synthetic urban + highway route (hills, two curves, four traffic lights, one stop sign), a
 virtual driver that follows the advice with a first-order lag (so the state deviates from the plan as with a
 human), and a leader that appears within sensor range, brakes and accelerates, and disappears again in cycles.
-Each timed controller step is ``PedasController.step`` (vector update + OSQP solve + checks + HUD advisory). The
-peer builds the very QP of the same step (``SparseMpc.qp_data``) from scratch in cvxpy and solves it with
-Clarabel, on an evenly spread subset of the steps; both objectives are compared on those steps.
+Each timed controller step is ``PedasController.step`` (vector update + QP solve + checks + HUD advisory); the
+sequence runs once per QP backend (DAQP, OSQP). The peer builds the very QP of the same step
+(``SparseMpc.qp_data``) from scratch in cvxpy and solves it with Clarabel at tolerance 1e-10, on an evenly spread
+subset of the steps: it is both the timed peer and the reference of the objective gap and the first-input error.
 """
 from __future__ import annotations
 
@@ -20,23 +21,33 @@ from pedas_study.extras import require
 DRIVER_LAG = 0.6  # s, first-order lag of the benchmark's virtual driver when tracking the advice
 
 
+REF_TOL = 1e-10   # Clarabel's gap and feasibility tolerances of the reference solutions
+
+
 @dataclass
 class BenchResult:
-    """Timings in ms; ratio = peer median / controller median; obj_rel_max: largest relative objective gap."""
+    """One backend on the sequence. Timings in ms; ratio = peer median / controller median; obj_gap_max: largest
+    relative objective gap |f - f_ref| / max(1, |f_ref|) against Clarabel at 1e-10 on the same QPs (objectives
+    evaluated at each solution with the QP's own P, q); du0_max_n: largest |F_t,0 - F_t,0,ref|, |F_b,0 - F_b,0,ref|
+    (N) on those QPs."""
 
+    backend: str
     steps: int
     median_ms: float
     p95_ms: float
     p99_ms: float
     max_ms: float
     solve_median_ms: float
+    solve_p99_ms: float
     peer_steps: int
     peer_median_ms: float
     ratio: float
-    obj_rel_max: float
-    obj_rel_over_1e3: dict
+    obj_gap_max: float
+    obj_gap_over_1e3: dict
+    du0_max_n: float
     iter_median: float
     iter_p95: float
+    iter_max: int
     fallbacks: int
     corrections: int
     switches: int
@@ -44,7 +55,7 @@ class BenchResult:
     qp_hessian_min_eig: float = 0.0
     controller_share: dict = field(default_factory=dict)
     statuses: dict = field(default_factory=dict)
-    osqp_settings: dict = field(default_factory=dict)
+    settings: dict = field(default_factory=dict)
 
     def as_dict(self) -> dict:
         """JSON-ready dict of the result."""
@@ -52,20 +63,22 @@ class BenchResult:
 
     def to_text(self) -> str:
         lines = [
-            f"controller step (update + solve + advisory) over {self.steps} steps:",
+            f"[{self.backend}] controller step (update + solve + advisory) over {self.steps} steps:",
             f"  median {self.median_ms:.3f} ms   p95 {self.p95_ms:.3f} ms   p99 {self.p99_ms:.3f} ms   "
-            f"max {self.max_ms:.3f} ms   (OSQP solve alone: median {self.solve_median_ms:.3f} ms; iterations median "
-            f"{self.iter_median:.0f}, p95 {self.iter_p95:.0f})",
-            f"cvxpy + Clarabel, same QP rebuilt per step, {self.peer_steps} steps: median {self.peer_median_ms:.3f} ms",
-            f"ratio (cvxpy median / controller median): {self.ratio:.1f}x",
-            f"objective agreement on the peer steps: max relative gap {self.obj_rel_max:.1e}; steps above 1e-3 by "
-            f"OSQP status: {self.obj_rel_over_1e3 or 'none'}",
-            f"controller share {self.controller_share}; fallbacks {self.fallbacks}, speed corrections "
+            f"max {self.max_ms:.3f} ms",
+            f"  solve alone (solver's timer): median {self.solve_median_ms:.3f} ms, p99 {self.solve_p99_ms:.3f} ms; "
+            f"iterations median {self.iter_median:.0f}, p95 {self.iter_p95:.0f}, max {self.iter_max}",
+            f"  cvxpy + Clarabel (tol {REF_TOL:g}), same QP rebuilt per step, {self.peer_steps} steps: median "
+            f"{self.peer_median_ms:.3f} ms; ratio (cvxpy median / controller median) {self.ratio:.1f}x",
+            f"  against the reference on those QPs: max objective gap {self.obj_gap_max:.1e}, max |du0| "
+            f"{self.du0_max_n:.2g} N; gaps above 1e-3 by status: {self.obj_gap_over_1e3 or 'none'}",
+            f"  controller share {self.controller_share}; fallbacks {self.fallbacks}, speed corrections "
             f"{self.corrections}, switches {self.switches}",
-            f"solve status {self.statuses}",
-            f"convexity: eq. (5) Hessian eigenvalues {self.power_hessian_eigs[0]:.3g}, {self.power_hessian_eigs[1]:.3g} "
-            f"(indefinite -> a11 v F linearised); QP Hessian min eigenvalue {self.qp_hessian_min_eig:.2g}",
-            "OSQP settings " + ", ".join(f"{k}={v}" for k, v in self.osqp_settings.items() if k != "verbose"),
+            f"  solve status {self.statuses}",
+            f"  convexity: eq. (5) Hessian eigenvalues {self.power_hessian_eigs[0]:.3g}, "
+            f"{self.power_hessian_eigs[1]:.3g} (indefinite -> a11 v F linearised); QP Hessian min eigenvalue "
+            f"{self.qp_hessian_min_eig:.2g}",
+            f"  {self.backend} settings " + ", ".join(f"{k}={v}" for k, v in self.settings.items() if k != "verbose"),
         ]
         return "\n".join(lines)
 
@@ -80,27 +93,34 @@ def bench_route():
     return Route.synthetic_mixed(lights=lights, stops=[StopSign("SS1", 2800.0)], name="bench")
 
 
-def run_bench(steps: int = 5000, peer_steps: int = 300, seed: int = 0, osqp_settings: dict | None = None) -> BenchResult:
-    """Run the drive-like sequence for `steps` controller steps (restarting the route when it ends)."""
+def run_bench(steps: int = 5000, peer_steps: int = 300, seed: int = 0, osqp_settings: dict | None = None,
+              backend: str | None = None) -> BenchResult:
+    """Run the drive-like sequence for `steps` controller steps (restarting the route when it ends) with one QP
+    backend (default: the controller's, ``CONTROLLER.qp_backend``)."""
+    import dataclasses
+
     from pedas.controller import PedasController
     from pedas.dp import dp_reference
-    from pedas.mpc import power_hessian_eigs, solve_qp_cvxpy
+    from pedas.mpc import KN, power_hessian_eigs, solve_qp_cvxpy
+    from pedas.params import CONTROLLER
 
     if steps < 1 or peer_steps < 0:
         raise ValueError("steps must be >= 1 and peer steps >= 0")
     if peer_steps:
         require("cvxpy", "bench", "the cvxpy peer of bench mpc")
         require("clarabel", "bench", "the cvxpy peer of bench mpc")
+    backend = backend or CONTROLLER.qp_backend
     rng = np.random.default_rng(seed)
     route = bench_route()
     dp = dp_reference(route)
-    ctrl = PedasController(route, v_dp=dp, osqp_settings=osqp_settings)
+    settings = dataclasses.replace(CONTROLLER, qp_backend=backend)
+    ctrl = PedasController(route, v_dp=dp, settings=settings, osqp_settings=osqp_settings)
     step_t = np.empty(steps)
     solve_t = []
     statuses: dict[str, int] = {}
     peer_every = max(1, steps // max(peer_steps, 1)) if peer_steps else 0
-    peer_t, rels = [], []
-    over: dict[str, int] = {}   # peer steps with a relative objective gap > 1e-3, by OSQP status
+    peer_t, gaps, du0 = [], [], []
+    over: dict[str, int] = {}   # peer steps with a relative objective gap > 1e-3, by solve status
     t, s, v = 0.0, 0.0, 0.0
     lead_s, lead_v, lead_on = None, 0.0, False
     next_event = 20.0
@@ -112,24 +132,25 @@ def run_bench(steps: int = 5000, peer_steps: int = 300, seed: int = 0, osqp_sett
         t0 = time.perf_counter()
         adv = ctrl.step(t, s, v, leader)
         step_t[i] = time.perf_counter() - t0
-        solver = ctrl.cf if adv.controller == "cf" else ctrl.rt
-        solve_t.append(solver.last_solve_time)
-        iters.append(solver.last_iter)
+        mpc = ctrl.cf if adv.controller == "cf" else ctrl.rt
+        solve_t.append(mpc.last_solve_time)
+        iters.append(mpc.last_iter)
         statuses[adv.solve_status] = statuses.get(adv.solve_status, 0) + 1
         counts[adv.controller] += 1
         if adv.controller != prev_ctrl and prev_ctrl is not None:
             counts["switches"] += 1
         prev_ctrl = adv.controller
         if peer_every and i % peer_every == 0 and len(peer_t) < peer_steps:
-            P, q, A, l, u, c = solver.qp_data()
-            x_osqp = solver.x_prev
+            P, q, A, l, u, c = mpc.qp_data()
+            x = mpc.x_prev
             t1 = time.perf_counter()
-            status, obj, _ = solve_qp_cvxpy(P, q, A, l, u)
+            status, _, x_ref = solve_qp_cvxpy(P, q, A, l, u, tol=REF_TOL)
             peer_t.append(time.perf_counter() - t1)
-            if not adv.fallback and x_osqp is not None and status == "optimal":
-                f_osqp = 0.5 * float(x_osqp @ (P @ x_osqp + P.T @ x_osqp - P.diagonal() * x_osqp)) + float(q @ x_osqp)
-                rels.append(abs(f_osqp - obj) / max(1.0, abs(obj)))
-                if rels[-1] > 1e-3:
+            if not adv.fallback and x is not None and status == "optimal":
+                f, f_ref = _objective(P, q, x), _objective(P, q, x_ref)
+                gaps.append(abs(f - f_ref) / max(1.0, abs(f_ref)))
+                du0.append(KN * max(abs(x[mpc.ift[0]] - x_ref[mpc.ift[0]]), abs(x[mpc.ifb[0]] - x_ref[mpc.ifb[0]])))
+                if gaps[-1] > 1e-3:
                     over[adv.solve_status] = over.get(adv.solve_status, 0) + 1
         # virtual driver: first-order lag towards the advice, plant = the advised speed trajectory
         v_new = max(0.0, v + DT / DRIVER_LAG * (adv.v_advice - v) + rng.normal(0.0, 0.05))
@@ -155,17 +176,32 @@ def run_bench(steps: int = 5000, peer_steps: int = 300, seed: int = 0, osqp_sett
     ms = step_t * 1e3
     med = float(np.median(ms))
     peer_med = float(np.median(peer_t) * 1e3) if peer_t else float("nan")
+    used = ctrl.settings.osqp.as_dict() if backend == "osqp" else dataclasses.asdict(ctrl.settings.daqp)
     return BenchResult(
-        steps=steps, median_ms=med, p95_ms=float(np.percentile(ms, 95)), p99_ms=float(np.percentile(ms, 99)),
-        max_ms=float(ms.max()), solve_median_ms=float(np.median(solve_t)) * 1e3, peer_steps=len(peer_t), peer_median_ms=peer_med,
-        ratio=peer_med / med if peer_t else float("nan"), obj_rel_max=float(max(rels)) if rels else float("nan"),
-        obj_rel_over_1e3=over,
-        iter_median=float(np.median(iters)), iter_p95=float(np.percentile(iters, 95)),
+        backend=backend, steps=steps, median_ms=med, p95_ms=float(np.percentile(ms, 95)),
+        p99_ms=float(np.percentile(ms, 99)), max_ms=float(ms.max()), solve_median_ms=float(np.median(solve_t)) * 1e3,
+        solve_p99_ms=float(np.percentile(solve_t, 99)) * 1e3, peer_steps=len(peer_t), peer_median_ms=peer_med,
+        ratio=peer_med / med if peer_t else float("nan"), obj_gap_max=float(max(gaps)) if gaps else float("nan"),
+        obj_gap_over_1e3=over, du0_max_n=float(max(du0)) if du0 else float("nan"),
+        iter_median=float(np.median(iters)), iter_p95=float(np.percentile(iters, 95)), iter_max=int(max(iters)),
         fallbacks=_count_prefix(statuses, "fallback"), corrections=int(statuses.get("speed_correction", 0)),
         switches=counts["switches"], controller_share={"rt": counts["rt"], "cf": counts["cf"]},
-        statuses=statuses, osqp_settings=dict(ctrl.rt.settings),
+        statuses=statuses, settings=used,
         power_hessian_eigs=[float(e) for e in power_hessian_eigs(ctrl.model)],
         qp_hessian_min_eig=min(_min_eig(ctrl.rt.P), _min_eig(ctrl.cf.P)))
+
+
+def run_bench_all(steps: int = 5000, peer_steps: int = 300, seed: int = 0) -> dict[str, BenchResult]:
+    """:func:`run_bench` for every QP backend (same sequence seed), in :data:`pedas.qp.BACKENDS` order."""
+    from pedas.qp import BACKENDS
+
+    return {b: run_bench(steps=steps, peer_steps=peer_steps, seed=seed, backend=b) for b in BACKENDS}
+
+
+def _objective(P, q, x) -> float:
+    """1/2 x'Px + q'x with P given as its upper triangle (sparse products: no BLAS)."""
+    Px = P @ x + P.T @ x - P.diagonal() * x
+    return 0.5 * float((x * Px).sum()) + float((q * x).sum())
 
 
 def _min_eig(P) -> float:

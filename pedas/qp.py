@@ -1,0 +1,257 @@
+"""The QP layer of the MPCs: one interface, two backends (OSQP, DAQP), every solution checked before use.
+
+Both backends solve ``min 1/2 x'Px + q'x  s.t.  l <= A x <= u`` with constant ``P`` (upper triangle), ``A`` and
+per-step vectors ``q``, ``l``, ``u`` (:class:`pedas.mpc.SparseMpc` keeps them and rewrites them in place).
+
+* :class:`OsqpBackend` — ADMM (OSQP), the design's solver and the cross-check; tolerance ``eps_abs/eps_rel``.
+* :class:`DaqpBackend` — a dual active-set method (DAQP), exact up to rounding, hot-started from the previous
+  step's working set. DAQP needs a positive-definite Hessian, so the equality rows ``A_eq x = b_eq`` (initial
+  states and dynamics, eq. 3a-3c) are folded into the cost, ``H = P + rho A_eq'A_eq``, ``f = q - rho A_eq'b_eq``:
+  on the feasible set ``1/2 x'Hx + f'x = 1/2 x'Px + q'x - rho/2 |b_eq|^2``, so the minimiser is the same and the
+  equality rows are still imposed exactly. Rows bounding one variable are passed as DAQP's simple bounds, and
+  unbounded sides as ``+-bound`` (finite: a hot start on a row whose bound became infinite returned NaN).
+
+Every solve returns a :class:`QpResult` whose ``ok`` is true only if the status is an optimum, the solution is
+finite and it satisfies ``l <= A x <= u`` within the backend's residual tolerance (QP units).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import osqp
+import scipy.sparse as sp
+
+from pedas.params import DaqpSettings, OsqpSettings
+
+BACKENDS = ("daqp", "osqp")
+
+_OSQP_OK = {"solved"}
+_OSQP_CHECK = {"solved inaccurate", "maximum iterations reached", "solved_inaccurate", "max_iter_reached"}
+OSQP_RESIDUAL_TOL = 1e-2    # QP units (m/s, m, kN): largest accepted violation of l <= Ax <= u for OSQP
+# DAQP exit flags (https://darnstrom.github.io/daqp/parameters): 1 optimal; the rest are failures
+_DAQP_STATUS = {1: "solved", 2: "solved", -1: "primal infeasible", -2: "cycling", -3: "unbounded",
+                -4: "maximum iterations reached", -5: "nonconvex", -6: "overdetermined initial active set"}
+
+
+@dataclass
+class QpResult:
+    """One checked solve: status text, ok (status, finiteness and primal feasibility all passed), x (QP units;
+    None when not ok), objective 1/2 x'Px + q'x (without the step's constant), iterations, solver time (s)."""
+
+    status: str
+    ok: bool
+    x: np.ndarray | None
+    objective: float
+    iterations: int
+    run_time: float
+
+
+def residual(A: sp.csc_matrix, l: np.ndarray, u: np.ndarray, x: np.ndarray) -> float:
+    """Largest violation of l <= A x <= u (QP units). A sparse product: no BLAS, the same bits on every kernel."""
+    Ax = A @ x
+    return float(max(np.max(l - Ax, initial=0.0), np.max(Ax - u, initial=0.0)))
+
+
+class _CsrProduct:
+    """:func:`residual` for one constant A with preallocated work vectors (scipy's CSR product kernel directly,
+    which skips the per-call checks of ``A @ x``; the same loop, the same bits)."""
+
+    def __init__(self, A: sp.spmatrix) -> None:
+        self.A = sp.csr_matrix(A)
+        self.A.sort_indices()
+        self._ax = np.empty(self.A.shape[0])
+        self._t = np.empty(self.A.shape[0])
+        try:
+            from scipy.sparse._sparsetools import csr_matvec
+        except ImportError:   # pragma: no cover - scipy moved its kernels
+            csr_matvec = None
+        self._kernel = csr_matvec
+
+    def product(self, x: np.ndarray) -> np.ndarray:
+        """A x into the work vector (valid until the next call)."""
+        A, ax = self.A, self._ax
+        if self._kernel is None:
+            ax[:] = A @ x
+        else:
+            ax.fill(0.0)
+            self._kernel(A.shape[0], A.shape[1], A.indptr, A.indices, A.data, x, ax)
+        return ax
+
+    def __call__(self, l: np.ndarray, u: np.ndarray, x: np.ndarray) -> float:
+        ax, t = self.product(x), self._t
+        np.subtract(l, ax, out=t)
+        r = t.max()
+        np.subtract(ax, u, out=t)
+        return float(max(r, t.max(), 0.0))
+
+
+class OsqpBackend:
+    """OSQP set up once; :meth:`solve` updates q, l, u (OSQP's vector update, no re-setup) and checks the result.
+
+    ``solved`` is accepted if finite and primal feasible within :data:`OSQP_RESIDUAL_TOL`; ``solved inaccurate``
+    and ``maximum iterations reached`` under the same condition.
+    """
+
+    name = "osqp"
+
+    def __init__(self, P: sp.csc_matrix, A: sp.csc_matrix, q: np.ndarray, l: np.ndarray, u: np.ndarray,
+                 settings: OsqpSettings) -> None:
+        kw = settings.as_dict()
+        self.shift_warm_start = bool(kw.pop("shift_warm_start"))
+        self.settings = kw
+        self._residual = _CsrProduct(A)
+        self.solver = osqp.OSQP()
+        self.solver.setup(P=P, q=q, A=A, l=l, u=u, **kw)
+        core = getattr(self.solver, "_solver", None)
+        # the extension object behind OSQP.update/solve: same calls without the wrapper's per-call overhead
+        self._core = core if core is not None and hasattr(core, "update_data_vec") and hasattr(core, "solution") \
+            else None
+        self.y: np.ndarray | None = None
+
+    def solve(self, q: np.ndarray, l: np.ndarray, u: np.ndarray) -> QpResult:
+        if self._core is not None:
+            core = self._core
+            core.update_data_vec(q=q, l=l, u=u)
+            core.solve()
+            info = core.info
+            status, iters, run_time, obj = info.status, int(info.iter), float(info.run_time), info.obj_val
+            sol = core.solution
+            x, y = sol.x, sol.y
+        else:
+            self.solver.update(q=q, l=l, u=u)
+            res = self.solver.solve(raise_error=False)
+            status, iters, run_time, obj = res.info.status, int(res.info.iter), float(res.info.run_time), \
+                res.info.obj_val
+            x, y = res.x, res.y
+        finite = x is not None and bool(np.isfinite(x).all())
+        ok = finite and (status in _OSQP_OK or status in _OSQP_CHECK) and self._residual(l, u, x) <= OSQP_RESIDUAL_TOL
+        if not ok:
+            return QpResult(status, False, None, float("nan"), iters, run_time)
+        self.y = y
+        return QpResult(status, True, x, float(obj), iters, run_time)
+
+    def warm_start(self, x: np.ndarray, y: np.ndarray | None = None) -> None:
+        """Start the next solve's ADMM iterates from x (and y)."""
+        if y is None:
+            self.solver.warm_start(x=x)
+        else:
+            self.solver.warm_start(x=x, y=y)
+
+    def cold_start(self) -> None:
+        """Nothing to forget: OSQP's warm start is its previous iterate (kept across drives as before)."""
+
+
+class DaqpBackend:
+    """DAQP on the regularised QP (module docstring), set up once, hot-started from the previous working set.
+
+    ``eq_rows``: rows of A that are equalities (l == u always). Rows with a single coefficient 1 become DAQP simple
+    bounds on their variable; the others stay general rows. After any failed solve the working set is cleared and
+    the solve is repeated once from a cold start (a stale working set can make the active-set method fail on a
+    feasible problem); a second failure is reported as such.
+    """
+
+    name = "daqp"
+
+    def __init__(self, P: sp.csc_matrix, A: sp.csc_matrix, l: np.ndarray, u: np.ndarray, eq_rows: np.ndarray,
+                 settings: DaqpSettings) -> None:
+        import daqp
+
+        self._residual = _CsrProduct(A)
+        self.settings = settings
+        m, nx = A.shape
+        self.bound = float(settings.bound)
+        rho = float(settings.rho)
+        Acsr = sp.csr_matrix(A)
+        nnz = np.diff(Acsr.indptr)
+        single = (nnz == 1) & (Acsr.data[np.minimum(Acsr.indptr[:-1], Acsr.data.size - 1)] == 1.0)
+        # simple bound of variable j: the (only) single-variable row on it, else the sentinel row m (unbounded)
+        simple = np.full(nx, m)
+        for r in np.flatnonzero(single):
+            j = Acsr.indices[Acsr.indptr[r]]
+            if simple[j] != m:
+                single[r] = False     # a second row on the same variable stays a general row
+            else:
+                simple[j] = r
+        general = np.flatnonzero(~single)
+        self._perm = np.concatenate([simple, general])       # DAQP constraint i <- row perm[i] of [l; -inf]
+        is_eq = np.zeros(m + 1, dtype=bool)
+        is_eq[eq_rows] = True
+        self._sense0 = np.where(is_eq[self._perm], 5, 0).astype(np.int32)
+        Aeq = sp.csr_matrix(Acsr[eq_rows])
+        self._eq_rows = np.asarray(eq_rows)
+        self._AeqT = _CsrProduct(sp.csr_matrix(Aeq.T) * rho)   # its product kernel computes rho A_eq' b_eq
+        self._rho = rho
+        Pfull = (P + P.T - sp.diags(P.diagonal())).tocsc()
+        self.P = Pfull
+        H = (Pfull + rho * (Aeq.T @ Aeq)).toarray()
+        self.H = np.ascontiguousarray(H)
+        self._Ag = np.ascontiguousarray(Acsr[general].toarray())
+        # work vectors, updated in place each solve
+        self._laug = np.empty(m + 1)
+        self._uaug = np.empty(m + 1)
+        self._laug[m] = -self.bound
+        self._uaug[m] = self.bound
+        self._lo = np.empty(self._perm.size)
+        self._hi = np.empty(self._perm.size)
+        self._beq = np.empty(self._eq_rows.size)
+        self._f = np.empty(nx)
+        self._fill(np.zeros(nx), l, u)
+        self.model = daqp.Model()
+        self.model.setup(self.H, self._f, self._Ag, self._hi, self._lo, self._sense0)
+        s = self.model.settings
+        s.update(primal_tol=settings.primal_tol, iter_limit=settings.iter_limit, eps_prox=0.0)
+        self.model.settings = s
+        self._cold = False
+
+    def _fill(self, q: np.ndarray, l: np.ndarray, u: np.ndarray) -> None:
+        """f = q - rho A_eq' b_eq and the DAQP bounds (simple bounds first, then general rows), clipped to +-bound."""
+        m = l.size
+        self._laug[:m] = l
+        self._uaug[:m] = u
+        np.take(self._laug, self._perm, out=self._lo)
+        np.take(self._uaug, self._perm, out=self._hi)
+        np.maximum(self._lo, -self.bound, out=self._lo)
+        np.minimum(self._lo, self.bound, out=self._lo)
+        np.maximum(self._hi, -self.bound, out=self._hi)
+        np.minimum(self._hi, self.bound, out=self._hi)
+        np.take(l, self._eq_rows, out=self._beq)
+        np.subtract(q, self._AeqT.product(self._beq), out=self._f)
+
+    def solve(self, q: np.ndarray, l: np.ndarray, u: np.ndarray) -> QpResult:
+        self._fill(q, l, u)
+        res = self._solve_checked(q, l, u)
+        if not res.ok:
+            self.cold_start()
+            again = self._solve_checked(q, l, u)
+            again.iterations += res.iterations
+            again.run_time += res.run_time
+            res = again
+            if not res.ok:
+                self.cold_start()
+        return res
+
+    def _solve_checked(self, q: np.ndarray, l: np.ndarray, u: np.ndarray) -> QpResult:
+        if self._cold:
+            self.model.update(f=self._f, bupper=self._hi, blower=self._lo, sense=self._sense0)
+            self._cold = False
+        else:
+            self.model.update(f=self._f, bupper=self._hi, blower=self._lo)
+        x, fval, flag, info = self.model.solve()
+        iters, run_time = int(info["iterations"]), float(info["solve_time"])
+        status = _DAQP_STATUS.get(int(flag), f"daqp exit {int(flag)}")
+        ok = int(flag) in (1, 2) and x is not None and bool(np.isfinite(x).all()) \
+            and self._residual(l, u, x) <= self.settings.residual_tol
+        if not ok:
+            return QpResult(status, False, None, float("nan"), iters, run_time)
+        # on A_eq x = b_eq the regularised cost is the true one minus rho/2 |b_eq|^2 (module docstring)
+        obj = float(fval) + 0.5 * self._rho * float((self._beq * self._beq).sum())
+        return QpResult(status, True, x, obj, iters, run_time)
+
+    def warm_start(self, x: np.ndarray, y: np.ndarray | None = None) -> None:
+        """A primal guess is no working set: start the next solve cold (used at a hand-over between the MPCs)."""
+        self.cold_start()
+
+    def cold_start(self) -> None:
+        """Clear the working set: the next solve starts from the equality rows only."""
+        self._cold = True
