@@ -1,6 +1,6 @@
 """pEDAS simulation core: vehicle and power model, reference speeds (DP, green wave), the reference-tracking and
-car-following MPCs on OSQP, controller switching, speed correction, HUD advisory, the SUMO route and traffic,
-virtual drivers and the drive loop. Imports neither `study` nor `analysis`."""
+car-following MPCs on DAQP (OSQP as cross-check), controller switching, speed correction, HUD advisory, the SUMO
+route and traffic, virtual drivers and the drive loop. Imports neither `study` nor `analysis`."""
 
 import os as _os
 import sys as _sys

@@ -62,8 +62,9 @@ def code_version() -> str:
     try:
         from importlib.metadata import version
 
-        h.update(version("eclipse-sumo").encode())
-        h.update(version("osqp").encode())
+        # the solvers a drive's plans come from
+        for dist in ("eclipse-sumo", "osqp", "daqp"):
+            h.update(version(dist).encode())
     except Exception:  # pragma: no cover
         pass
     return h.hexdigest()[:16]

@@ -53,6 +53,18 @@ def residual(A: sp.csc_matrix, l: np.ndarray, u: np.ndarray, x: np.ndarray) -> f
     return float(max(np.max(l - Ax, initial=0.0), np.max(Ax - u, initial=0.0)))
 
 
+def _postcondition(status: str, x: np.ndarray | None, feasible) -> str:
+    """The status of a solution the solver calls optimal, after the checks: unchanged if x is finite and
+    ``feasible()`` (l <= A x <= u within tolerance) holds, else 'rejected:<status>:non-finite' or
+    'rejected:<status>:residual' (not 'infeasible': that word is the solver's own verdict, on which the controller's
+    fallback brakes)."""
+    if x is None or not bool(np.isfinite(x).all()):
+        return f"rejected:{status}:non-finite"
+    if not feasible():
+        return f"rejected:{status}:residual"
+    return status
+
+
 class _CsrProduct:
     """:func:`residual` for one constant A with preallocated work vectors (scipy's CSR product kernel directly,
     which skips the per-call checks of ``A @ x``; the same loop, the same bits)."""
@@ -124,9 +136,9 @@ class OsqpBackend:
             status, iters, run_time, obj = res.info.status, int(res.info.iter), float(res.info.run_time), \
                 res.info.obj_val
             x, y = res.x, res.y
-        finite = x is not None and bool(np.isfinite(x).all())
-        ok = finite and (status in _OSQP_OK or status in _OSQP_CHECK) and self._residual(l, u, x) <= OSQP_RESIDUAL_TOL
-        if not ok:
+        if status in _OSQP_OK or status in _OSQP_CHECK:
+            status = _postcondition(status, x, lambda: self._residual(l, u, x) <= OSQP_RESIDUAL_TOL)
+        if status not in _OSQP_OK and status not in _OSQP_CHECK:
             return QpResult(status, False, None, float("nan"), iters, run_time)
         self.y = y
         return QpResult(status, True, x, float(obj), iters, run_time)
@@ -240,9 +252,9 @@ class DaqpBackend:
         x, fval, flag, info = self.model.solve()
         iters, run_time = int(info["iterations"]), float(info["solve_time"])
         status = _DAQP_STATUS.get(int(flag), f"daqp exit {int(flag)}")
-        ok = int(flag) in (1, 2) and x is not None and bool(np.isfinite(x).all()) \
-            and self._residual(l, u, x) <= self.settings.residual_tol
-        if not ok:
+        if int(flag) in (1, 2):
+            status = _postcondition(status, x, lambda: self._residual(l, u, x) <= self.settings.residual_tol)
+        if status != "solved":
             return QpResult(status, False, None, float("nan"), iters, run_time)
         # on A_eq x = b_eq the regularised cost is the true one minus rho/2 |b_eq|^2 (module docstring)
         obj = float(fval) + 0.5 * self._rho * float((self._beq * self._beq).sum())

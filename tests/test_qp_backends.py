@@ -124,8 +124,8 @@ def test_the_reported_objective_is_the_true_one():
 
 
 def test_an_unchecked_solution_never_reaches_the_plan(monkeypatch):
-    """A solver that says 'solved' but returns NaN or an infeasible point yields no plan (fallback upstream), and
-    DAQP then restarts cold."""
+    """A solver that says 'solved' but returns NaN or a point outside l <= Ax <= u yields no plan (the controller's
+    fallback), and DAQP then restarts cold."""
     m = vehicle_model()
     N = 20
     args = (8.0, np.full(N, 12.0), np.zeros(N), np.full(N, 30.0), np.zeros(N))
@@ -145,14 +145,31 @@ def test_an_unchecked_solution_never_reaches_the_plan(monkeypatch):
             return self.x.copy(), 0.0, 1, {"iterations": 1, "solve_time": 0.0}
 
     x_ok = rt.x_prev.copy()
-    for bad in (np.full_like(x_ok, np.nan), x_ok + 1.0):
+    for bad, why in ((np.full_like(x_ok, np.nan), "non-finite"), (x_ok + 1.0, "residual")):
         rt.qp.model = Lying(bad)
         plan = rt.plan(*args)
-        assert not plan.ok and plan.v is None and plan.status == "solved"
+        assert not plan.ok and plan.v is None and plan.status.startswith("rejected:solved:")
+        assert plan.status.endswith(why)
         assert rt.qp.model.calls == 2 and rt.qp._cold   # retried once cold, and the next solve starts cold too
     rt.qp.model = real
     plan = rt.plan(*args)
     assert plan.ok and not rt.qp._cold
+    # OSQP: the same checks on a result OSQP calls solved
+    rt = ReferenceTrackingMpc(m, backend="osqp")
+    assert rt.plan(*args).ok
+    core = rt.qp._core
+    monkeypatch.setattr(rt.qp, "_core", None)
+    monkeypatch.setattr(rt.qp.solver, "solve", lambda **kw: _Fake(core.solution.x + 1.0))
+    plan = rt.plan(*args)
+    assert not plan.ok and plan.status == "rejected:solved:residual"
+
+
+class _Fake:
+    """An OSQP result that says solved."""
+
+    def __init__(self, x):
+        self.x, self.y = x, np.zeros(1)
+        self.info = type("Info", (), {"status": "solved", "iter": 1, "run_time": 0.0, "obj_val": 0.0})()
 
 
 def test_backend_is_a_controller_setting():
