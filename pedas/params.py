@@ -142,7 +142,7 @@ class OsqpSettings:
     """OSQP settings used by both MPCs (tuned with `pedas-study bench mpc`; see docs/controller.md).
 
     :meth:`as_dict` gives the keyword arguments of ``OSQP.setup`` plus ``shift_warm_start``, which
-    :class:`pedas.mpc.SparseMpc` takes out before the setup.
+    :class:`pedas.qp.OsqpBackend` takes out before the setup.
     """
 
     verbose: bool = False
