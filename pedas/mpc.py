@@ -42,6 +42,7 @@ KN = 1000.0  # N per kN: forces inside the QP are in kN
 LU = 1.0  # m per length unit of distances inside the QP (10 m and 0.1 m were tried: more iterations)
 KW = 1000.0  # W per kW: the power cost inside the QP is in kW
 INF = np.inf
+_sum = np.add.reduce   # the reduction behind ndarray.sum (pairwise), without the method's dispatch
 BIG = 1e30  # OSQP's infinity: the bound vectors hold +-BIG for unbounded rows (DAQP gets them as +-DaqpSettings.bound)
 
 @dataclass(frozen=True)
@@ -261,6 +262,28 @@ class SparseMpc:
             self.l[R["safe"]] = w.d_min / LU
             self.u[R["comfort"]] = w.d_min / LU
         self.dFt = w.dFt_max / KN
+        # views of the blocks of q, l, u that change per step, index of the scalar rows, work vectors: set_step
+        # writes through these (no slicing, no temporaries)
+        rs, q_, l_, u_ = self._rs, self.q, self.l, self.u
+        self._q_v0, self._q_v1, self._q_ft = q_[self._sv0], q_[self._sv1], q_[self._sft]
+        self._l_dynv, self._u_dynv = l_[rs["dyn_v"]], u_[rs["dyn_v"]]
+        self._l_vlim, self._u_vlim = l_[rs["v_lim"]], u_[rs["v_lim"]]
+        self._l_dhard, self._u_dsoft = l_[rs["d_hard"]], u_[rs["d_soft"]]
+        self._i_v0, self._i_d0 = rs["init_v"].start, rs["init_d"].start
+        self._j_up, self._j_dn = rs["jerk_up"].start, rs["jerk_dn"].start
+        if follow:
+            self._i_r0 = rs["init_r"].start
+            self._l_dynr, self._u_dynr, self._l_safe = l_[rs["dyn_r"]], u_[rs["dyn_r"]], l_[rs["safe"]]
+        self._c_r = model.c_r
+        self._two_pa20, self._two_pa02 = 2.0 * self.pa20, 2.0 * self.pa02
+        self._two_z1, self._two_zv = 2.0 * w.zeta1, 2.0 * w.zeta_v
+        self._w1, self._w2, self._w3 = np.empty(N), np.empty(N), np.empty(N)
+        self._fb_lin = np.empty(N)
+        # unpack: x times one scale vector (1 on speeds, KN on forces, LU on distances), the plan's arrays are views
+        self._scale = np.ones(self.nx)
+        for idx, k in ((self.id, LU), (self.ift, KN), (self.ifb, KN), (self.ie1, LU), (self.ie2, KN)) + (
+                ((self.ir, LU), (self.ie3, LU)) if follow else ()):
+            self._scale[idx] = k
         if backend not in BACKENDS:
             raise ValueError(f"unknown QP backend {backend!r}; one of {BACKENDS}")
         self.backend = backend
@@ -288,60 +311,67 @@ class SparseMpc:
         ``safe_margin`` (m, scalar or N values for k=1..N, car following) shifts the hard safe-distance row to
         d_rel - h_s v >= d_min + margin: a positive back-off keeps solver-tolerance violations outside d_s, a
         negative value (psi < 0) relaxes it while the speed correction eq. (11) acts."""
-        N, mm, R = self.n, self.model, self._rs
-        l, u, q = self.l, self.u, self.q
-        i0 = R["init_v"].start
-        l[i0] = u[i0] = v0
-        i0 = R["init_d"].start
-        l[i0] = u[i0] = d_its0 / LU
-        # eq. (3a) right-hand side with grade theta_k (rolling + gradient resistance)
-        c = self.c_const - self._c_grade * (mm.c_r * np.cos(grade) + np.sin(grade))
-        l[R["dyn_v"]] = c
-        u[R["dyn_v"]] = c
-        np.maximum(v_lo, -BIG, out=l[R["v_lim"]])
-        np.minimum(v_hi, BIG, out=u[R["v_lim"]])
-        j_up, j_dn = R["jerk_up"].start, R["jerk_dn"].start
+        N, l, u = self.n, self.l, self.u
+        w1, w2 = self._w1, self._w2
+        l[self._i_v0] = u[self._i_v0] = v0
+        l[self._i_d0] = u[self._i_d0] = d_its0 / LU
+        # eq. (3a) right-hand side with grade theta_k (rolling + gradient resistance):
+        # c = c_const - c_grade (c_r cos(theta) + sin(theta)), elementwise into the dyn_v rows
+        np.cos(grade, out=w1)
+        np.multiply(w1, self._c_r, out=w1)
+        np.add(w1, np.sin(grade, out=w2), out=w1)
+        np.multiply(w1, self._c_grade, out=w1)
+        np.subtract(self.c_const, w1, out=self._l_dynv)
+        np.copyto(self._u_dynv, self._l_dynv)
+        np.maximum(v_lo, -BIG, out=self._l_vlim)
+        np.minimum(v_hi, BIG, out=self._u_vlim)
         if ft_prev is None:
-            u[j_up] = BIG
-            l[j_dn] = -BIG
+            u[self._j_up] = BIG
+            l[self._j_dn] = -BIG
         else:
-            u[j_up] = self.dFt + ft_prev / KN
-            l[j_dn] = -self.dFt + ft_prev / KN
+            u[self._j_up] = self.dFt + ft_prev / KN
+            l[self._j_dn] = -self.dFt + ft_prev / KN
         if d_hard_lo is None:
-            l[R["d_hard"]] = -BIG
+            self._l_dhard.fill(-BIG)
         else:
-            np.maximum(d_hard_lo, -BIG, out=l[R["d_hard"]])
-        u[R["d_soft"]] = min(d_s_its / LU, BIG)
+            np.maximum(d_hard_lo, -BIG, out=self._l_dhard)
+        self._u_dsoft.fill(min(d_s_its / LU, BIG))
         if self.follow:
-            i0 = R["init_r"].start
-            l[i0] = u[i0] = d_rel0 / LU
-            l[R["dyn_r"]] = u[R["dyn_r"]] = self.dt * v_p / LU
-            l[R["safe"]] = (self.w.d_min + safe_margin) / LU
+            l[self._i_r0] = u[self._i_r0] = d_rel0 / LU
+            self._l_dynr.fill(self.dt * v_p / LU)
+            self._u_dynr.fill(self.dt * v_p / LU)
+            np.divide(np.add(safe_margin, self.w.d_min, out=self._l_safe), LU, out=self._l_safe)
         # linear cost: power (eq. 5) on k=0..N-1 and tracking on v_1..v_N; other entries of q stay 0.
         # Sums of products, not `@`: a BLAS dot product's last bits depend on the kernel numpy picks.
-        sv0, sv1, sft = self._sv0, self._sv1, self._sft
+        q_v0, q_ft = self._q_v0, self._q_ft
         const = N * self.pa00
-        q[sv0] = self.pa10
-        q[self._ivN] = 0.0
-        q[sft] = self.pa01
-        if not self.power_convex:
+        if self.power_convex:
+            q_v0.fill(self.pa10)
+            q_ft.fill(self.pa01)
+        else:
             vb = np.full(N, v0) if v_lin is None else v_lin
-            fb_ = np.zeros(N) if ft_lin is None else ft_lin / KN
+            fb_ = self._fb_lin
+            if ft_lin is None:
+                fb_.fill(0.0)
+            else:
+                np.divide(ft_lin, KN, out=fb_)
             # a11 v F ~ a11 (vbar F + Fbar v - vbar Fbar): first-order Taylor at the previous trajectory
-            q[sv0] += self.pa11 * fb_
-            q[sft] += self.pa11 * vb
-            const -= self.pa11 * float((vb * fb_).sum())
+            np.add(np.multiply(fb_, self.pa11, out=w1), self.pa10, out=q_v0)
+            np.add(np.multiply(vb, self.pa11, out=w1), self.pa01, out=q_ft)
+            const -= self.pa11 * float(_sum(np.multiply(vb, fb_, out=w1)))
             if self.lin_v2:
-                q[sv0] += 2.0 * self.pa20 * vb
-                const -= self.pa20 * float((vb * vb).sum())
+                np.add(q_v0, np.multiply(vb, self._two_pa20, out=w1), out=q_v0)
+                const -= self.pa20 * float(_sum(np.multiply(vb, vb, out=w1)))
             if self.lin_f2:
-                q[sft] += 2.0 * self.pa02 * fb_
-                const -= self.pa02 * float((fb_ * fb_).sum())
+                np.add(q_ft, np.multiply(fb_, self._two_pa02, out=w1), out=q_ft)
+                const -= self.pa02 * float(_sum(np.multiply(fb_, fb_, out=w1)))
+        self.q[self._ivN] = 0.0
         if not self.follow:
-            q[sv1] -= 2.0 * self.w.zeta1 * v_ref                       # zeta1 (v_{k+1} - v_ref,k)^2, eq. (9a)
-            const += self.w.zeta1 * float((v_ref * v_ref).sum())
+            q_v1 = self._q_v1                                          # zeta1 (v_{k+1} - v_ref,k)^2, eq. (9a)
+            np.subtract(q_v1, np.multiply(v_ref, self._two_z1, out=w1), out=q_v1)
+            const += self.w.zeta1 * float(_sum(np.multiply(v_ref, v_ref, out=w1)))
         elif self.w.zeta_v > 0:
-            q[sv1] -= 2.0 * self.w.zeta_v * v_p                         # zeta_v (v_{k+1} - v_p)^2
+            np.subtract(self._q_v1, self._two_zv * v_p, out=self._q_v1)   # zeta_v (v_{k+1} - v_p)^2
             const += self.w.zeta_v * N * v_p * v_p
         self.const = const
 
@@ -367,11 +397,13 @@ class SparseMpc:
         return residual(self.A, self.l, self.u, x)
 
     def unpack(self, x: np.ndarray, status: str, obj: float, iters: int) -> MpcPlan:
+        """The plan of a QP solution x (QP units): one product with the unit scale, the plan's arrays are views of
+        it (the same numbers as scaling each block)."""
+        y = x * self._scale
         return MpcPlan(
-            status=status, ok=True, v=x[self._sv], ft=x[self._sft] * KN, fb=x[self._sfb] * KN,
-            d_its=x[self._sd] * LU, d_rel=x[self._sr] * LU if self.follow else None, eps1=x[self._se1] * LU,
-            eps2=x[self._se2] * KN, eps3=x[self._se3] * LU if self.follow else None, objective=obj,
-            iterations=iters, x=x)
+            status=status, ok=True, v=y[self._sv], ft=y[self._sft], fb=y[self._sfb], d_its=y[self._sd],
+            d_rel=y[self._sr] if self.follow else None, eps1=y[self._se1], eps2=y[self._se2],
+            eps3=y[self._se3] if self.follow else None, objective=obj, iterations=iters, x=x)
 
     def warm_start_from(self, v: np.ndarray, ft: np.ndarray, fb: np.ndarray) -> None:
         """Warm-start the primal variables from another controller's plan (SI), e.g. at a hand-over."""

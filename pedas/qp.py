@@ -16,6 +16,7 @@ finite and it satisfies ``l <= A x <= u`` within the backend's residual toleranc
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,6 +24,11 @@ import osqp
 import scipy.sparse as sp
 
 from pedas.params import DaqpSettings, OsqpSettings
+
+try:   # the clip ufunc itself (np.clip adds a Python-level dispatch per call); the same elementwise min/max
+    from numpy._core.umath import clip as _clip
+except ImportError:   # pragma: no cover - numpy < 2
+    _clip = np.clip
 
 BACKENDS = ("daqp", "osqp")
 
@@ -53,12 +59,22 @@ def residual(A: sp.csc_matrix, l: np.ndarray, u: np.ndarray, x: np.ndarray) -> f
     return float(max(np.max(l - Ax, initial=0.0), np.max(Ax - u, initial=0.0)))
 
 
+_sum = np.add.reduce
+_max = np.maximum.reduce
+
+
+def _finite(x: np.ndarray) -> bool:
+    """All entries finite. A finite sum proves it in one reduction; otherwise (a NaN/inf, or an overflow of finite
+    values) the elementwise test decides."""
+    return math.isfinite(_sum(x)) or bool(np.isfinite(x).all())
+
+
 def _postcondition(status: str, x: np.ndarray | None, feasible) -> str:
     """The status of a solution the solver calls optimal, after the checks: unchanged if x is finite and
     ``feasible()`` (l <= A x <= u within tolerance) holds, else 'rejected:<status>:non-finite' or
     'rejected:<status>:residual' (not 'infeasible': that word is the solver's own verdict, on which the controller's
     fallback brakes)."""
-    if x is None or not bool(np.isfinite(x).all()):
+    if x is None or not _finite(x):
         return f"rejected:{status}:non-finite"
     if not feasible():
         return f"rejected:{status}:residual"
@@ -79,23 +95,24 @@ class _CsrProduct:
         except ImportError:   # pragma: no cover - scipy moved its kernels
             csr_matvec = None
         self._kernel = csr_matvec
+        self._args = (self.A.shape[0], self.A.shape[1], self.A.indptr, self.A.indices, self.A.data)
 
     def product(self, x: np.ndarray) -> np.ndarray:
         """A x into the work vector (valid until the next call)."""
-        A, ax = self.A, self._ax
+        ax = self._ax
         if self._kernel is None:
-            ax[:] = A @ x
+            ax[:] = self.A @ x
         else:
             ax.fill(0.0)
-            self._kernel(A.shape[0], A.shape[1], A.indptr, A.indices, A.data, x, ax)
+            self._kernel(*self._args, x, ax)
         return ax
 
     def __call__(self, l: np.ndarray, u: np.ndarray, x: np.ndarray) -> float:
         ax, t = self.product(x), self._t
         np.subtract(l, ax, out=t)
-        r = t.max()
+        r = _max(t)
         np.subtract(ax, u, out=t)
-        return float(max(r, t.max(), 0.0))
+        return float(max(r, _max(t), 0.0))
 
 
 class OsqpBackend:
@@ -199,14 +216,18 @@ class DaqpBackend:
         H = (Pfull + rho * (Aeq.T @ Aeq)).toarray()
         self.H = np.ascontiguousarray(H)
         self._Ag = np.ascontiguousarray(Acsr[general].toarray())
-        # work vectors, updated in place each solve
-        self._laug = np.empty(m + 1)
-        self._uaug = np.empty(m + 1)
-        self._laug[m] = -self.bound
-        self._uaug[m] = self.bound
-        self._lo = np.empty(self._perm.size)
-        self._hi = np.empty(self._perm.size)
+        # work vectors, updated in place each solve. [l; -bound; u; +bound] in one buffer: one gather (np.take)
+        # builds DAQP's [lower | upper] bounds, one clip bounds them to +-bound
+        self._lu = np.empty(2 * (m + 1))
+        self._lu_l, self._lu_u = self._lu[:m], self._lu[m + 1:2 * m + 1]
+        self._lu[m] = -self.bound
+        self._lu[2 * m + 1] = self.bound
+        nb = self._perm.size
+        self._gather = np.concatenate([self._perm, self._perm + m + 1])
+        self._lohi = np.empty(2 * nb)
+        self._lo, self._hi = self._lohi[:nb], self._lohi[nb:]
         self._beq = np.empty(self._eq_rows.size)
+        self._beq2 = np.empty(self._eq_rows.size)
         self._f = np.empty(nx)
         self._fill(np.zeros(nx), l, u)
         self.model = daqp.Model()
@@ -218,15 +239,10 @@ class DaqpBackend:
 
     def _fill(self, q: np.ndarray, l: np.ndarray, u: np.ndarray) -> None:
         """f = q - rho A_eq' b_eq and the DAQP bounds (simple bounds first, then general rows), clipped to +-bound."""
-        m = l.size
-        self._laug[:m] = l
-        self._uaug[:m] = u
-        np.take(self._laug, self._perm, out=self._lo)
-        np.take(self._uaug, self._perm, out=self._hi)
-        np.maximum(self._lo, -self.bound, out=self._lo)
-        np.minimum(self._lo, self.bound, out=self._lo)
-        np.maximum(self._hi, -self.bound, out=self._hi)
-        np.minimum(self._hi, self.bound, out=self._hi)
+        np.copyto(self._lu_l, l)
+        np.copyto(self._lu_u, u)
+        np.take(self._lu, self._gather, out=self._lohi)
+        _clip(self._lohi, -self.bound, self.bound, out=self._lohi)
         np.take(l, self._eq_rows, out=self._beq)
         np.subtract(q, self._AeqT.product(self._beq), out=self._f)
 
@@ -257,7 +273,8 @@ class DaqpBackend:
         if status != "solved":
             return QpResult(status, False, None, float("nan"), iters, run_time)
         # on A_eq x = b_eq the regularised cost is the true one minus rho/2 |b_eq|^2 (module docstring)
-        obj = float(fval) + 0.5 * self._rho * float((self._beq * self._beq).sum())
+        beq = self._beq
+        obj = float(fval) + 0.5 * self._rho * float(_sum(np.multiply(beq, beq, out=self._beq2)))
         return QpResult(status, True, x, obj, iters, run_time)
 
     def warm_start(self, x: np.ndarray, y: np.ndarray | None = None) -> None:
