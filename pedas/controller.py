@@ -25,6 +25,7 @@ these stages in order:
 from __future__ import annotations
 
 import dataclasses
+from bisect import bisect_left
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -40,6 +41,12 @@ from pedas.mpc_rt import ReferenceTrackingMpc
 from pedas.params import CONTROLLER, LEAF, ControllerParams, VehicleParams
 from pedas.route import StopSign, TrafficLight, braking_envelope
 from pedas.speed_correction import corrected_speed
+
+try:   # np.interp's compiled kernel: np.interp calls it after dtype checks (the same numbers, less overhead)
+    from numpy._core.multiarray import interp as _interp
+except ImportError:   # pragma: no cover - numpy < 2
+    from numpy.core.multiarray import interp as _interp
+_min, _max = np.minimum.reduce, np.maximum.reduce
 
 
 @dataclass(frozen=True)
@@ -150,7 +157,7 @@ class PedasController:
             self._dp_s, self._dp_v = np.asarray(v_dp.s, float), np.asarray(v_dp.v_dp, float)
         else:  # (s, v) pair of arrays
             self._dp_s, self._dp_v = (np.asarray(a, float) for a in v_dp)
-        # route profiles on the route grid (np.interp per step)
+        # route profiles on the route grid (interpolated per step)
         self._s = np.asarray(route.s, float)
         self._vmax = np.asarray(route.v_max, float)
         self._vmin = np.asarray(route.v_min, float)
@@ -174,9 +181,18 @@ class PedasController:
         self._reach = settings.a_reach * dt * self._k
         self._recover = settings.psi_recovery * self._k
         self._frac8 = np.linspace(0.0, 1.0, 8)
+        # work vectors of one step (nothing keeps them across steps: the MPCs copy what they are given)
         self._vlin = np.empty(n)
         self._ftlin = np.empty(n)
         self._sgrade = np.empty(n)
+        self._spred = np.empty(n)
+        self._wn = np.empty(n)
+        self._sgrade_tail, self._spred_head = self._sgrade[1:], self._spred[:-1]
+        self._vlin_tail, self._ftlin_head = self._vlin[1:], self._ftlin[:-1]
+        self._vref, self._vhi, self._vlo, self._reachv = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+        self._vhicf, self._margin = np.empty(n), np.empty(n)
+        self._dp_list = self._dp_s.tolist()
+        self._curve_list = self._curve_s.tolist()
         self.reset()
 
     def reset(self) -> None:
@@ -237,22 +253,25 @@ class PedasController:
         if prev is not None:
             v_lin = self._vlin
             v_lin[0] = v                                            # v_k ~ previous v_{k+1}, v_0 measured
-            v_lin[1:] = prev.v[2:]
+            np.copyto(self._vlin_tail, prev.v[2:])
             ft_lin = self._ftlin
-            ft_lin[:-1] = prev.ft[1:]
+            np.copyto(self._ftlin_head, prev.ft[1:])
             ft_lin[-1] = prev.ft[-1]
         else:
             v_lin = np.full(N, v)
             ft_lin = np.zeros(N)
-        s_pred = s + dt * np.cumsum(np.maximum(v_lin, 0.0))        # positions at k = 1..N
+        s_pred = self._spred                                        # positions at k = 1..N: s + dt cumsum(max(v, 0))
+        np.add.accumulate(np.maximum(v_lin, 0.0, out=s_pred), out=s_pred)
+        np.add(np.multiply(s_pred, dt, out=s_pred), s, out=s_pred)
         s_grade = self._sgrade                                      # positions at k = 0..N-1
         s_grade[0] = s
-        s_grade[1:] = s_pred[:-1]
-        grade = np.interp(s_grade, self._s, self._grade)
-        vmax = np.interp(s_pred, self._s, self._vmax)
-        vmin = np.interp(s_pred, self._s, self._vmin)
-        vdp = np.interp(s_pred, self._dp_s, self._dp_v)
-        venv = np.interp(s_pred, self._s, self._venv)
+        np.copyto(self._sgrade_tail, self._spred_head)
+        xs = self._s
+        grade = _interp(s_grade, xs, self._grade, None, None)
+        vmax = _interp(s_pred, xs, self._vmax, None, None)
+        vmin = _interp(s_pred, xs, self._vmin, None, None)
+        vdp = _interp(s_pred, self._dp_s, self._dp_v, None, None)
+        venv = _interp(s_pred, xs, self._venv, None, None)
         return _Prediction(v_lin, ft_lin, s_pred, grade, vmax, vmin, vdp, venv)
 
     def _objects_ahead(self, t: float, s: float, v: float, dt_real: float, s_pred: np.ndarray) -> _Objects:
@@ -313,9 +332,10 @@ class PedasController:
             return None, False
         cfg, tl, d_tl, ss = self.settings, obj.tl, obj.d_tl, obj.ss
         # eq. (1) with v_max the lowest limit up to the line and v_min >= gw_min_fraction x speed limit
-        v_hi_gw = float(np.interp(s + max(d_tl, 0.0) * self._frac8, self._s, self._vmax).min())
-        v_lo_gw = max(float(np.interp(s, self._s, self._vmin)),
-                      cfg.gw_min_fraction * float(np.interp(s, self._s, self._limit)))
+        xs = self._s
+        v_hi_gw = float(_min(_interp(s + max(d_tl, 0.0) * self._frac8, xs, self._vmax, None, None)))
+        v_lo_gw = max(float(_interp(s, xs, self._vmin, None, None)),
+                      cfg.gw_min_fraction * float(_interp(s, xs, self._limit, None, None)))
         gw_ok = d_tl > 0 and (ss is None or ss.s > tl.s)            # a stop sign before the light goes first
         band = green_wave_band(d_tl, t, tl, min(v_lo_gw, v_hi_gw), v_hi_gw, cfg.gw_horizon, cfg.gw_margin,
                                v_floor=cfg.gw_v_floor) if gw_ok else None
@@ -335,32 +355,39 @@ class PedasController:
         elif obj.tl is not None and tl_stop_expected:
             envelope_d = obj.d_tl
 
+        v_ref = self._vref
         if v_gw is not None:
-            v_ref = np.full(N, v_gw)
+            np.minimum(pred.venv, v_gw, out=v_ref)
             mode = "green_wave"
         else:
             # v_DP floored by its look-ahead maximum, reached with a departure ramp (zeros at served stops)
-            j0, j1 = np.searchsorted(self._dp_s, [s, s + cfg.cruise_look])
-            cruise = float(self._dp_v[j0:max(j1, j0 + 1)].max()) if j0 < self._dp_v.size else float(self._dp_v[-1])
-            v_ref = np.maximum(pred.vdp, np.minimum(v + self._depart, cruise))
+            j0 = bisect_left(self._dp_list, s)
+            j1 = bisect_left(self._dp_list, s + cfg.cruise_look)
+            cruise = float(_max(self._dp_v[j0:max(j1, j0 + 1)])) if j0 < self._dp_v.size else float(self._dp_v[-1])
+            np.minimum(np.add(self._depart, v, out=v_ref), cruise, out=v_ref)
+            np.maximum(pred.vdp, v_ref, out=v_ref)
+            np.minimum(v_ref, pred.venv, out=v_ref)
             mode = "dp"
-        v_ref = np.minimum(v_ref, pred.venv)
         if envelope_d is not None:
-            d_target = envelope_d - cfg.stop_aim * self._d_sits - (pred.s_pred - s)   # aim inside the stop-line band
-            stop_env = np.sqrt(2 * cfg.a_stop * np.maximum(d_target, 0.0))
+            # aim inside the stop-line band: d_target = envelope_d - stop_aim d_s,ITS - (s_pred - s)
+            stop_env = np.subtract(pred.s_pred, s, out=self._wn)
+            np.subtract(envelope_d - cfg.stop_aim * self._d_sits, stop_env, out=stop_env)
+            np.sqrt(np.multiply(np.maximum(stop_env, 0.0, out=stop_env), 2 * cfg.a_stop, out=stop_env),
+                    out=stop_env)
             if stop_env[-1] < v_ref[-1] or (obj.stop_kind == "tl" and tl_stop_expected):
                 mode = "stop"
-            v_ref = np.minimum(v_ref, stop_env)
-        reach = v - self._reach
-        v_hi = np.maximum(pred.vmax, reach)
+            np.minimum(v_ref, stop_env, out=v_ref)
+        reach = np.subtract(v, self._reach, out=self._reachv)
+        v_hi = np.maximum(pred.vmax, reach, out=self._vhi)
+        v_lo = self._vlo
         if mode in ("green_wave", "dp") and leader is None:
-            v_lo = np.minimum(pred.vmin, v)
+            np.minimum(pred.vmin, v, out=v_lo)
         else:
-            v_lo = np.zeros(N)
-        v_lo = np.minimum(v_lo, v_hi)
+            v_lo.fill(0.0)
+        np.minimum(v_lo, v_hi, out=v_lo)
         d_sits = self._d_sits if mode == "stop" else INF
         d_hard, stop_d = obj.d_hard, obj.stop_d
-        if d_hard is None or stop_d > float(v_hi.max()) * N * dt + 5.0:
+        if d_hard is None or stop_d > float(_max(v_hi)) * N * dt + 5.0:
             # no stop object within reach of the horizon: the d_ITS rows cannot bind; unbounding them and keeping the
             # state at 0 also keeps OSQP's relative tolerance from scaling with a distance of several hundred m
             d_hard, d_its0, d_sits = None, 0.0, INF
@@ -387,11 +414,14 @@ class PedasController:
             d_rel, v_p = float(leader[0]), float(leader[1])
             psi = d_rel - (self.d_min + self.h_s * v)
             mode = "follow"
-            v_hi_cf = np.minimum(ref.v_hi, np.maximum(np.maximum(pred.vdp, np.minimum(v + self._depart,
-                                                                                      pred.vmax)), ref.reach))
+            # min(v_hi, max(v_DP, min(v + departure ramp, v_max), reach))
+            v_hi_cf = np.minimum(np.add(self._depart, v, out=self._vhicf), pred.vmax, out=self._vhicf)
+            np.maximum(pred.vdp, v_hi_cf, out=v_hi_cf)
+            np.maximum(v_hi_cf, ref.reach, out=v_hi_cf)
+            np.minimum(ref.v_hi, v_hi_cf, out=v_hi_cf)
             # back-off safe_backoff above d_s, approached from the current margin psi at psi_recovery m per sample
             # (with psi < 0 eq. (7a) cannot hold at k=1; eq. (11) then sets the advice)
-            margin = np.minimum(cfg.safe_backoff, psi + self._recover)
+            margin = np.minimum(cfg.safe_backoff, np.add(self._recover, psi, out=self._margin), out=self._margin)
             plan = self.cf.plan(v, d_rel, v_p, ref.v_lo, v_hi_cf, pred.grade, d_its0=ref.d_its0,
                                 d_hard_lo=ref.d_hard, d_s_its=ref.d_sits, ft_prev=self._prev_ft, v_lin=pred.v_lin,
                                 ft_lin=pred.ft_lin, safe_margin=margin)
@@ -438,14 +468,14 @@ class PedasController:
         self._unfollowed = update_unfollowed(self._unfollowed, self._last_arrow, a_meas, dt_real,
                                              not_decel=cfg.not_decel)
         curve_d = None
-        if self._curve_s.size:
-            j = int(np.searchsorted(self._curve_s, s))
+        if self._curve_list:
+            j = bisect_left(self._curve_list, s)
             if j < self._curve_s.size and self._curve_v[j] < v:
                 curve_d = float(self._curve_s[j] - s)
         tl = obj.tl
         ctx = HudContext(mode=sol.mode, tl_distance=obj.d_tl, tl_remaining=tl.remaining(t) if tl is not None else None,
                          stop_distance=obj.d_ss, curve_distance=curve_d, psi=sol.psi,
-                         speed_limit=float(np.interp(s, self._s, self._limit)))
+                         speed_limit=float(_interp(s, self._s, self._limit, None, None)))
         hud = advisory(HudState(v=v, a=a_meas, slow_unfollowed=self._unfollowed), plan_v, ctx, **self._hud_kw)
         self._last_arrow = hud.hud_arrow
         return hud
