@@ -241,9 +241,9 @@ class DaqpBackend:
         """f = q - rho A_eq' b_eq and the DAQP bounds (simple bounds first, then general rows), clipped to +-bound."""
         np.copyto(self._lu_l, l)
         np.copyto(self._lu_u, u)
-        np.take(self._lu, self._gather, out=self._lohi)
+        self._lu.take(self._gather, out=self._lohi)
         _clip(self._lohi, -self.bound, self.bound, out=self._lohi)
-        np.take(l, self._eq_rows, out=self._beq)
+        l.take(self._eq_rows, out=self._beq)
         np.subtract(q, self._AeqT.product(self._beq), out=self._f)
 
     def solve(self, q: np.ndarray, l: np.ndarray, u: np.ndarray) -> QpResult:

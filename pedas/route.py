@@ -56,11 +56,12 @@ class TrafficLight:
         object.__setattr__(self, "phases", tuple((str(st), float(d)) for st, d in self.phases))
         object.__setattr__(self, "s", float(self.s))
         object.__setattr__(self, "offset", float(self.offset))
+        object.__setattr__(self, "_cycle", float(sum(d for _, d in self.phases)))   # looked up every control step
 
     @property
     def cycle(self) -> float:
         """Cycle time in s."""
-        return float(sum(d for _, d in self.phases))
+        return self._cycle
 
     def _locate(self, t: float) -> tuple[int, float, float]:
         """(phase index, absolute start of that phase, absolute start of the cycle containing t)."""
