@@ -160,12 +160,32 @@ def survey_step(cfg: ReportConfig) -> None:
         reason = survey_missing(st, definition(st))
         if reason is None:
             res, responses = analyze_store(st, n_boot=cfg.n_boot, seed=cfg.seed or 20240101)
+            ext, ext_reason = _extended_survey(st, definition(st), responses, cfg)
     with _fresh_dir(cfg.out / "survey") as out:
         if reason is not None:
             (out / SKIPPED).write_text(reason + "\n", encoding="utf-8")
             return
         res.write(out)
         responses.to_csv(out / "responses.csv", index=False)
+        # the extended statistics (docs/acceptance_statistics.md) in survey/extended/
+        if ext is not None:
+            ext.write(out / "extended")
+        else:
+            (out / "extended").mkdir()
+            (out / "extended" / SKIPPED).write_text(ext_reason + "\n", encoding="utf-8")
+
+
+def _extended_survey(st, study, responses, cfg):
+    """(ExtendedAnalysis, None) of the store's answers, or (None, the one-line reason it could not run)."""
+    from analysis.acceptance import attributes_from_store
+    from analysis.extended import analyze_extended
+
+    try:
+        # one process: the report holds the store open, and forking beside it buys ~1 s at most
+        return analyze_extended(responses, study, attributes=attributes_from_store(st), n_boot=cfg.n_boot,
+                                seed=cfg.seed or 20240101, workers=1), None
+    except ValueError as exc:
+        return None, f"extended statistics: {exc}"
 
 
 def drives_step(cfg: ReportConfig) -> None:
@@ -256,10 +276,11 @@ def collect_step(cfg: ReportConfig) -> None:
     tables, figs = cfg.out / "tables", cfg.out / "figures"
     tables.mkdir(parents=True, exist_ok=True)
     figs.mkdir(parents=True, exist_ok=True)
-    for sub in ("survey", "drives", "paper"):
+    for sub in ("survey", "survey/extended", "drives", "paper"):
         d = cfg.out / sub
         if not d.exists():
             continue
+        prefix = sub.replace("/", "_")
         for f in sorted(d.glob("*.csv")):
             if f.stem in _RAW_DATA:
                 continue
@@ -267,9 +288,9 @@ def collect_step(cfg: ReportConfig) -> None:
             shaped = [f.with_suffix(ext) for ext in (".md", ".tex") if f.with_suffix(ext).exists()]
             if len(shaped) == 2:
                 for g in [f, *shaped]:
-                    shutil.copy2(g, tables / f"{sub}_{g.name}")
+                    shutil.copy2(g, tables / f"{prefix}_{g.name}")
             else:
-                write_table(pd.read_csv(f), tables, f"{sub}_{f.stem}", f"{sub}: {f.stem}")
+                write_table(pd.read_csv(f), tables, f"{prefix}_{f.stem}", f"{sub}: {f.stem}")
         for f in sorted((d / "figures").glob("*")) if (d / "figures").exists() else []:
             shutil.copy2(f, figs / f.name)
 

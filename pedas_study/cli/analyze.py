@@ -86,6 +86,63 @@ def _drives(args) -> int:
     return 0
 
 
+def _extended(args) -> int:
+    import time
+
+    from analysis.acceptance import attributes_from_store, responses_from_store
+    from analysis.extended import analyze_extended
+
+    if args.bootstrap < 0:
+        raise ValueError("--bootstrap must be >= 0")
+    if args.workers < 1:
+        raise ValueError("--workers must be >= 1")
+    t0 = time.perf_counter()
+    if args.responses:
+        responses = _read_csv(args.responses, "survey")
+        attrs = _read_csv(args.attributes, "attributes") if args.attributes else None
+        if not args.study:
+            raise ValueError("--responses needs --study DIR (the study folder of the CSV)")
+        from study.definition import load
+
+        study = load(args.study)
+        source = str(args.responses)
+    else:
+        if args.study or args.attributes:
+            raise ValueError("--study and --attributes go with --responses; without it the store's study, answers "
+                             "and attributes are analysed")
+        db = db_path(args)
+        if not db.exists():
+            raise FileNotFoundError(f"store not found: {db} (run `pedas-study init` or pass --responses CSV)")
+        from study.studies import definition
+
+        with open_store(args, read_only=True) as st:
+            study = definition(st)
+            responses = responses_from_store(st, instrument=args.instrument)
+            attrs = attributes_from_store(st)
+        if responses.empty:
+            raise ValueError("the store has no survey answers of included participants")
+        source = f"store {db}"
+    ext = analyze_extended(responses, study, attributes=attrs, instrument=args.instrument, n_boot=args.bootstrap,
+                           seed=args.seed, group=args.group, workers=args.workers)
+    paths = ext.write(args.out)
+    print(f"extended survey statistics of {ext.n} participants ({source}) -> {args.out}: {len(paths)} files")
+    ind = ext.indirect[~ext.indirect["chain"].str.contains("total", regex=False)]
+    for r in ind.itertuples():
+        print(f"  indirect {r.chain}: {r.std:.3f} [{r.ci_low:.3f}, {r.ci_high:.3f}] ({args.bootstrap} BCa resamples"
+              f"{f', {r.n_failed} failed' if r.n_failed else ''})")
+    for r in ext.invariance.itertuples():
+        d = "" if r.step == "configural" else f", dCFI = {r.delta_cfi:+.3f}, dchi2({int(r.delta_df)}) = " \
+            f"{r.delta_chi2:.2f}, p = {r.p_delta:.3g}"
+        print(f"  invariance {r.step}: CFI = {r.cfi:.3f}{d} -> {'holds' if r.holds else 'not supported'}")
+    for w in ext.warnings:
+        print(f"  warning: {w}")
+    t = ext.timings
+    print(f"  time: {time.perf_counter() - t0:.1f} s in all; analysis {t['total']:.1f} s (bootstrap of alpha/omega/"
+          f"HTMT {t['bootstrap_reliability_htmt']:.1f} s, ordinal CFA {t['ordinal']:.1f} s, indirect effects "
+          f"{t['indirect_bootstrap']:.2f} s)")
+    return 0
+
+
 def register(cli) -> None:
     """Declare the `analyze` group."""
     g = cli.group("analyze", "analyses of the study data")
@@ -114,3 +171,21 @@ def register(cli) -> None:
     p.add_argument("--out", metavar="DIR", required=True, help="output directory (tables, figures/, objective.md)")
     p.add_argument("--participant", default="P006", metavar="ID",
                    help="participant of Figs. 11 and 12 (default P006, as in the paper)")
+
+    p = g.command("extended", "extended acceptance statistics: ordinal CFA and omega, HTMT2, bootstrap CIs (BCa) of "
+                  "alpha/omega/HTMT, the structural model as one SEM with indirect effects, VIF, full-collinearity "
+                  "VIF, Harman's test and (with --group) measurement invariance", _extended)
+    p.add_argument("--responses", metavar="CSV", default=None,
+                   help="wide survey CSV (participant_id + item columns, raw answers); default: the store")
+    p.add_argument("--study", metavar="DIR", default=None, help="study folder of the --responses CSV")
+    p.add_argument("--attributes", metavar="CSV", default=None,
+                   help="participant attributes of the --responses CSV (covariates and the --group attribute)")
+    p.add_argument("--out", metavar="DIR", required=True, help="output directory for CSVs, model syntax, extended.md")
+    p.add_argument("--seed", type=int, default=20240101, help="bootstrap seed (default 20240101)")
+    p.add_argument("--bootstrap", type=int, default=2000, metavar="N",
+                   help="bootstrap resamples (default 2000; 0 = none)")
+    p.add_argument("--group", metavar="ATTR", default=None,
+                   help="participant attribute whose groups are compared (configural/metric/scalar invariance)")
+    p.add_argument("--instrument", default=None, help="instrument name (default: the study's instrument)")
+    p.add_argument("--workers", type=int, default=2, metavar="N",
+                   help="processes (default 2: the polychoric correlations beside the bootstrap; 1 = one process)")
