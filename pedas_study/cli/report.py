@@ -35,6 +35,8 @@ def _report(args) -> int:
     ran = sum(s.status == "ran" for s in res.steps)
     print(f"report written to {res.out}/ ({len(res.files)} files; {ran} steps ran, "
           f"{len(res.steps) - ran} up to date); open {res.out}/index.html")
+    if args.bundle is not None:
+        _bundle(cfg, Path(args.bundle or Path(args.out) / "bundle.zip"))
     for part, reason in sorted(res.skipped.items()):
         print(f"skipped {part}: {reason}")
     if res.verdict:
@@ -44,6 +46,18 @@ def _report(args) -> int:
             print(f"{res.verdict['miss']} published values missed: see {res.out}/reproduction.md")
             return 3
     return 0
+
+
+def _bundle(cfg, path: Path) -> None:
+    from analysis.bundle import write_bundle
+    from study.store import Store
+
+    settings = {"seed": cfg.seed, "n_boot": cfg.n_boot, "reference": cfg.reference,
+                "compare_paper": cfg.compare_paper, "participants": cfg.participants,
+                "survey_bootstrap_seed": cfg.seed or 20240101}
+    with Store.open(cfg.db, read_only=True) as st:
+        b = write_bundle(cfg.out, st, path, settings)
+    print(f"bundle written to {b.path} ({len(b.files)} files)")
 
 
 def register(cli) -> None:
@@ -63,3 +77,6 @@ def register(cli) -> None:
     p.add_argument("--bootstrap", type=int, default=2000, help="bootstrap resamples of the regressions")
     p.add_argument("--force", action="store_true", help="rerun every step")
     p.add_argument("--cache-dir", default=None, help="step and drive cache (default .report-cache in the checkout)")
+    p.add_argument("--bundle", nargs="?", const="", default=None, metavar="ZIP",
+                   help="also write the submission bundle (tables as CSV/Markdown/LaTeX/DOCX, the study's model "
+                        "files, seeds, package versions, input hashes) to ZIP (default OUT/bundle.zip)")
