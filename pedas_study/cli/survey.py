@@ -78,18 +78,21 @@ def _serve(args):
     import threading
 
     from study.webapp import SurveyServer, create_app
+    from study.webapp.signin import SignInSettings
 
     password = os.environ.get(PASSWORD_ENV)
     generated = not password
     if generated:
         password = secrets.token_urlsafe(12)
     with open_store(args) as st:
-        app = create_app(st, password, instrument=args.instrument)
+        settings = SignInSettings(trust_proxy=args.trust_proxy,
+                                  secure_cookies="always" if args.secure_cookies else "auto")
+        app = create_app(st, password, instrument=args.instrument, signin=settings)
         server = SurveyServer(app, args.host, args.port)
         print(f"survey form on {server.url}/  (researcher pages: {server.url}/r/)", flush=True)
         if generated:
             print(f"researcher password (set {PASSWORD_ENV} to choose one): {password}", flush=True)
-        if args.host not in ("127.0.0.1", "localhost", "::1"):
+        if args.host not in ("127.0.0.1", "localhost", "::1") and not args.trust_proxy:
             print(f"warning: bound to {args.host}: reachable from other machines; plain HTTP", flush=True)
         stop = threading.Event()
         signal.signal(signal.SIGTERM, lambda *_: stop.set())
@@ -119,6 +122,10 @@ def register(cli) -> None:
     p = g.command("serve", "run the survey web form (participant links + researcher data entry)", _serve)
     p.add_argument("--host", default="127.0.0.1", help="address to bind (default 127.0.0.1: this machine only)")
     p.add_argument("--port", type=int, default=8000)
+    p.add_argument("--trust-proxy", type=int, default=0, metavar="N",
+                   help="behind N reverse proxies (TLS): believe their X-Forwarded-For/-Proto (default 0)")
+    p.add_argument("--secure-cookies", action="store_true",
+                   help="always mark the session cookie Secure (default: when the request came over HTTPS)")
     _instrument_option(p)
 
     p = g.command("link", "issue a one-time survey link for a participant (revokes earlier ones)", _link)
