@@ -171,6 +171,13 @@ POSTS = [  # a form of each kind: each must be refused without the session's tok
     ("/r/resolve", {"participant_id": "P001", "item_id": "PU1", "value": "3"}),
     ("/r/password", {"current": PASSWORD, "new": "a new long one", "confirm": "a new long one"}),
     ("/r/logout", {}),
+    # the console
+    ("/r/participants", {"participant_id": "P002"}),
+    ("/r/book", {"participant_id": "P001", "at": "2030-01-07T09:00"}),
+    ("/r/p/P001/start", {"phase": "familiarisation"}),
+    ("/r/p/P001/exclude", {"scope": "all", "reason": "withdrawn"}),
+    ("/r/p/P001/link/revoke", {}),
+    ("/r/export", {"format": "csv"}),
 ]
 
 

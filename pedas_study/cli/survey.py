@@ -32,6 +32,14 @@ def _link(args):
     print(f"{args.base_url.rstrip('/')}/s/{token}")
 
 
+def _revoke(args):
+    from study import survey as sv
+
+    with open_store(args) as st:
+        n = sv.revoke_links(st, args.participant_id, args.instrument)
+    print(f"{args.participant_id}: {n} survey link{'s' if n != 1 else ''} revoked")
+
+
 def _status(args):
     from study import survey as sv
 
@@ -131,6 +139,10 @@ def register(cli) -> None:
     p = g.command("link", "issue a one-time survey link for a participant (revokes earlier ones)", _link)
     p.add_argument("participant_id", metavar="ID")
     p.add_argument("--base-url", default="http://127.0.0.1:8000", help="address of `survey serve` (default %(default)s)")
+    _instrument_option(p)
+
+    p = g.command("revoke", "revoke a participant's survey link (a new one can be issued later)", _revoke)
+    p.add_argument("participant_id", metavar="ID")
     _instrument_option(p)
 
     p = g.command("status", "per participant: link, entries, discrepancies, final", _status)

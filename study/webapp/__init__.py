@@ -4,6 +4,8 @@
   one-time link, answers saved as they are given, atomic submission, read-only afterwards;
 * researcher mode ``/r/`` (:mod:`study.webapp.researcher`): password + name (hardened sign-in,
   :mod:`study.webapp.signin`), links, paper-form double entry, discrepancies, resolutions;
+* the researcher console ``/r/...`` (:mod:`study.webapp.console`): the study day in one place (agenda,
+  registration, phases, exclusions, drive uploads, links with QR code, completeness, exports).
 
 The app owns ONE store connection and serialises every request's use of it with one lock
 (:mod:`study.webapp.context`); :class:`SurveyServer` runs it on a threaded werkzeug server.
@@ -18,7 +20,7 @@ from flask.sessions import SecureCookieSessionInterface
 
 from study.errors import UserError
 from study.instrument import is_scaled
-from study.webapp import participant, researcher
+from study.webapp import console, participant, researcher
 from study.webapp.context import new_state
 from study.webapp.server import SurveyServer
 from study.webapp.signin import SignIn, SignInSettings
@@ -84,6 +86,7 @@ def create_app(st, researcher_password: str, instrument: str | None = None,
     app.jinja_env.globals.update(instrument=ins, study=study, widget=widget)
     app.register_blueprint(participant.bp)
     app.register_blueprint(researcher.bp)
+    app.register_blueprint(console.bp)
 
     @app.after_request
     def headers(resp):

@@ -12,6 +12,7 @@ import secrets
 from functools import wraps
 
 from flask import Blueprint, abort, current_app, flash, g, redirect, render_template, request, session, url_for
+from markupsafe import Markup
 
 from study import survey as sv
 from study.errors import UserError
@@ -77,7 +78,7 @@ def login():
     session.clear()
     session["sid"] = si.sessions.create(name)
     nxt = request.args.get("next", "")
-    return redirect(nxt if nxt.startswith("/r/") else url_for("researcher.index"), 303)
+    return redirect(nxt if nxt.startswith("/r/") else url_for("console.today"), 303)
 
 
 @bp.post("/logout")
@@ -124,8 +125,15 @@ def link():
             token = sv.issue_link(s, pid, state()["instrument"].name)
     except UserError as exc:
         return message("No link issued", str(exc), 400)
-    return render_template("r_link.html", participant_id=pid,
-                           url=url_for("participant.page", token=token, _external=True))
+    url = url_for("participant.page", token=token, _external=True)
+    return render_template("r_link.html", participant_id=pid, url=url, qr=qr_svg(url))
+
+
+def qr_svg(text: str) -> Markup:
+    """`text` as a QR code, inline SVG (error correction M, 5 px modules, quiet zone 4)."""
+    import segno
+
+    return Markup(segno.make(text, error="m").svg_inline(scale=5, title="QR code of the survey link"))
 
 
 @bp.route("/entry/<pid>/<int:entry_round>", methods=["GET", "POST"])
