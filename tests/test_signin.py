@@ -135,7 +135,8 @@ def test_password_change_ends_every_session(store):
     a, b = app.test_client(), app.test_client()
     ca, _ = login(a, "Ann"), login(b, "Ben")
     a_old = a.get_cookie("session").value
-    r = a.post("/r/password", data={"csrf": ca, "current": "wrong", "new": "a new long one", "confirm": "a new long one"})
+    r = a.post("/r/password", data={"csrf": ca, "current": "wrong", "new": "a new long one",
+                                    "confirm": "a new long one"})
     assert r.status_code == 400 and "current password is wrong" in r.get_data(as_text=True)
     assert b.get("/r/").status_code == 200                # a refused change ends nothing
     r = a.post("/r/password", data={"csrf": ca, "current": PASSWORD, "new": "short", "confirm": "short"})

@@ -20,7 +20,7 @@ import zipfile
 from datetime import date, datetime, timedelta
 from pathlib import Path
 
-from flask import (Blueprint, flash, jsonify, redirect, render_template, request, send_file, url_for)
+from flask import Blueprint, flash, jsonify, redirect, render_template, request, send_file, url_for
 from werkzeug.utils import secure_filename
 
 from study.errors import UserError
@@ -110,7 +110,8 @@ def appointment():
     status = f.get("status", "")
     if status not in ("attended", "no_show", "cancelled"):
         return _done("console.today", error=f"unknown appointment status {status!r}", date=f.get("date"))
-    return _act("console.today", lambda s: set_status(s, f.get("participant_id", ""), status, note=f.get("note") or None),
+    return _act("console.today",
+                lambda s: set_status(s, f.get("participant_id", ""), status, note=f.get("note") or None),
                 lambda r: f"{r['participant_id']}: appointment {status.replace('_', '-')}", date=f.get("date"))
 
 
@@ -180,8 +181,7 @@ def participant(pid: str):
         next_phase=None if pending.empty else pending.iloc[0]["phase"],
         exclusions=_records(exclusions), scopes=SCOPES, reasons=REASONS,
         drives=_records(drives), conditions=study.condition_names,
-        drive_conditions=[p.condition for p in drive_phases], survey=survey.to_dict(),
-        attributes=attrs,
+        drive_conditions=[p.condition for p in drive_phases], survey=survey.to_dict(), attributes=attrs,
         upload_max_mb=DRIVE_UPLOAD_MAX // (1024 * 1024))
 
 
@@ -212,7 +212,8 @@ def abort_phase(pid: str):
     from study.protocol import abort
 
     reason = request.form.get("reason", "")
-    return _act("console.participant", lambda s: abort(s, pid, reason), lambda r: f"{pid}: {r} aborted ({reason})", pid=pid)
+    return _act("console.participant", lambda s: abort(s, pid, reason), lambda r: f"{pid}: {r} aborted ({reason})",
+                pid=pid)
 
 
 @bp.post("/p/<pid>/exclude")

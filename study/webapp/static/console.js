@@ -28,6 +28,8 @@ document.querySelectorAll("form[data-upload]").forEach((form) => {
     xhr.addEventListener("load", () => {
       if (xhr.response && xhr.response.next) {
         window.location.assign(xhr.response.next);
+      } else if (xhr.status === 200 && xhr.responseURL) {
+        window.location.assign(xhr.responseURL);  // a page instead of the answer: e.g. the session ended (sign-in)
       } else {
         text.textContent = xhr.status === 413 ? "The file is too large." : `Upload failed (HTTP ${xhr.status}).`;
         button.disabled = false;
