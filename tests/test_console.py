@@ -133,6 +133,16 @@ def test_export_download_is_the_export_of_the_cli(store, client, tmp_path):
     assert r.status_code == 303 and "xlsx" in flashed(client)[0]
 
 
+def test_calendar_is_the_cli_schedule_export(store, client, tmp_path):
+    from study.scheduling import book, export_ics
+
+    book(store, "P001", "2030-01-07T09:00", simulator="sim1")
+    r = client.get("/r/calendar.ics")
+    assert r.status_code == 200 and r.headers["Content-Type"].startswith("text/calendar")
+    assert export_ics(store, tmp_path / "a.ics") == 1
+    assert r.data == (tmp_path / "a.ics").read_bytes() and b"P001" in r.data
+
+
 # ---------------------------------------------------------------------------------------------- completeness
 def test_completeness_by_hand(store):
     """P001: every phase, both drives, survey submitted -> complete. P002: two phases, baseline drive only, no

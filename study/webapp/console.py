@@ -5,7 +5,8 @@ Each page calls the same `study` functions as the CLI command named next to it, 
 the function's one-line message and stores nothing. Every POST answers with a redirect (post/redirect/get) and a
 flashed message, except the survey link (shown once, with its QR code) and the export (a download).
 
-* ``today``: the day's appointments (`schedule day`), booking (`session schedule`), attended / no-show / cancel;
+* ``today``: the day's appointments (`schedule day`), booking (`session schedule`), attended / no-show / cancel,
+  the booked appointments as an .ics file (`schedule export`);
 * ``participants``: the list (`participant list`) and registration with the study's attributes (`participant add`);
 * ``p/<id>``: the protocol phases with start / end / abort buttons stamped with the server's clock (`session
   advance|complete|abort`), exclusions (`exclude`), drive-log upload (`drive import`), survey link issue / revoke
@@ -113,6 +114,18 @@ def appointment():
     return _act("console.today",
                 lambda s: set_status(s, f.get("participant_id", ""), status, note=f.get("note") or None),
                 lambda r: f"{r['participant_id']}: appointment {status.replace('_', '-')}", date=f.get("date"))
+
+
+@bp.get("/calendar.ics")
+@researcher
+def calendar():
+    """The booked appointments as an iCalendar file for the lab's calendar (`schedule export`)."""
+    from study.scheduling import to_ics
+
+    with store() as s:
+        data = to_ics(s)
+    return send_file(io.BytesIO(data), mimetype="text/calendar", as_attachment=True,
+                     download_name="appointments.ics")
 
 
 # ---------------------------------------------------------------------------------------------- participants
