@@ -52,7 +52,7 @@ class SignInSettings:
 
 
 # ---------------------------------------------------------------------------------------------- passwords
-_SCRYPT = {"n": 2 ** 14, "r": 8, "p": 1}  # about 16 MiB and a few tens of ms per check: slows guessing
+_SCRYPT = {"n": 2 ** 14, "r": 8, "p": 1}  # 16 MiB and ~0.1 s per check: slows guessing
 
 
 def hash_password(password: str, salt: bytes | None = None) -> str:
