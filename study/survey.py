@@ -260,12 +260,30 @@ def issue_link(st, participant_id: str, instrument: str | None = None) -> str:
     token = secrets.token_urlsafe(32)
     now = utcnow()
     with st.transaction():
-        for (h,) in st.con.execute("SELECT token_hash FROM survey_tokens WHERE participant_id = ? AND instrument = ? "
-                                   "AND revoked_at IS NULL", [participant_id, instrument]).fetchall():
-            st.update("survey_tokens", {"token_hash": h}, {"revoked_at": now})
+        _revoke_active(st, participant_id, instrument, now)
         st.insert("survey_tokens", {"token_hash": hash_token(token), "participant_id": participant_id,
                                     "instrument": instrument, "issued_at": now, "issued_by": st.actor})
     return token
+
+
+def revoke_links(st, participant_id: str, instrument: str | None = None) -> int:
+    """Revoke every active link of a participant for `instrument` (None = the study's); how many were revoked.
+    UserError when the participant is unknown or has no active link."""
+    instrument = instrument_of(st, instrument).name
+    _require_participant(st, participant_id)
+    with st.transaction():
+        n = _revoke_active(st, participant_id, instrument, utcnow())
+        if not n:
+            raise UserError(f"{participant_id} has no active survey link")
+    return n
+
+
+def _revoke_active(st, participant_id: str, instrument: str, now) -> int:
+    active = st.con.execute("SELECT token_hash FROM survey_tokens WHERE participant_id = ? AND instrument = ? "
+                            "AND revoked_at IS NULL", [participant_id, instrument]).fetchall()
+    for (h,) in active:
+        st.update("survey_tokens", {"token_hash": h}, {"revoked_at": now})
+    return len(active)
 
 
 def resolve_token(st, token: str) -> Link:

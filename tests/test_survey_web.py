@@ -55,11 +55,17 @@ def client(app):
     return app.test_client()
 
 
-def login(client, name="Ann"):
-    r = client.post("/r/login", data={"name": name, "password": PASSWORD})
+def form_token(html: str) -> str:
+    """The CSRF token of the first form of a page."""
+    return re.search(r'name="csrf" value="([^"]+)"', html).group(1)
+
+
+def login(client, name="Ann", password=PASSWORD):
+    """Sign in through the form; the session's CSRF token for the researcher pages."""
+    r = client.post("/r/login", data={"name": name, "password": password,
+                                      "csrf": form_token(client.get("/r/login").get_data(as_text=True))})
     assert r.status_code == 303
-    with client.session_transaction() as s:
-        return s["csrf"]
+    return form_token(client.get("/r/").get_data(as_text=True))
 
 
 def checked(html: str) -> dict[str, str]:
@@ -157,7 +163,8 @@ def test_submit_without_js_validates_then_is_read_only(store, client):
 
 def test_researcher_mode_requires_password_and_csrf(store, client):
     assert client.get("/r/").status_code == 302
-    r = client.post("/r/login", data={"name": "Ann", "password": "wrong"})
+    r = client.post("/r/login", data={"name": "Ann", "password": "wrong",
+                                      "csrf": form_token(client.get("/r/login").get_data(as_text=True))})
     assert r.status_code == 401 and "Wrong password" in r.get_data(as_text=True)
     csrf = login(client)
     assert client.get("/r/").status_code == 200

@@ -1,4 +1,5 @@
-"""`pedas-study participant add | list`: register and list participants of the store's study."""
+"""`pedas-study participant add | list | completeness`: register and list participants of the store's study, and
+what data each still lacks."""
 from __future__ import annotations
 
 from pedas_study.cli.common import add_format_option, format_frame, open_store
@@ -51,6 +52,13 @@ def _list(args) -> None:
         print(format_frame(list_participants(st), args.format))
 
 
+def _completeness(args) -> None:
+    from study.completeness import completeness
+
+    with open_store(args, read_only=True) as st:
+        print(format_frame(completeness(st, args.instrument), args.format))
+
+
 def register(cli) -> None:
     """Declare the `participant` group."""
     g = cli.group("participant", "register and list participants")
@@ -67,4 +75,8 @@ def register(cli) -> None:
     p.add_argument("--eco-familiarity", dest="eco_familiarity", metavar="N",
                    help="same as --attr eco_familiarity=N")
     p = g.command("list", "list participants with their attributes, protocol position and exclusions", _list)
+    add_format_option(p)
+    p = g.command("completeness", "per participant: the protocol phases, drives and survey answers still missing",
+                  _completeness)
+    p.add_argument("--instrument", default=None, help="instrument name (default: the study's instrument)")
     add_format_option(p)

@@ -32,6 +32,14 @@ def _link(args):
     print(f"{args.base_url.rstrip('/')}/s/{token}")
 
 
+def _revoke(args):
+    from study import survey as sv
+
+    with open_store(args) as st:
+        n = sv.revoke_links(st, args.participant_id, args.instrument)
+    print(f"{args.participant_id}: {n} survey link{'s' if n != 1 else ''} revoked")
+
+
 def _status(args):
     from study import survey as sv
 
@@ -78,18 +86,21 @@ def _serve(args):
     import threading
 
     from study.webapp import SurveyServer, create_app
+    from study.webapp.signin import SignInSettings
 
     password = os.environ.get(PASSWORD_ENV)
     generated = not password
     if generated:
         password = secrets.token_urlsafe(12)
     with open_store(args) as st:
-        app = create_app(st, password, instrument=args.instrument)
+        settings = SignInSettings(trust_proxy=args.trust_proxy,
+                                  secure_cookies="always" if args.secure_cookies else "auto")
+        app = create_app(st, password, instrument=args.instrument, signin=settings)
         server = SurveyServer(app, args.host, args.port)
         print(f"survey form on {server.url}/  (researcher pages: {server.url}/r/)", flush=True)
         if generated:
             print(f"researcher password (set {PASSWORD_ENV} to choose one): {password}", flush=True)
-        if args.host not in ("127.0.0.1", "localhost", "::1"):
+        if args.host not in ("127.0.0.1", "localhost", "::1") and not args.trust_proxy:
             print(f"warning: bound to {args.host}: reachable from other machines; plain HTTP", flush=True)
         stop = threading.Event()
         signal.signal(signal.SIGTERM, lambda *_: stop.set())
@@ -119,11 +130,19 @@ def register(cli) -> None:
     p = g.command("serve", "run the survey web form (participant links + researcher data entry)", _serve)
     p.add_argument("--host", default="127.0.0.1", help="address to bind (default 127.0.0.1: this machine only)")
     p.add_argument("--port", type=int, default=8000)
+    p.add_argument("--trust-proxy", type=int, default=0, metavar="N",
+                   help="behind N reverse proxies (TLS): believe their X-Forwarded-For/-Proto (default 0)")
+    p.add_argument("--secure-cookies", action="store_true",
+                   help="always mark the session cookie Secure (default: when the request came over HTTPS)")
     _instrument_option(p)
 
     p = g.command("link", "issue a one-time survey link for a participant (revokes earlier ones)", _link)
     p.add_argument("participant_id", metavar="ID")
     p.add_argument("--base-url", default="http://127.0.0.1:8000", help="address of `survey serve` (default %(default)s)")
+    _instrument_option(p)
+
+    p = g.command("revoke", "revoke a participant's survey link (a new one can be issued later)", _revoke)
+    p.add_argument("participant_id", metavar="ID")
     _instrument_option(p)
 
     p = g.command("status", "per participant: link, entries, discrepancies, final", _status)

@@ -2,8 +2,10 @@
 
 * participant mode ``/s/<token>`` (:mod:`study.webapp.participant`): one participant's questionnaire behind a
   one-time link, answers saved as they are given, atomic submission, read-only afterwards;
-* researcher mode ``/r/`` (:mod:`study.webapp.researcher`): password + name, links, paper-form double entry,
-  discrepancies, resolutions.
+* researcher mode ``/r/`` (:mod:`study.webapp.researcher`): password + name (hardened sign-in,
+  :mod:`study.webapp.signin`), links, paper-form double entry, discrepancies, resolutions;
+* the researcher console ``/r/...`` (:mod:`study.webapp.console`): the study day in one place (agenda,
+  registration, phases, exclusions, drive uploads, links with QR code, completeness, exports).
 
 The app owns ONE store connection and serialises every request's use of it with one lock
 (:mod:`study.webapp.context`); :class:`SurveyServer` runs it on a threaded werkzeug server.
@@ -13,13 +15,15 @@ from __future__ import annotations
 import secrets
 from pathlib import Path
 
-from flask import Flask, render_template, request, session
+from flask import Flask, g, render_template, request
+from flask.sessions import SecureCookieSessionInterface
 
 from study.errors import UserError
 from study.instrument import is_scaled
-from study.webapp import participant, researcher
+from study.webapp import console, participant, researcher
 from study.webapp.context import new_state
 from study.webapp.server import SurveyServer
+from study.webapp.signin import SignIn, SignInSettings
 
 __all__ = ["create_app", "SurveyServer"]
 HERE = Path(__file__).parent
@@ -47,10 +51,19 @@ def check_renderable(ins) -> None:
             raise UserError(f"instrument {ins.name}, item {item}: {exc}") from None
 
 
+class _SessionInterface(SecureCookieSessionInterface):
+    """The session cookie gets ``Secure`` when configured so, or ("auto") when the request came over HTTPS."""
+
+    def get_cookie_secure(self, app) -> bool:
+        mode = app.extensions["signin"].settings.secure_cookies
+        return mode == "always" or bool(request and request.is_secure)
+
+
 def create_app(st, researcher_password: str, instrument: str | None = None,
-               secret_key: str | None = None) -> Flask:
+               secret_key: str | None = None, signin: SignInSettings | None = None) -> Flask:
     """The Flask app over an open, writable Store `st` (the app serialises all access to it), showing the store's
-    study (title, description) and `instrument` (None = the study's)."""
+    study (title, description) and `instrument` (None = the study's); `signin` = how researcher sign-in is
+    guarded and whether a TLS proxy is trusted (default :class:`SignInSettings`)."""
     from study.studies import definition
     from study.survey import instrument_of
 
@@ -63,9 +76,17 @@ def create_app(st, researcher_password: str, instrument: str | None = None,
     app.config.update(SECRET_KEY=secret_key or secrets.token_hex(32), SESSION_COOKIE_SAMESITE="Strict",
                       SESSION_COOKIE_HTTPONLY=True, MAX_CONTENT_LENGTH=256 * 1024)
     app.extensions["survey"] = new_state(st, ins, researcher_password)
+    app.extensions["signin"] = SignIn(researcher_password, signin)
+    app.session_interface = _SessionInterface()
+    hops = app.extensions["signin"].settings.trust_proxy
+    if hops:  # the client address and scheme as the TLS proxy in front reports them (X-Forwarded-For/-Proto)
+        from werkzeug.middleware.proxy_fix import ProxyFix
+
+        app.wsgi_app = ProxyFix(app.wsgi_app, x_for=hops, x_proto=hops, x_host=hops)
     app.jinja_env.globals.update(instrument=ins, study=study, widget=widget)
     app.register_blueprint(participant.bp)
     app.register_blueprint(researcher.bp)
+    app.register_blueprint(console.bp)
 
     @app.after_request
     def headers(resp):
@@ -80,7 +101,8 @@ def create_app(st, researcher_password: str, instrument: str | None = None,
 
     @app.context_processor
     def researcher_context():
-        return {"csrf": session.get("csrf", ""), "researcher_name": session.get("researcher")}
+        who = g.get("researcher")
+        return {"csrf": who.csrf if who else "", "researcher_name": who.name if who else None}
 
     @app.get("/")
     def home():
