@@ -1,0 +1,242 @@
+"""Replay of a participant's drives: one self-contained HTML page (no network, no build step) with a time slider,
+play/pause, speed with advice and limit, leader gap, controller, the signal states on a space-time strip and the HUD
+as the driver saw it; the person's drives side by side on one time axis.
+
+The HUD of each sample is rebuilt from the drive log (docs/contracts.md columns) by :func:`log_frames`:
+
+* digits, arrow direction and colour, band state and warning tone: the logged ``v``, ``hud_arrow``,
+  ``hud_in_band``, ``warning``; the advised speed ``v_advice``; the limit ``speed_limit``;
+* arrow length: min(|v_advice - v| / arrow_full_scale, 1), the rule of :func:`pedas.hud.advisory` whose plan[0]
+  is the logged advice;
+* traffic-light countdown and stop-sign icon: from the route (:class:`pedas.route.Route`) when the drive was
+  simulated on the study route — the signal program at SUMO time t + t_insert, the stop lines' positions — with the
+  ranges of :func:`pedas.hud.advisory`. A drive log does not carry the controller's mode or the curve look-ahead, so
+  the green-wave and curve icons are not replayed (docs/hud.md).
+
+A drive without advice (baseline) shows its speed and limit only, as the driver saw no HUD advice.
+"""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from pedas.constants import HUD_TL_COUNTDOWN, KMH
+from pedas.params import CONTROLLER
+
+SIGNAL_STATES = ("green", "yellow", "red")
+
+
+@dataclass(frozen=True)
+class ReplayDrive:
+    """One drive of the page: condition, its samples (tidy frame: t, s, v, v_advice, speed_limit, leader_gap,
+    controller, tl_id, tl_state, d_tl) and the HUD frame of every sample (:func:`log_frames`)."""
+
+    condition: str
+    samples: pd.DataFrame
+    frames: pd.DataFrame
+
+
+def log_frames(df: pd.DataFrame, route=None, t_insert: float | None = None,
+               settings=CONTROLLER) -> pd.DataFrame:
+    """The HUD frame (pedas.hud_frame.HudFrame fields) of every sample of a drive log; see the module docstring.
+
+    route: the :class:`pedas.route.Route` the drive was driven on and t_insert (s) the SUMO time of its first
+    sample, for countdown and stop-sign icon; without them both stay empty."""
+    v = df["v"].to_numpy(float)
+    adv = df["v_advice"].to_numpy(float)
+    has_adv = ~np.isnan(adv)
+    arrow = df["hud_arrow"].astype("Float64").fillna(0).to_numpy(float).astype(int)
+    in_band = df["hud_in_band"].astype("boolean").fillna(False).to_numpy(bool)
+    warning = df["warning"].astype("boolean").fillna(False).to_numpy(bool)
+    arrow_len = np.where(arrow != 0, np.minimum(np.abs(np.nan_to_num(adv) - v) / settings.arrow_full_scale, 1.0), 0.0)
+    color = np.where(arrow > 0, "green", np.where(arrow < 0, "red", "black"))
+    n = len(df)
+    countdown: list[int | None] = [None] * n
+    icon: list[str | None] = [None] * n
+    if route is not None and t_insert is not None:
+        lights = {tl.tl_id: tl for tl in route.lights}
+        stops = np.array(sorted(ss.s for ss in route.stops), float)
+        s = df["s"].to_numpy(float)
+        t = df["t"].to_numpy(float) + t_insert
+        d_tl = df["d_tl"].to_numpy(float)
+        ids = df["tl_id"].astype(object).where(df["tl_id"].notna(), None).to_numpy()
+        for i in np.flatnonzero(has_adv):
+            tl = lights.get(ids[i]) if ids[i] is not None else None
+            if tl is not None and 0.0 <= d_tl[i] <= settings.icon_range:
+                rem = tl.remaining(t[i])
+                if rem < HUD_TL_COUNTDOWN:
+                    countdown[i] = int(math.ceil(rem - 1e-9))
+            j = np.searchsorted(stops, s[i])
+            if j < stops.size and stops[j] - s[i] <= settings.icon_range:
+                icon[i] = "stop_sign"
+    kmh = lambda x: np.floor(np.asarray(x, float) / KMH + 0.5)  # noqa: E731  (as pedas.hud_frame._kmh)
+    limit = df["speed_limit"].to_numpy(float)
+    return pd.DataFrame({
+        "speed": kmh(np.maximum(v, 0.0)).astype(int),
+        "advice": pd.array(np.where(has_adv, kmh(np.nan_to_num(adv)), np.nan), dtype="Int64"),
+        "limit": pd.array(np.where(np.isnan(limit), np.nan, kmh(np.nan_to_num(limit))), dtype="Int64"),
+        "arrow": np.where(has_adv, arrow, 0),
+        "arrow_len": np.round(np.where(has_adv, arrow_len, 0.0), 3),
+        "color": np.where(has_adv, color, "black"),
+        "in_band": np.where(has_adv, in_band, False),
+        "countdown": pd.array(countdown, dtype="Int64"),
+        "icon": pd.array(icon, dtype="string"),
+        "warning": np.where(has_adv, warning, False),
+    })
+
+
+def _route_for(st, drive_row: dict):
+    """The study route and t_insert of a drive simulated on it, else (None, None)."""
+    from study.simulated import ROUTE_NAME
+
+    meta = json.loads(drive_row["meta"] or "{}")
+    if drive_row["route"] != ROUTE_NAME or "t_insert" not in meta:
+        return None, None
+    from pedas.network import build_network
+    from pedas.route_study import study_route
+
+    return study_route(build_network()), float(meta["t_insert"])
+
+
+def replay_drives(st, participant_id: str, condition: str, others: bool = True) -> list[ReplayDrive]:
+    """The drive of `participant_id` in `condition` first, then (others=True) the person's other drives in the
+    study's condition order; UserError when the drive is not stored."""
+    from study.drives import drive_samples
+    from study.errors import UserError
+
+    rows = st.df("SELECT condition, route, meta FROM drives WHERE participant_id = ? ORDER BY condition",
+                 [participant_id]).to_dict("records")
+    by_cond = {r["condition"]: r for r in rows}
+    if condition not in by_cond:
+        raise UserError(f"{participant_id} has no {condition} drive")
+    order = [condition] + ([c for c in by_cond if c != condition] if others else [])
+    out = []
+    for cond in order:
+        df = drive_samples(st, participant_id, cond)
+        route, t_ins = _route_for(st, by_cond[cond])
+        out.append(ReplayDrive(cond, df[["t", "s", "v", "v_advice", "speed_limit", "leader_gap", "controller",
+                                         "tl_id", "tl_state", "d_tl"]], log_frames(df, route, t_ins)))
+    return out
+
+
+def _num(a, digits: int) -> list:
+    """Rounded floats for JSON, NaN -> null."""
+    return [None if (x is None or x != x) else round(float(x), digits) for x in np.asarray(a, float)]
+
+
+def _col(series: pd.Series) -> list:
+    return [None if pd.isna(x) else (x.item() if hasattr(x, "item") else x) for x in series.astype(object)]
+
+
+def _signals(d: ReplayDrive) -> list[dict]:
+    """Per light the drive approached: its position (m, the stop line = s + d_tl) and the state intervals seen in
+    the log [(t0, t1, state)], for the space-time strip."""
+    df = d.samples
+    out = []
+    for tl_id, g in df[df["tl_id"].notna()].groupby("tl_id", sort=False):
+        t = g["t"].to_numpy(float)
+        states = g["tl_state"].astype(str).to_numpy()
+        cut = np.flatnonzero(states[1:] != states[:-1]) + 1
+        starts = np.r_[0, cut]
+        ends = np.r_[cut, t.size]
+        spans = [[round(float(t[a]), 2), round(float(t[b - 1]) + 0.2, 2), str(states[a])] for a, b in zip(starts, ends)]
+        pos = float(np.median(g["s"].to_numpy(float) + g["d_tl"].to_numpy(float)))
+        out.append({"id": str(tl_id), "s": round(pos, 1), "spans": spans})
+    return out
+
+
+def page_data(participant_id: str, drives: list[ReplayDrive]) -> dict:
+    """The JSON the page embeds: per drive the sample columns (km/h for speeds), the HUD frames and signals."""
+    out = []
+    for d in drives:
+        df, fr = d.samples, d.frames
+        out.append({
+            "condition": d.condition,
+            "t": _num(df["t"], 2), "s": _num(df["s"], 1), "v": _num(df["v"] / KMH, 2),
+            "advice": _num(df["v_advice"] / KMH, 2), "limit": _num(df["speed_limit"] / KMH, 1),
+            "gap": _num(df["leader_gap"], 1), "controller": _col(df["controller"]),
+            "frames": {c: _col(fr[c]) for c in fr.columns},
+            "signals": _signals(d),
+        })
+    return {"participant": participant_id, "drives": out}
+
+
+def replay_html(participant_id: str, drives: list[ReplayDrive]) -> str:
+    """The self-contained page (the HUD component, the page script and the data inline)."""
+    import html
+
+    from pedas.hud_png import WEB, hud_script
+
+    payload = json.dumps(page_data(participant_id, drives), separators=(",", ":"), sort_keys=True)
+    payload = payload.replace("</", "<\\/")   # the JSON sits inside a <script> element
+    title = html.escape(f"Replay of {participant_id}: " + " | ".join(d.condition for d in drives))
+    return f"""<!doctype html>
+<html lang="en"><head><meta charset="utf-8"><title>{title}</title>
+<meta name="viewport" content="width=device-width, initial-scale=1">
+<style>
+body{{font-family:DejaVu Sans,Arial,sans-serif;margin:0 12px;}}
+header{{position:sticky;top:0;background:#fff;padding:8px 0;border-bottom:1px solid #ccc;display:flex;gap:10px;
+align-items:center;z-index:1}}
+#slider{{flex:1}}
+#drives{{display:grid;grid-template-columns:repeat({len(drives)},minmax(0,1fr));gap:18px}}
+pedas-hud{{width:min(100%,420px)}}
+.readout{{font-size:13px;min-height:2.6em}}
+h2{{margin:8px 0;text-transform:capitalize}}
+</style>
+<script>{hud_script()}</script></head>
+<body>
+<header><strong>{html.escape(participant_id)}</strong><button id="play" type="button">Play</button>
+<label>speed <select id="rate"><option value="1">1x</option><option value="5" selected>5x</option>
+<option value="20">20x</option></select></label>
+<input id="slider" type="range" min="0" max="1" step="0.2" value="0" aria-label="time">
+<span id="clock">t = 0.0 s</span></header>
+<div id="drives"></div>
+<script type="application/json" id="replay-data">{payload}</script>
+<script>{(WEB / "replay.js").read_text(encoding="utf-8")}</script>
+</body></html>
+"""
+
+
+def write_replay(st, participant_id: str, condition: str, out: str | Path, others: bool = True) -> Path:
+    """Write the replay page of a participant's drive (and, with others=True, the person's other drives beside
+    it) to `out`; the path."""
+    out = Path(out)
+    text = replay_html(participant_id, replay_drives(st, participant_id, condition, others))
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(text, encoding="utf-8")
+    return out
+
+
+def serve_file(path: Path, host: str = "127.0.0.1", port: int = 8018) -> None:
+    """Serve this one page (and nothing else of its folder) at http://host:port/ until interrupted (Ctrl-C)."""
+    from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+
+    body = Path(path).read_bytes()
+
+    class Handler(BaseHTTPRequestHandler):
+        def do_GET(self):  # noqa: N802 (http.server's name)
+            if self.path not in ("/", "/" + Path(path).name):
+                self.send_error(404)
+                return
+            self.send_response(200)
+            self.send_header("Content-Type", "text/html; charset=utf-8")
+            self.send_header("Content-Length", str(len(body)))
+            self.end_headers()
+            self.wfile.write(body)
+
+        def log_message(self, *args) -> None:  # quiet
+            pass
+
+    srv = ThreadingHTTPServer((host, port), Handler)
+    print(f"serving http://{host}:{srv.server_address[1]}/ (Ctrl-C stops)", flush=True)
+    try:
+        srv.serve_forever()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        srv.server_close()
