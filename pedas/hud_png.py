@@ -44,7 +44,11 @@ def _page_html() -> str:
 
 def render_png(frames: dict[str, HudFrame], out_dir: str | Path) -> dict[str, Path]:
     """Draw each frame with ``<pedas-hud>`` and write ``<name>.png`` (WIDTH px wide) into out_dir; name -> path."""
-    from playwright.sync_api import sync_playwright
+    chromium_path()   # a missing browser is bad input (one line), found before anything is written
+    try:
+        from playwright.sync_api import sync_playwright
+    except ImportError:
+        raise FileNotFoundError("drawing the HUD to PNG needs Playwright: pip install 'pedas-study[hud]'") from None
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
