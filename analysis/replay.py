@@ -8,24 +8,26 @@ The HUD of each sample is rebuilt from the drive log (docs/contracts.md columns)
   ``hud_in_band``, ``warning``; the advised speed ``v_advice``; the limit ``speed_limit``;
 * arrow length: min(|v_advice - v| / arrow_full_scale, 1), the rule of :func:`pedas.hud.advisory` whose plan[0]
   is the logged advice;
-* traffic-light countdown and stop-sign icon: from the route (:class:`pedas.route.Route`) when the drive was
-  simulated on the study route — the signal program at SUMO time t + t_insert, the stop lines' positions — with the
-  ranges of :func:`pedas.hud.advisory`. A drive log does not carry the controller's mode or the curve look-ahead, so
+* traffic-light countdown and stop-sign icon: :func:`pedas.hud.advisory` with the route context when the drive was
+  simulated on the study route (:class:`pedas.route.Route`: the signal program at SUMO time t + t_insert, the stop
+  lines' positions). A drive log does not carry the controller's mode or the curve look-ahead, so
   the green-wave and curve icons are not replayed (docs/hud.md).
 
 A drive without advice (baseline) shows its speed and limit only, as the driver saw no HUD advice.
 """
 from __future__ import annotations
 
+import dataclasses
 import json
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from pedas.constants import HUD_TL_COUNTDOWN, KMH
+from pedas.constants import KMH
+from pedas.hud import HudContext, HudState, advisory
+from pedas.hud_frame import HudFrame, display_kmh, hud_frame
 from pedas.params import CONTROLLER
 
 SIGNAL_STATES = ("green", "yellow", "red")
@@ -43,51 +45,36 @@ class ReplayDrive:
 
 def log_frames(df: pd.DataFrame, route=None, t_insert: float | None = None,
                settings=CONTROLLER) -> pd.DataFrame:
-    """The HUD frame (pedas.hud_frame.HudFrame fields) of every sample of a drive log; see the module docstring.
+    """The HUD frame (the fields of :class:`pedas.hud_frame.HudFrame`) of every sample of a drive log; see the
+    module docstring.
 
-    route: the :class:`pedas.route.Route` the drive was driven on and t_insert (s) the SUMO time of its first
-    sample, for countdown and stop-sign icon; without them both stay empty."""
-    v = df["v"].to_numpy(float)
-    adv = df["v_advice"].to_numpy(float)
-    has_adv = ~np.isnan(adv)
-    arrow = df["hud_arrow"].astype("Float64").fillna(0).to_numpy(float).astype(int)
-    in_band = df["hud_in_band"].astype("boolean").fillna(False).to_numpy(bool)
-    warning = df["warning"].astype("boolean").fillna(False).to_numpy(bool)
-    arrow_len = np.where(arrow != 0, np.minimum(np.abs(np.nan_to_num(adv) - v) / settings.arrow_full_scale, 1.0), 0.0)
-    color = np.where(arrow > 0, "green", np.where(arrow < 0, "red", "black"))
-    n = len(df)
-    countdown: list[int | None] = [None] * n
-    icon: list[str | None] = [None] * n
-    if route is not None and t_insert is not None:
-        lights = {tl.tl_id: tl for tl in route.lights}
-        stops = np.array(sorted(ss.s for ss in route.stops), float)
-        s = df["s"].to_numpy(float)
-        t = df["t"].to_numpy(float) + t_insert
-        d_tl = df["d_tl"].to_numpy(float)
-        ids = df["tl_id"].astype(object).where(df["tl_id"].notna(), None).to_numpy()
-        for i in np.flatnonzero(has_adv):
-            tl = lights.get(ids[i]) if ids[i] is not None else None
-            if tl is not None and 0.0 <= d_tl[i] <= settings.icon_range:
-                rem = tl.remaining(t[i])
-                if rem < HUD_TL_COUNTDOWN:
-                    countdown[i] = int(math.ceil(rem - 1e-9))
-            j = np.searchsorted(stops, s[i])
-            if j < stops.size and stops[j] - s[i] <= settings.icon_range:
-                icon[i] = "stop_sign"
-    kmh = lambda x: np.floor(np.asarray(x, float) / KMH + 0.5)  # noqa: E731  (as pedas.hud_frame._kmh)
-    limit = df["speed_limit"].to_numpy(float)
-    return pd.DataFrame({
-        "speed": kmh(np.maximum(v, 0.0)).astype(int),
-        "advice": pd.array(np.where(has_adv, kmh(np.nan_to_num(adv)), np.nan), dtype="Int64"),
-        "limit": pd.array(np.where(np.isnan(limit), np.nan, kmh(np.nan_to_num(limit))), dtype="Int64"),
-        "arrow": np.where(has_adv, arrow, 0),
-        "arrow_len": np.round(np.where(has_adv, arrow_len, 0.0), 3),
-        "color": np.where(has_adv, color, "black"),
-        "in_band": np.where(has_adv, in_band, False),
-        "countdown": pd.array(countdown, dtype="Int64"),
-        "icon": pd.array(icon, dtype="string"),
-        "warning": np.where(has_adv, warning, False),
-    })
+    route: the :class:`pedas.route.Route` the drive was driven on (stop-sign icon) and t_insert (s) the SUMO time of
+    its first sample (countdown, from the route's signal programs); without them neither is shown."""
+    lights = {tl.tl_id: tl for tl in route.lights} if route is not None and t_insert is not None else {}
+    stops = np.array(sorted(ss.s for ss in route.stops), float) if route is not None else np.empty(0)
+    kw = {k: getattr(settings, k) for k in ("arrow_full_scale", "icon_range", "warn_delay", "standstill", "start_min")}
+    cols = df[["t", "s", "v", "v_advice", "speed_limit", "tl_id", "d_tl", "hud_arrow", "hud_in_band", "warning"]]
+    frames = []
+    for t, s, v, adv, limit, tl_id, d_tl, arrow, in_band, warning in cols.astype(object).itertuples(index=False):
+        limit = None if pd.isna(limit) else float(limit)
+        if pd.isna(adv):   # no advice in this drive (baseline): speed and limit only
+            frames.append(HudFrame(speed=display_kmh(max(v, 0.0)), advice=None, limit=display_kmh(limit), arrow=0,
+                                   arrow_len=0.0, color="black", in_band=False, countdown=None, icon=None,
+                                   warning=False))
+            continue
+        tl = lights.get(tl_id) if not pd.isna(tl_id) else None
+        j = int(np.searchsorted(stops, s))
+        ctx = HudContext(tl_distance=None if tl is None else float(d_tl),
+                         tl_remaining=None if tl is None else tl.remaining(t + t_insert),
+                         stop_distance=float(stops[j] - s) if j < stops.size else None, speed_limit=limit)
+        shown = advisory(HudState(v=float(v)), [float(adv)], ctx, **kw)   # countdown and icon by the HUD's rules
+        arrow = 0 if pd.isna(arrow) else int(arrow)                        # arrow, band, tone: as logged
+        shown = dataclasses.replace(
+            shown, hud_arrow=arrow, hud_in_band=bool(in_band) if not pd.isna(in_band) else arrow == 0,
+            warning=bool(warning) if not pd.isna(warning) else False,
+            arrow_len=0.0 if arrow == 0 else min(abs(float(adv) - v) / settings.arrow_full_scale, 1.0))
+        frames.append(hud_frame(float(v), shown))
+    return pd.DataFrame([f.as_dict() for f in frames], columns=list(HudFrame.__dataclass_fields__))
 
 
 def _route_for(st, drive_row: dict):

@@ -21,20 +21,21 @@ from pedas.hud import HudContext, HudState, advisory
 from pedas.params import CONTROLLER
 
 
-def _kmh(v_ms: float | None) -> int | None:
-    """m/s -> whole km/h, rounded half up (None stays None)."""
+def display_kmh(v_ms: float | None) -> int | None:
+    """m/s -> whole km/h as the HUD shows them, rounded half up (None stays None)."""
     return None if v_ms is None else int(math.floor(v_ms / KMH + 0.5))
 
 
 @dataclass(frozen=True)
 class HudFrame:
-    """One HUD frame. speed, advice, limit: km/h (integers as displayed; limit None = no sign); arrow -1|0|1;
+    """One HUD frame. speed, advice, limit: km/h (integers as displayed; advice None = no advice, as in a baseline
+    drive; limit None = no sign); arrow -1|0|1;
     arrow_len 0..1 (fraction of the full arrow); color 'black'|'green'|'red' (the digits and the arrow);
     in_band: inside the +-2 km/h band (coast); countdown: whole s until the next light changes, or None;
     icon 'green_wave'|'stop_sign'|'curve'|None; warning: the tone sounds."""
 
     speed: int
-    advice: int
+    advice: int | None
     limit: int | None
     arrow: int
     arrow_len: float
@@ -54,7 +55,8 @@ def hud_frame(v: float, advice) -> HudFrame:
     v_opt = advice.v_opt if hasattr(advice, "v_opt") else advice.v_advice
     color = "black" if advice.hud_in_band else ("green" if advice.hud_arrow > 0 else "red")
     cd = advice.tl_countdown
-    return HudFrame(speed=_kmh(max(v, 0.0)), advice=_kmh(v_opt), limit=_kmh(getattr(advice, "speed_limit", None)),
+    return HudFrame(speed=display_kmh(max(v, 0.0)), advice=display_kmh(v_opt),
+                    limit=display_kmh(getattr(advice, "speed_limit", None)),
                     arrow=int(advice.hud_arrow), arrow_len=round(float(advice.arrow_len), 3), color=color,
                     in_band=bool(advice.hud_in_band), countdown=None if cd is None else int(math.ceil(cd - 1e-9)),
                     icon=advice.icon, warning=bool(advice.warning))
