@@ -182,7 +182,15 @@ class _Udp(asyncio.DatagramProtocol):
 
     def datagram_received(self, data: bytes, addr) -> None:
         session = self.server.session_for(("udp",) + tuple(addr))
-        reply = session.handle(data)
+        if self.server.touches_store(data):
+            asyncio.ensure_future(self._reply_later(session, data, addr))
+            return
+        self._send(session.handle(data), addr)
+
+    async def _reply_later(self, session: LiveSession, data: bytes, addr) -> None:
+        self._send(await self.server.in_store_thread(session.handle, data), addr)
+
+    def _send(self, reply: str, addr) -> None:
         self.transport.sendto(reply.encode(), addr)
         self.server.broadcast(reply)
 
@@ -198,6 +206,19 @@ class LiveServer:
         self.sessions: dict[tuple, LiveSession] = {}
         self.displays: set = set()
         self.pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="drive-log")   # the store's one writer
+
+    def touches_store(self, text: str | bytes) -> bool:
+        """A hello or bye while drives are logged: it opens or completes a drive log in the store."""
+        if self.logger_factory is None:
+            return False
+        try:
+            return decode(text)["type"] in ("hello", "bye")
+        except ProtocolError:
+            return False
+
+    async def in_store_thread(self, fn, *args):
+        """Run fn in the one thread that uses the store (DuckDB's connection is not shared between threads)."""
+        return await asyncio.get_running_loop().run_in_executor(self.pool, fn, *args)
 
     def session_for(self, key: tuple) -> LiveSession:
         if key not in self.sessions:
@@ -232,11 +253,10 @@ class LiveServer:
             return
         key = ("ws", id(connection))
         session = self.session_for(key)
-        loop = asyncio.get_running_loop()
         try:
             async for text in connection:
-                if isinstance(text, str) and '"bye"' in text and session.log is not None:
-                    reply = await loop.run_in_executor(self.pool, session.handle, text)  # the final import
+                if self.touches_store(text):
+                    reply = await self.in_store_thread(session.handle, text)
                 else:
                     reply = session.handle(text)
                 await connection.send(reply)
@@ -244,15 +264,14 @@ class LiveServer:
         finally:   # a simulator that went away without bye: keep what it sent, the drive stays incomplete
             self.sessions.pop(key, None)
             if session.log is not None:
-                await loop.run_in_executor(self.pool, session.log.flush)
+                await self.in_store_thread(session.log.flush)
 
     async def _flusher(self) -> None:
-        loop = asyncio.get_running_loop()
         while True:
             await asyncio.sleep(FLUSH_EVERY)
             for session in list(self.sessions.values()):
                 if session.log is not None:
-                    await loop.run_in_executor(self.pool, session.log.flush)
+                    await self.in_store_thread(session.log.flush)
 
     async def start(self) -> None:
         """Serve until cancelled."""

@@ -208,6 +208,33 @@ def test_udp_and_the_hud_page_feed(cli_proc):
         proc.wait(timeout=30)
 
 
+def test_udp_session_logs_a_complete_drive(paper_db):
+    from study.participants import add_participant
+    from study.store import Store
+
+    with Store.open(paper_db, actor="lab") as st:
+        add_participant(st, "P003")
+    proc, port = start_server(paper_db)
+    try:
+        udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        udp.settimeout(60)
+        udp.sendto(b'{"type":"hello","participant":"P003","condition":"pedas"}', ("127.0.0.1", port))
+        assert json.loads(udp.recv(65536))["logging"] is True
+        for msg in states(40):
+            udp.sendto(json.dumps(msg).encode(), ("127.0.0.1", port))
+            assert json.loads(udp.recv(65536))["seq"] == msg["seq"]
+        udp.sendto(b'{"type":"bye"}', ("127.0.0.1", port))
+        done = json.loads(udp.recv(65536))
+    finally:
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=60)
+    assert done["type"] == "done" and done["samples"] == 40
+    with Store.open(paper_db, actor="lab", read_only=True) as st:
+        d = st.df("SELECT drive_id, n_samples, meta FROM drives WHERE participant_id = 'P003'").iloc[0]
+    assert int(d["drive_id"]) == done["drive_id"] and d["n_samples"] == 40
+    assert json.loads(d["meta"])["live"]["complete"] is True
+
+
 @pytest.mark.browser
 @pytest.mark.skipif(not CHROMIUM.exists() and not os.environ.get("CI"),
                     reason="needs Debian's chromium at /usr/bin/chromium")
