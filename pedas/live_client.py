@@ -28,7 +28,6 @@ class RemoteController:
         self.timeout = timeout
         self.stats: dict = {"steps": 0, "remote": url}
         self.latencies: list[float] = []
-        self.frames: list[dict] = []
         hello = {"type": "hello", "condition": condition}
         if participant is not None:
             hello["participant"] = participant
@@ -54,7 +53,6 @@ class RemoteController:
         if reply["seq"] != seq:
             raise LiveError(f"advice for message {reply['seq']} received for {seq}")
         self.stats["steps"] += 1
-        self.frames.append(reply["hud"])
         adv = reply["advice"]
         return Advisory(**{k: adv[k] for k in ADVICE_FIELDS}, plan_v=())
 

@@ -9,8 +9,6 @@ import json
 import os
 import signal
 import socket
-import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -131,14 +129,11 @@ def test_drive_log_complete_after_bye(paper_db, live):
 
 # ---------------------------------------------------------------------------------------------- the server
 def start_server(db: Path | None, *extra: str):
-    """`pedas-study live serve --port 0` as a process; (process, port)."""
-    argv = [sys.executable, "-m", "pedas_study.cli"] + ([f"--db={db}"] if db else []) + \
-        ["live", "serve", "--route", "synthetic-mixed", "--port", "0", *extra] + ([] if db else ["--no-log"])
-    proc = subprocess.Popen(argv, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    line = proc.stdout.readline()
-    assert "listening on ws://" in line, line + proc.stderr.read()
-    port = int(line.split("ws://127.0.0.1:")[1].split("/")[0])
-    return proc, port
+    """`live serve` on the synthetic route (unless `extra` names another) as a process; (process, port)."""
+    from pedas_study.bench.live import start_live_server
+
+    route = [] if "--route" in extra else ["--route", "synthetic-mixed"]
+    return start_live_server(db, *route, *extra, cwd=REPO)
 
 
 def test_killed_session_keeps_what_was_logged(paper_db):

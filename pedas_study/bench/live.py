@@ -32,9 +32,12 @@ def drive_states(seed: int = 1, style: str = "normal") -> list[dict]:
     return out
 
 
-def _server(db: Path) -> tuple[subprocess.Popen, int]:
-    argv = [sys.executable, "-m", "pedas_study.cli", f"--db={db}", "live", "serve", "--port", "0"]
-    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+def start_live_server(db: Path | None, *extra: str, cwd: Path | None = None) -> tuple[subprocess.Popen, int]:
+    """`pedas-study live serve --port 0 EXTRA...` in its own process, logging into the store `db` (None: no log);
+    (process, the port it listens on)."""
+    argv = [sys.executable, "-m", "pedas_study.cli"] + ([f"--db={db}"] if db else []) + \
+        ["live", "serve", "--port", "0", *extra] + ([] if db else ["--no-log"])
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=cwd)
     line = proc.stdout.readline()
     if "listening on ws://" not in line:
         raise RuntimeError(f"live server did not start: {line}{proc.stderr.read()}")
@@ -65,7 +68,7 @@ def bench_live(messages: int = 10_000, rate: float = 50.0, seed: int = 1) -> dic
             n_sessions = -(-messages // len(states))
             for k in range(n_sessions):
                 add_participant(st, f"P{900 + k}")
-        proc, port = _server(db)
+        proc, port = start_live_server(db)
         try:
             with connect(f"ws://127.0.0.1:{port}/") as ws:
                 sent = 0

@@ -11,25 +11,26 @@ from study.errors import UserError
 def _serve(args) -> None:
     from pedas.live import LiveRoute, LiveServer
 
-    live = LiveRoute.load(args.route)
-    st = None
-    factory = None
-    if not args.no_log:
-        st = open_store(args)
-        from study.live_log import LiveDriveLog
+    st = None if args.no_log else open_store(args)   # a missing store fails before the route is loaded
+    try:
+        live = LiveRoute.load(args.route)
 
-        def factory(participant: str, condition: str):
+        def drive_log(participant: str, condition: str):
+            from study.live_log import LiveDriveLog
+
             return LiveDriveLog(st, participant, condition, route=live.name, replace=args.replace)
 
-    def ready(port: int) -> None:
-        where = "no drive log" if st is None else f"drive logs into {db_path(args)}"
-        print(f"listening on ws://{args.host}:{port}/ and udp://{args.host}:{port} (route {live.name}, {where}); "
-              f"HUD page http://{args.host}:{port}/", flush=True)
+        def ready(port: int) -> None:
+            where = "no drive log" if st is None else f"drive logs into {db_path(args)}"
+            print(f"listening on ws://{args.host}:{port}/ and udp://{args.host}:{port} (route {live.name}, {where}); "
+                  f"HUD page http://{args.host}:{port}/", flush=True)
 
-    try:
-        LiveServer(live, args.host, args.port, logger_factory=factory, on_ready=ready).run()
-    except OSError as exc:   # address in use, no such interface: the operator's input
-        raise UserError(f"cannot listen on {args.host}:{args.port}: {exc.strerror or exc}") from None
+        server = LiveServer(live, args.host, args.port, logger_factory=None if st is None else drive_log,
+                            on_ready=ready)
+        try:
+            server.run()
+        except OSError as exc:   # address in use, no such interface: the operator's input
+            raise UserError(f"cannot listen on {args.host}:{args.port}: {exc.strerror or exc}") from None
     finally:
         if st is not None:
             st.close()
