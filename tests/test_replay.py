@@ -87,6 +87,45 @@ def test_cli_errors_leave_no_page(cli, paper_db, tmp_path):
     assert r.code == 2 and r.err.count("\n") == 1 and "P001" in r.err and not out.exists()
 
 
+@pytest.fixture
+def two_drives(paper_db) -> Path:
+    """The paper's store with P001's pEDAS drive (400 samples) and baseline drive (380) of :func:`log`."""
+    from study.drives import import_drive_frame
+    from study.participants import add_participant
+    from study.store import Store
+
+    with Store.open(paper_db, actor="lab") as st:
+        add_participant(st, "P001")
+        import_drive_frame(st, "P001", "pedas", log(400))
+        import_drive_frame(st, "P001", "baseline", log(380, "baseline"))
+    return paper_db
+
+
+def test_serve_gives_the_page_and_nothing_else(two_drives, tmp_path):
+    import signal
+    import subprocess
+    import sys
+    import urllib.error
+    import urllib.request
+
+    from tests.conftest import REPO
+
+    out = tmp_path / "r.html"
+    proc = subprocess.Popen([sys.executable, "-m", "pedas_study.cli", f"--db={two_drives}", "drive", "replay", "P001",
+                             "pedas", "--out", str(out), "--only", "--serve", "--port", "0"], cwd=REPO,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert "replay written to" in proc.stdout.readline()
+        url = proc.stdout.readline().split()[1]
+        assert urllib.request.urlopen(url, timeout=30).read() == out.read_bytes()
+        assert page_json(out)["drives"][0]["condition"] == "pedas" and len(page_json(out)["drives"]) == 1
+        with pytest.raises(urllib.error.HTTPError, match="404"):
+            urllib.request.urlopen(url + "study.duckdb", timeout=30)
+    finally:
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=30) == 0
+
+
 @pytest.fixture(scope="module")
 def browser():
     from playwright.sync_api import sync_playwright
@@ -156,18 +195,9 @@ def self_contained(path: Path) -> bool:
 
 @pytest.mark.browser
 @needs_chromium
-def test_replay_page_in_chromium(browser, cli, paper_db, tmp_path):
-    from study.drives import import_drive_frame
-    from study.store import Store
-
-    with Store.open(paper_db, actor="lab") as st:
-        from study.participants import add_participant
-
-        add_participant(st, "P001")
-        import_drive_frame(st, "P001", "pedas", log(400))
-        import_drive_frame(st, "P001", "baseline", log(380, "baseline"))
+def test_replay_page_in_chromium(browser, cli, two_drives, tmp_path):
     out = tmp_path / "replay.html"
-    r = cli("drive", "replay", "P001", "pedas", "--out", out, db=paper_db)
+    r = cli("drive", "replay", "P001", "pedas", "--out", out, db=two_drives)
     assert r.code == 0, r.err
     assert self_contained(out)
     check_replay_page(browser, out, ["pedas", "baseline"], page_json(out), OUTPUT / "replay" / "synthetic.png")
