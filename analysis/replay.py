@@ -77,7 +77,7 @@ def log_frames(df: pd.DataFrame, route=None, t_insert: float | None = None,
     return pd.DataFrame([f.as_dict() for f in frames], columns=list(HudFrame.__dataclass_fields__))
 
 
-def _route_for(st, drive_row: dict):
+def _route_for(drive_row: dict):
     """The study route and t_insert of a drive simulated on it, else (None, None)."""
     from study.simulated import ROUTE_NAME
 
@@ -91,8 +91,8 @@ def _route_for(st, drive_row: dict):
 
 
 def replay_drives(st, participant_id: str, condition: str, others: bool = True) -> list[ReplayDrive]:
-    """The drive of `participant_id` in `condition` first, then (others=True) the person's other drives in the
-    study's condition order; UserError when the drive is not stored."""
+    """The drive of `participant_id` in `condition` first, then (others=True) the person's other drives in
+    alphabetical order of their conditions; UserError when the drive is not stored."""
     from study.drives import drive_samples
     from study.errors import UserError
 
@@ -105,7 +105,7 @@ def replay_drives(st, participant_id: str, condition: str, others: bool = True) 
     out = []
     for cond in order:
         df = drive_samples(st, participant_id, cond)
-        route, t_ins = _route_for(st, by_cond[cond])
+        route, t_ins = _route_for(by_cond[cond])
         out.append(ReplayDrive(cond, df[["t", "s", "v", "v_advice", "speed_limit", "leader_gap", "controller",
                                          "tl_id", "tl_state", "d_tl"]], log_frames(df, route, t_ins)))
     return out
@@ -124,6 +124,7 @@ def _signals(d: ReplayDrive) -> list[dict]:
     """Per light the drive approached: its position (m, the stop line = s + d_tl) and the state intervals seen in
     the log [(t0, t1, state)], for the space-time strip."""
     df = d.samples
+    dt = float(np.median(np.diff(df["t"].to_numpy(float)))) if len(df) > 1 else 0.0   # a sample lasts this long
     out = []
     for tl_id, g in df[df["tl_id"].notna()].groupby("tl_id", sort=False):
         t = g["t"].to_numpy(float)
@@ -131,7 +132,7 @@ def _signals(d: ReplayDrive) -> list[dict]:
         cut = np.flatnonzero(states[1:] != states[:-1]) + 1
         starts = np.r_[0, cut]
         ends = np.r_[cut, t.size]
-        spans = [[round(float(t[a]), 2), round(float(t[b - 1]) + 0.2, 2), str(states[a])] for a, b in zip(starts, ends)]
+        spans = [[round(float(t[a]), 2), round(float(t[b - 1]) + dt, 2), str(states[a])] for a, b in zip(starts, ends)]
         pos = float(np.median(g["s"].to_numpy(float) + g["d_tl"].to_numpy(float)))
         out.append({"id": str(tl_id), "s": round(pos, 1), "spans": spans})
     return out
@@ -160,7 +161,7 @@ def replay_html(participant_id: str, drives: list[ReplayDrive]) -> str:
     from pedas.hud_png import WEB, hud_script
 
     payload = json.dumps(page_data(participant_id, drives), separators=(",", ":"), sort_keys=True)
-    payload = payload.replace("</", "<\\/")   # the JSON sits inside a <script> element
+    payload = payload.replace("<", "\\u003c")   # the JSON sits inside a <script> element: no "</script>", "<!--"
     title = html.escape(f"Replay of {participant_id}: " + " | ".join(d.condition for d in drives))
     return f"""<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>{title}</title>

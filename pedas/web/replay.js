@@ -67,7 +67,8 @@
     const sec = document.createElement("section");
     sec.className = "drive";
     sec.dataset.condition = d.condition;
-    sec.innerHTML = `<h2>${d.condition}</h2><pedas-hud></pedas-hud><p class="readout"></p>`;
+    sec.innerHTML = `<h2></h2><pedas-hud></pedas-hud><p class="readout"></p>`;
+    sec.querySelector("h2").textContent = d.condition;   // a study's own condition name, shown as text
     document.getElementById("drives").appendChild(sec);
     const vmax = Math.max(...finite(d.v), ...finite(d.limit), ...finite(d.advice), 10);
     const speed = chart(sec, "speed", 170, 0, vmax, "km/h");
