@@ -3,7 +3,7 @@ over WebSocket and UDP, with a full-screen HUD page for a second monitor or a he
 
 :class:`LiveSession` is the protocol without sockets (one per WebSocket connection or UDP peer): it answers each
 message with exactly the in-process controller's advice for the same inputs, and hands a log row per state to an
-optional drive log (:class:`study.live_log.LiveDriveLog`, any object with append/flush/close). :func:`serve` runs
+optional drive log (:class:`study.live_log.LiveDriveLog`, any object with append/flush/close). :class:`LiveServer` runs
 the sockets: WebSocket and HTTP on ``port`` (``/`` is the HUD page, ``/display`` its feed of HUD frames, any other
 path the simulator's channel) and UDP on the same port number; drive logs are flushed about once a second in a
 worker thread so that the store never delays an answer.
@@ -88,9 +88,7 @@ class LiveSession:
             if kind == "hello":
                 return self._hello(msg)
             return self._bye()
-        except ProtocolError as exc:
-            return error_message(seq, str(exc))
-        except ValueError as exc:   # a refused log (unknown participant, drive exists, ...)
+        except ValueError as exc:   # a ProtocolError, or a refused log (unknown participant, drive exists, ...)
             return error_message(seq, str(exc))
 
     def _hello(self, msg: dict) -> str:
