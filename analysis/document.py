@@ -540,6 +540,10 @@ def _drives_section(out: Path, study, skipped: dict, used_figs: set, used_tabs: 
     stems = [s for s in DRIVE_TABLES] + sorted(p.stem for p in (out / "tables").glob("drives_*.md"))
     parts += [t for t in (_md_table(out, s, used_tabs) for s in stems[:3]) if t]
     parts += _figures(out, drive_figs, study, used_figs)
+    for replay in sorted((out / "drives").glob("replay_*.html")):
+        who = replay.stem.removeprefix("replay_")
+        parts.append(f"<p>Replay of {esc(who)}'s drives (time slider, the HUD as the driver saw it): "
+                     f"<a href=\"drives/{esc(replay.name)}\">{esc(replay.name)}</a></p>")
     parts += [t for t in (_md_table(out, s, used_tabs) for s in stems[3:]) if t]
     return parts
 

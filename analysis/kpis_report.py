@@ -52,6 +52,19 @@ class DrivesReport:
         return "\n\n".join(lines)
 
 
+def _write_participant_replay(st, out: Path, participant: str, comparison) -> Path | None:
+    """The replay page of `participant`'s drives (analysis.replay), the treatment drive first, as
+    ``replay_<participant>.html``; None when the participant has no drive."""
+    from analysis.replay import write_replay
+
+    conds = [r[0] for r in st.con.execute("SELECT condition FROM drives WHERE participant_id = ? ORDER BY condition",
+                                          [participant]).fetchall()]
+    if not conds:
+        return None
+    first = comparison.treatment if comparison is not None and comparison.treatment in conds else conds[0]
+    return write_replay(st, participant, first, out / f"replay_{participant}.html")
+
+
 def analyze_drives(st, out_dir: str | Path, participant: str = "P006", params=None) -> DrivesReport:
     """Compute the declared KPIs and summaries from the store ``st`` and write everything to ``out_dir``; with a
     comparison also the effects, the figures and (when declared) the reproduction bands. A store without any drive
@@ -93,6 +106,10 @@ def analyze_drives(st, out_dir: str | Path, participant: str = "P006", params=No
     for k, v in figures.items():
         md.append(f"- {k}: " + (f"not drawn ({v})" if isinstance(v, str)
                                  else ", ".join(f"[{p.name}](figures/{p.name})" for p in v)))
+    replay = _write_participant_replay(st, out, participant, comparison)
+    if replay is not None:
+        files.append(replay)
+        md += ["", f"Replay of {participant}'s drives (the participant of Figs. 11-12): [{replay.name}]({replay.name})"]
     (out / "objective.md").write_text("\n".join(md) + "\n", encoding="utf-8")
     files.append(out / "objective.md")
     return rep

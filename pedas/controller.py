@@ -56,7 +56,8 @@ class Advisory:
     v_advice: m/s, the optimal speed v_h,opt (first planned step, or the corrected speed of eq. 11);
     controller 'rt'|'cf'; mode 'green_wave'|'dp'|'stop'|'follow'; ft, fb: first planned forces (N);
     hud_arrow -1|0|1, arrow_len 0..1, hud_in_band, warning, tl_countdown (s or None), icon; solve_status (QP
-    status text, 'speed_correction' or 'fallback:<status>'), fallback flag, plan_v: N predicted speeds v_1..v_N.
+    status text, 'speed_correction' or 'fallback:<status>'), fallback flag, plan_v: N predicted speeds v_1..v_N;
+    speed_limit: m/s at the vehicle's position (shown on the HUD).
     """
 
     v_advice: float
@@ -73,6 +74,7 @@ class Advisory:
     solve_status: str
     fallback: bool
     plan_v: tuple
+    speed_limit: float | None = None
 
 
 class _Prediction(NamedTuple):
@@ -234,7 +236,7 @@ class PedasController:
                         fb=max(float(plan.fb[0]), 0.0),
                         hud_arrow=hud.hud_arrow, arrow_len=hud.arrow_len, hud_in_band=hud.hud_in_band,
                         warning=hud.warning, tl_countdown=hud.tl_countdown, icon=hud.icon, solve_status=status,
-                        fallback=sol.fallback, plan_v=plan_v)
+                        fallback=sol.fallback, plan_v=plan_v, speed_limit=hud.speed_limit)
 
     # ---- stages of step, in order ---------------------------------------------------------------------------
     def _measure(self, t: float, v: float) -> tuple[float, float]:

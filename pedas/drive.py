@@ -174,15 +174,17 @@ def _setup(net_file: str):
 
 def drive(participant_seed: int, style: str, condition: str, *, traffic_seed: int | None = None,
           driver: DriverParams | None = None, net_file: str | Path | None = None,
-          max_duration: float = MAX_DURATION, settings=None) -> pd.DataFrame:
+          max_duration: float = MAX_DURATION, settings=None, controller=None) -> pd.DataFrame:
     """Drive the study route once; the drive log (docs/contracts.md columns, every DT s) as a DataFrame.
 
     participant_seed: the virtual person (driver parameters, :func:`pedas.drivers.sample_driver`); style:
     cautious|normal|sporty; condition: baseline (own style) | pedas (tracking the HUD advisory). traffic_seed:
     the surrounding traffic (default: the participant seed, so both conditions of a person meet the same
     demand). settings: the controller's :class:`pedas.params.ControllerParams` (default
-    :data:`pedas.params.CONTROLLER`). Raises SafetyViolation when an invariant fails. ``df.attrs['drive']`` holds a
-    :class:`DriveInfo` as dict.
+    :data:`pedas.params.CONTROLLER`). controller: the advice of the pedas condition from this object's
+    ``step(t, s, v, leader)`` instead of a new PedasController (the live reference client,
+    :class:`pedas.live_client.RemoteController`). Raises SafetyViolation when an invariant fails.
+    ``df.attrs['drive']`` holds a :class:`DriveInfo` as dict.
     """
     if condition not in CONDITIONS:
         raise ValueError(f"unknown condition {condition!r} (expected baseline|pedas)")
@@ -192,8 +194,8 @@ def drive(participant_seed: int, style: str, condition: str, *, traffic_seed: in
     tseed = int(participant_seed if traffic_seed is None else traffic_seed)
     assisted = condition == "pedas"
     human = HumanDriver(route, drv, assisted=assisted)
-    ctrl = None
-    if assisted:
+    ctrl = controller if assisted else None
+    if assisted and ctrl is None:
         from pedas.controller import PedasController
 
         from pedas.params import CONTROLLER

@@ -111,6 +111,10 @@ def test_analyze_drives_writes_tables_figures_and_bands(cli, cohort_db, tmp_path
     assert diag.loc["highway time with a leader within 100 m", "pedas"] == pytest.approx(25, abs=3)
     assert 85 < diag.loc["mean speed on the highway", "pedas"] < 92
     assert "Behind the bands" in (out / "objective.md").read_text()
+    # the replay of the Figs. 11-12 participant, linked from objective.md, its pEDAS drive first
+    assert "[replay_P006.html](replay_P006.html)" in (out / "objective.md").read_text()
+    page = (out / "replay_P006.html").read_text()
+    assert page.index('"condition":"pedas"') < page.index('"condition":"baseline"')
     # keep one copy to look at
     OUTPUT.mkdir(exist_ok=True)
     for stem in ("fig9a_savings", "fig9b_savings_urban_by_style", "fig9c_savings_highway_by_style",

@@ -11,7 +11,7 @@ from study.errors import UserError
 
 REPO = Path(__file__).resolve().parents[1]
 COMMANDS = ["init", "study", "participant", "session", "exclude", "drive", "export", "survey", "schedule", "simulate",
-            "kpi", "analyze", "paper", "report", "plan", "bench"]
+            "hud", "live", "kpi", "analyze", "paper", "report", "plan", "bench"]
 
 
 def test_every_command_module_registers():
@@ -26,7 +26,7 @@ def test_each_command_is_declared_once_in_its_own_module():
     for name, module in cli.owners.items():
         assert module == f"pedas_study.cli.{name}", name
     assert set(cli.groups) == {"study", "participant", "session", "drive", "survey", "schedule", "simulate", "kpi",
-                               "analyze", "paper", "plan", "bench"}
+                               "analyze", "paper", "plan", "bench", "hud", "live"}
 
 
 def test_a_second_declaration_is_refused():

@@ -143,6 +143,8 @@ def test_report_on_reduced_reference_cohort(tmp_path):
     assert "figures/fig9a_savings.png" in html and "reproduction.md" in html
     assert "Verdict: every published value is met or explained." in html
     assert "Mean energy savings were larger in " in html  # a figure's reading from the numbers
+    # the replay of the participant of Figs. 11-12 (P006 is among the first four) is linked from the report
+    assert 'href="drives/replay_P006.html"' in html and (out / "drives" / "replay_P006.html").exists()
 
     # warm: nothing changed -> every step but the always-run collection is cached
     res = run_report(cfg)

@@ -25,6 +25,7 @@ from pedas_study.cli.common import DEFAULT_DB, is_user_error
 COMMAND_MODULES: tuple[str, ...] = tuple(f"pedas_study.cli.{name}" for name in (
     "init", "study", "participant", "session", "exclude", "drive", "export",   # the study and its store
     "survey", "schedule", "simulate",                                  # survey, appointments, virtual cohort
+    "hud", "live",                                                     # the HUD, live advice for a simulator
     "kpi", "analyze", "paper", "report", "plan",                       # analysis
     "bench",                                                           # benchmarks
 ))

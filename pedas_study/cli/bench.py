@@ -35,6 +35,25 @@ def _mpc(args) -> int:
     return 0
 
 
+# ---------------------------------------------------------------------------------------------- bench live
+def _live(args) -> int:
+    import json
+
+    from pedas_study.bench.live import bench_live
+
+    if args.messages < 1 or not 0 < args.rate <= 1000:
+        raise ValueError("--messages must be >= 1 and --rate in (0, 1000] Hz")
+    r = bench_live(messages=args.messages, rate=args.rate, seed=args.seed)
+    if args.json:
+        print(json.dumps(r, sort_keys=True))
+    else:
+        print(f"live advice on localhost, {r['messages']} states at {r['rate_hz']:g} Hz in {r['sessions']} logged "
+              f"session(s): state in -> advice out median {r['median_ms']:.2f} ms, p99 {r['p99_ms']:.2f} ms, max "
+              f"{r['max_ms']:.2f} ms; advice different from the in-process controller's: {r['mismatches']}; "
+              f"samples logged: {r['logged_samples']}")
+    return 1 if r["mismatches"] else 0
+
+
 # ---------------------------------------------------------------------------------------------- bench drive
 def _drive(args) -> int:
     import json
@@ -184,6 +203,13 @@ def register(cli) -> None:
                    help="steps on which cvxpy rebuilds and solves the same QP (default 300)")
     p.add_argument("--seed", type=int, default=0, help="seed of the virtual driver and the leader (default 0)")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
+
+    p = g.command("live", "latency of live advice (state in -> advice out over WebSocket, server logging the drive) "
+                  "and equality with the in-process controller", _live)
+    p.add_argument("--messages", type=int, default=10_000, help="states sent (default 10000)")
+    p.add_argument("--rate", type=float, default=50.0, help="states per second (default 50)")
+    p.add_argument("--seed", type=int, default=1, help="participant seed of the drive whose states are sent")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
 
     p = g.command("drive", "wall time and real-time factor of a baseline drive and a pEDAS drive with each QP "
                   "backend in SUMO traffic; "

@@ -1,4 +1,4 @@
-"""`pedas-study drive import | list | simulate`: drive logs, from the simulator or simulated."""
+"""`pedas-study drive import | list | channels | replay | simulate`: drive logs, from the simulator or simulated."""
 from __future__ import annotations
 
 import sys
@@ -54,6 +54,19 @@ def _simulate(args) -> None:
     simulate_and_store(args, tasks, workers=1, progress=False)
 
 
+def _replay(args) -> None:
+    from analysis.replay import write_replay
+
+    with open_store(args, read_only=True) as st:
+        out = args.out or f"replay_{args.id}_{args.condition}.html"
+        path = write_replay(st, args.id, args.condition, out, others=not args.only)
+    print(f"{args.id} {args.condition}: replay written to {path}")
+    if args.serve:
+        from analysis.replay import serve_file
+
+        serve_file(path, args.host, args.port)
+
+
 def register(cli) -> None:
     """Declare the `drive` group."""
     from pedas.vocabulary import CONDITIONS
@@ -77,6 +90,16 @@ def register(cli) -> None:
     add_format_option(p)
     p = g.command("channels", "list the extra channels stored with drive samples", _channels)
     add_format_option(p)
+
+    p = g.command("replay", "write (and optionally serve) a self-contained HTML replay of a participant's drive, "
+                  "the person's other drives beside it", _replay)
+    p.add_argument("id", metavar="ID")
+    p.add_argument("condition", metavar="CONDITION", help="the drive shown first")
+    p.add_argument("--out", default=None, metavar="FILE", help="the page (default replay_<ID>_<CONDITION>.html)")
+    p.add_argument("--only", action="store_true", help="this drive alone, without the person's other drives")
+    p.add_argument("--serve", action="store_true", help="serve the page over HTTP until Ctrl-C")
+    p.add_argument("--host", default="127.0.0.1", help="address to serve on (default 127.0.0.1)")
+    p.add_argument("--port", type=int, default=8018, help="port to serve on (default 8018)")
 
     p = g.command("simulate", "simulate one drive of a participant (virtual driver in SUMO traffic)", _simulate)
     p.add_argument("id", metavar="ID")

@@ -1,0 +1,150 @@
+// The replay page of a participant's drives (analysis/replay.py embeds the data as JSON in #replay-data).
+// One time slider for all drives; per drive: the HUD as the driver saw it (<pedas-hud>), speed with advice and
+// limit, leader gap, controller, and a space-time strip with the signal states at the lights' stop lines.
+// Every chart has a cursor at the slider's time; the state shown is the last sample at or before that time.
+(() => {
+  const NS = "http://www.w3.org/2000/svg";
+  const data = JSON.parse(document.getElementById("replay-data").textContent);
+  const W = 560, PAD = { l: 46, r: 8, t: 18, b: 22 };
+  const SIGNAL = { green: "#0a9d3c", yellow: "#e8b500", red: "#d2161e" };
+  const CTRL = { rt: "#4a77c9", cf: "#c97a1e", none: "#bbb" };
+  const tEnd = Math.max(...data.drives.map(d => d.t[d.t.length - 1]));
+
+  const el = (tag, attrs = {}, parent = null) => {
+    const e = document.createElementNS(NS, tag);
+    for (const [k, v] of Object.entries(attrs)) e.setAttribute(k, v);
+    if (parent) parent.appendChild(e);
+    return e;
+  };
+  const finite = a => a.filter(x => x !== null && Number.isFinite(x));
+
+  // a chart: x = time (0..tEnd s), y from lo to hi; returns {svg, x, y, cursor}
+  function chart(parent, title, h, lo, hi, unit) {
+    const svg = el("svg", { viewBox: `0 0 ${W} ${h}`, width: "100%", class: "chart", "data-title": title }, parent);
+    const x = t => PAD.l + (W - PAD.l - PAD.r) * t / tEnd;
+    const y = v => h - PAD.b - (h - PAD.t - PAD.b) * (v - lo) / ((hi - lo) || 1);
+    el("rect", { x: PAD.l, y: PAD.t, width: W - PAD.l - PAD.r, height: h - PAD.t - PAD.b, fill: "#fafafa",
+                 stroke: "#ccc" }, svg);
+    const lab = el("text", { x: PAD.l, y: 12, "font-size": 11 }, svg);
+    lab.textContent = `${title} (${unit})`;
+    for (const v of [lo, hi]) {
+      const tick = el("text", { x: PAD.l - 4, y: y(v) + 4, "font-size": 10, "text-anchor": "end" }, svg);
+      tick.textContent = Math.round(v);
+    }
+    const axis = el("text", { x: W - PAD.r, y: h - 6, "font-size": 10, "text-anchor": "end" }, svg);
+    axis.textContent = `t (s), 0 - ${Math.round(tEnd)}`;
+    const cursor = el("line", { class: "cursor", y1: PAD.t, y2: h - PAD.b, stroke: "#000", "stroke-width": 1.5 }, svg);
+    return { svg, x, y, cursor };
+  }
+
+  function line(c, t, v, color, width = 1.5, dash = "") {
+    let d = "", pen = false;
+    for (let i = 0; i < t.length; i++) {
+      if (v[i] === null) { pen = false; continue; }
+      d += `${pen ? "L" : "M"}${c.x(t[i]).toFixed(1)} ${c.y(v[i]).toFixed(1)}`;
+      pen = true;
+    }
+    return el("path", { d, fill: "none", stroke: color, "stroke-width": width, "stroke-dasharray": dash }, c.svg);
+  }
+
+  function frameAt(d, i) {
+    const f = {};
+    for (const k of Object.keys(d.frames)) f[k] = d.frames[k][i];
+    return f;
+  }
+
+  function indexAt(d, t) {   // the last sample at or before t
+    let lo = 0, hi = d.t.length - 1;
+    if (t >= d.t[hi]) return hi;
+    while (lo < hi) {
+      const mid = (lo + hi + 1) >> 1;
+      if (d.t[mid] <= t) lo = mid; else hi = mid - 1;
+    }
+    return lo;
+  }
+
+  const views = data.drives.map(d => {
+    const sec = document.createElement("section");
+    sec.className = "drive";
+    sec.dataset.condition = d.condition;
+    sec.innerHTML = `<h2></h2><pedas-hud></pedas-hud><p class="readout"></p>`;
+    sec.querySelector("h2").textContent = d.condition;   // a study's own condition name, shown as text
+    document.getElementById("drives").appendChild(sec);
+    const vmax = Math.max(...finite(d.v), ...finite(d.limit), ...finite(d.advice), 10);
+    const speed = chart(sec, "speed", 170, 0, vmax, "km/h");
+    line(speed, d.t, d.limit, "#888", 1.2, "5 3");
+    line(speed, d.t, d.advice, "#0a9d3c", 1.2);
+    line(speed, d.t, d.v, "#111", 1.5);
+    const gaps = finite(d.gap);
+    const gap = chart(sec, "leader gap", 110, 0, Math.max(...gaps, 10), "m");
+    line(gap, d.t, d.gap, "#4a77c9");
+    // controller: one coloured band per run of equal values
+    const ctrl = chart(sec, "controller", 64, 0, 1, "rt blue, cf orange, none grey");
+    for (let a = 0; a < d.t.length;) {
+      let b = a;
+      while (b + 1 < d.t.length && d.controller[b + 1] === d.controller[a]) b++;
+      const x0 = ctrl.x(d.t[a]), x1 = ctrl.x(d.t[Math.min(b + 1, d.t.length - 1)]);
+      el("rect", { x: x0, y: PAD.t, width: Math.max(x1 - x0, 0.5), height: 64 - PAD.t - PAD.b,
+                   fill: CTRL[d.controller[a]] || "#999" }, ctrl.svg);
+      a = b + 1;
+    }
+    ctrl.svg.appendChild(ctrl.cursor);
+    // space-time strip: the trajectory s(t) and, at each light's stop line, its state over time
+    const sMax = Math.max(...d.s);
+    const st = chart(sec, "space-time", 230, 0, sMax, "m");
+    for (const sig of d.signals) {
+      for (const [t0, t1, state] of sig.spans) {
+        el("line", { x1: st.x(t0), x2: st.x(t1), y1: st.y(sig.s), y2: st.y(sig.s), stroke: SIGNAL[state] || "#999",
+                     "stroke-width": 4, class: "signal", "data-tl": sig.id }, st.svg);
+      }
+    }
+    line(st, d.t, d.s, "#111", 1.2);
+    const dot = el("circle", { r: 4, fill: "#d2161e", class: "position" }, st.svg);
+    return { d, sec, hud: sec.querySelector("pedas-hud"), readout: sec.querySelector(".readout"),
+             charts: [speed, gap, ctrl, st], st, dot };
+  });
+
+  const slider = document.getElementById("slider");
+  const clock = document.getElementById("clock");
+  slider.max = tEnd.toFixed(1);
+
+  function show(t) {
+    clock.textContent = `t = ${t.toFixed(1)} s`;
+    for (const v of views) {
+      const i = indexAt(v.d, t);
+      const f = frameAt(v.d, i);
+      v.hud.frame = f;
+      const ti = v.d.t[i];
+      for (const c of v.charts) { c.cursor.setAttribute("x1", c.x(t)); c.cursor.setAttribute("x2", c.x(t)); }
+      v.dot.setAttribute("cx", v.st.x(ti));
+      v.dot.setAttribute("cy", v.st.y(v.d.s[i]));
+      const adv = v.d.advice[i] === null ? "no advice" : `advice ${v.d.advice[i].toFixed(1)} km/h`;
+      const gap = v.d.gap[i] === null ? "no leader" : `gap ${v.d.gap[i].toFixed(1)} m`;
+      v.readout.textContent = `t ${ti.toFixed(1)} s, s ${v.d.s[i].toFixed(0)} m, v ${v.d.v[i].toFixed(1)} km/h, ` +
+                              `${adv}, ${gap}, controller ${v.d.controller[i]}`;
+      v.sec.dataset.index = String(i);
+    }
+  }
+
+  // playback keeps its own clock: the slider snaps to its 0.2 s steps, smaller than one frame's advance
+  let timer = null, last = 0, now_t = 0;
+  const play = document.getElementById("play");
+  const rate = document.getElementById("rate");
+  function tick(now) {
+    now_t = Math.min(now_t + (now - last) / 1000 * Number(rate.value), tEnd);
+    last = now;
+    slider.value = now_t;
+    show(now_t);
+    if (now_t >= tEnd) stop(); else timer = requestAnimationFrame(tick);
+  }
+  function stop() { cancelAnimationFrame(timer); timer = null; play.textContent = "Play"; }
+  play.addEventListener("click", () => {
+    if (timer !== null) { stop(); return; }
+    now_t = Number(slider.value) >= tEnd ? 0 : Number(slider.value);
+    play.textContent = "Pause";
+    last = performance.now();
+    timer = requestAnimationFrame(tick);
+  });
+  slider.addEventListener("input", () => { now_t = Number(slider.value); show(now_t); });
+  show(0);
+})();

@@ -1,0 +1,89 @@
+"""`pedas-study live serve | drive`: live pEDAS advice for a lab's simulator, and the reference client that drives a
+virtual participant in SUMO through the socket."""
+from __future__ import annotations
+
+import sys
+
+from pedas_study.cli.common import db_path, open_store
+from study.errors import UserError
+
+
+def _serve(args) -> None:
+    from pedas.live import LiveRoute, LiveServer
+
+    st = None if args.no_log else open_store(args)   # a missing store fails before the route is loaded
+    try:
+        live = LiveRoute.load(args.route)
+
+        def drive_log(participant: str, condition: str):
+            from study.live_log import LiveDriveLog
+
+            return LiveDriveLog(st, participant, condition, route=live.name, replace=args.replace)
+
+        def ready(port: int) -> None:
+            where = "no drive log" if st is None else f"drive logs into {db_path(args)}"
+            print(f"listening on ws://{args.host}:{port}/ and udp://{args.host}:{port} (route {live.name}, {where}); "
+                  f"HUD page http://{args.host}:{port}/", flush=True)
+
+        server = LiveServer(live, args.host, args.port, logger_factory=None if st is None else drive_log,
+                            on_ready=ready)
+        try:
+            server.run()
+        except OSError as exc:   # address in use, no such interface: the operator's input
+            raise UserError(f"cannot listen on {args.host}:{args.port}: {exc.strerror or exc}") from None
+    finally:
+        if st is not None:
+            st.close()
+
+
+def _drive(args) -> None:
+    import time
+
+    import numpy as np
+
+    from pedas.drive import drive
+    from pedas.live_client import RemoteController
+
+    from pedas.live_client import LiveError
+
+    t0 = time.perf_counter()
+    try:
+        with RemoteController(args.url, participant=args.participant, condition="pedas") as ctrl:
+            df = drive(args.seed, args.style, "pedas", traffic_seed=args.traffic_seed, controller=ctrl)
+    except (OSError, LiveError) as exc:   # no server there, or it refused the session
+        raise UserError(f"live server {args.url}: {exc}") from None
+    lat = np.asarray(ctrl.latencies) * 1e3
+    print(f"drove {len(df)} samples ({df['t'].iloc[-1]:.1f} s simulated) through {args.url} in "
+          f"{time.perf_counter() - t0:.1f} s; round trip median {np.median(lat):.2f} ms, "
+          f"p99 {np.percentile(lat, 99):.2f} ms; logged as drive {ctrl.done['drive_id']}")
+    if args.compare:
+        ref = drive(args.seed, args.style, "pedas", traffic_seed=args.traffic_seed)
+        same = ref.equals(df)
+        print(f"in-process drive with the same seeds: {'identical' if same else 'DIFFERENT'} log "
+              f"({len(ref)} samples)")
+        if not same:
+            sys.exit(1)
+
+
+def register(cli) -> None:
+    """Declare the `live` group."""
+    from pedas.vocabulary import STYLES
+
+    g = cli.group("live", "live pEDAS advice for a driving simulator (WebSocket/UDP, docs/hud.md)")
+    p = g.command("serve", "run the controller behind the live protocol; log participants' drives into the store",
+                  _serve)
+    p.add_argument("--route", default="study", choices=("study", "synthetic-mixed"), help="route (default study)")
+    p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
+    p.add_argument("--port", type=int, default=8765, help="WebSocket/HTTP and UDP port (default 8765; 0 = any)")
+    p.add_argument("--no-log", action="store_true", help="log no drives (no store needed)")
+    p.add_argument("--replace", action="store_true", help="a session may replace a stored drive")
+    p = g.command("drive", "reference client: a virtual participant drives in SUMO with advice from a live server",
+                  _drive)
+    p.add_argument("--url", default="ws://127.0.0.1:8765/", help="the server (default ws://127.0.0.1:8765/)")
+    p.add_argument("--seed", type=int, default=0, help="the virtual person's seed (default 0)")
+    p.add_argument("--style", default="normal", choices=STYLES, help="driving style (default normal)")
+    p.add_argument("--traffic-seed", dest="traffic_seed", type=int, default=None,
+                   help="traffic seed (default: the person's seed)")
+    p.add_argument("--participant", default=None, metavar="ID", help="log the drive as this participant's pedas drive")
+    p.add_argument("--compare", action="store_true",
+                   help="then drive in-process with the same seeds and check the logs are identical")

@@ -1,0 +1,131 @@
+"""The drive log of a live session (`pedas-study live serve`), written into the store while the participant drives.
+
+Crash-safe by construction: every :meth:`LiveDriveLog.flush` (the server calls it about once a second) commits the
+samples received since the last one in one transaction, together with the drive's row, whose ``meta`` says
+``{"live": {"complete": false, ...}}``. A session that is killed keeps every committed sample, marked incomplete
+(n_samples, duration and distance as of the last flush; its checksum is a placeholder, the sha256 of the session
+id). :meth:`LiveDriveLog.close` (the simulator said bye) replaces the partial drive, in one transaction, with the
+complete log stored like an imported one (:func:`study.drives.import_drive_frame`: validation, plausibility,
+energy columns, content checksum) and ``meta.live.complete = true``.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import threading
+import uuid
+
+import numpy as np
+import pandas as pd
+
+from study.audit_trail import utcnow
+from study.errors import UserError
+
+LIVE_COLUMNS = ("t", "s", "v", "segment", "speed_limit", "a", "grade", "tl_id", "tl_state", "d_tl", "leader_gap",
+                "leader_v", "v_advice", "controller", "hud_arrow", "hud_in_band", "warning")
+
+
+class LiveDriveLog:
+    """Log of one live drive of `participant_id` in `condition` (rows with the keys of LIVE_COLUMNS, SI units, t
+    from the first sample). Thread-safe: the server appends in its event loop and flushes in a worker thread."""
+
+    def __init__(self, st, participant_id: str, condition: str, route: str | None, replace: bool = False) -> None:
+        from study.participants import require
+        from study.studies import definition
+
+        definition(st).check_condition(condition)
+        require(st, participant_id)
+        have = st.one("SELECT drive_id FROM drives WHERE participant_id = ? AND condition = ?",
+                      [participant_id, condition])
+        if have is not None and not replace:
+            raise UserError(f"{participant_id} already has a {condition} drive; start the session with replace")
+        self.st, self.participant_id, self.condition, self.route = st, participant_id, condition, route
+        self.session = str(uuid.uuid4())
+        self.started_at = utcnow()
+        self.drive_id: int | None = None
+        self.n = 0                      # samples committed
+        self._pending: list[dict] = []
+        self._first: dict | None = None
+        self._last: dict | None = None
+        self._lock = threading.Lock()    # the queue (held for microseconds: append runs in the event loop)
+        self._write = threading.Lock()   # the store (flush and close, in a worker thread)
+
+    def _meta(self, complete: bool, **extra) -> str:
+        return json.dumps({"live": {"complete": complete, "session": self.session, "started_at": str(self.started_at),
+                                    **extra}}, sort_keys=True)
+
+    def append(self, row: dict) -> None:
+        """Queue one sample (committed at the next flush)."""
+        with self._lock:
+            self._pending.append(row)
+
+    def flush(self) -> int:
+        """Commit the queued samples (one transaction with the drive's row); returns the samples committed so far.
+        The drive's row appears once two samples with a positive duration exist (the store's constraints)."""
+        with self._write:
+            with self._lock:
+                rows = self._pending
+                if not rows or (self.drive_id is None and (len(rows) < 2 or rows[-1]["t"] <= rows[0]["t"])):
+                    return self.n
+                self._pending = []
+            first = self._first or rows[0]
+            frame = pd.DataFrame(rows, columns=list(LIVE_COLUMNS))
+            last = rows[-1]
+            st = self.st
+            with st.transaction():
+                if self.drive_id is None:
+                    old = st.one("SELECT drive_id FROM drives WHERE participant_id = ? AND condition = ?",
+                                 [self.participant_id, self.condition])
+                    if old is not None:   # replace=True was checked at the start
+                        st.con.execute("DELETE FROM drive_samples WHERE drive_id = ?", [old])
+                        st.delete("drives", {"drive_id": int(old)})
+                    row = st.insert("drives", {
+                        "participant_id": self.participant_id, "condition": self.condition, "source": "import",
+                        "route": self.route, "checksum": hashlib.sha256(self.session.encode()).hexdigest(),
+                        "n_samples": len(rows), "file_name": f"live session {self.session}",
+                        "duration_s": last["t"] - first["t"], "distance_m": max(last["s"] - first["s"], 0.0),
+                        "meta": self._meta(False)})
+                    self.drive_id = int(row["drive_id"])
+                else:
+                    st.update("drives", {"drive_id": self.drive_id},
+                              {"n_samples": self.n + len(rows), "duration_s": last["t"] - first["t"],
+                               "distance_m": max(last["s"] - first["s"], 0.0)})
+                samples = _typed(frame)
+                samples.insert(0, "idx", np.arange(self.n, self.n + len(rows), dtype=np.int32))
+                samples.insert(0, "drive_id", np.full(len(rows), self.drive_id, dtype=np.int64))
+                st.insert_df("drive_samples", samples)
+            self.n += len(rows)
+            self._first = first
+            return self.n
+
+    def close(self):
+        """Flush, then store the complete log in place of the partial one; the DriveImport, or None when fewer than
+        two samples arrived. A log the import refuses stays stored as logged, its meta naming the reason."""
+        from study.drives import drive_samples, import_drive_frame
+
+        self.flush()
+        with self._write:
+            if self.drive_id is None:
+                return None
+            frame = drive_samples(self.st, self.participant_id, self.condition)[list(LIVE_COLUMNS)]
+            try:
+                return import_drive_frame(self.st, self.participant_id, self.condition, frame, source="import",
+                                          route=self.route, replace=True, file_name=f"live session {self.session}",
+                                          meta=json.loads(self._meta(True, samples=len(frame))))
+            except UserError as exc:
+                self.st.update("drives", {"drive_id": self.drive_id},
+                               {"meta": self._meta(True, samples=len(frame), import_error=str(exc))})
+                return None
+
+
+def _typed(frame: pd.DataFrame) -> pd.DataFrame:
+    """The sample columns in the store's types."""
+    out = frame.copy()
+    for c in ("segment", "tl_id", "tl_state", "controller"):
+        out[c] = pd.array(out[c], dtype="string")
+    out["hud_arrow"] = pd.array(out["hud_arrow"], dtype="Int8")
+    out["hud_in_band"] = pd.array(out["hud_in_band"], dtype="boolean")
+    out["warning"] = pd.array(out["warning"], dtype="boolean")
+    for c in ("t", "s", "v", "speed_limit", "a", "grade", "d_tl", "leader_gap", "leader_v", "v_advice"):
+        out[c] = out[c].astype(float)
+    return out
