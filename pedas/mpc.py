@@ -36,7 +36,7 @@ import scipy.sparse as sp
 from pedas.constants import DT, N_HORIZON
 from pedas.params import CONTROLLER, LEAF, DaqpSettings, MpcWeights, OsqpSettings
 from pedas.power import PowerMap
-from pedas.qp import BACKENDS, DaqpBackend, OsqpBackend, residual
+from pedas.qp import BACKENDS, DaqpBackend, DaqpCondensedBackend, OsqpBackend, residual
 
 KN = 1000.0  # N per kN: forces inside the QP are in kN
 LU = 1.0  # m per length unit of distances inside the QP (10 m and 0.1 m were tried: more iterations)
@@ -292,8 +292,14 @@ class SparseMpc:
         if backend == "osqp":
             self.qp = OsqpBackend(self.P, self.A, self.q, self.l, self.u, osqp)
         else:
-            eq = np.concatenate([self.rows[k] for k in self.rows if k.startswith(("init_", "dyn_"))])
-            self.qp = DaqpBackend(self.P, self.A, self.l, self.u, np.sort(eq), daqp)
+            eq = np.sort(np.concatenate([self.rows[k] for k in self.rows if k.startswith(("init_", "dyn_"))]))
+            if daqp.formulation == "condensed":      # the states are what the initial and dynamics rows fix
+                states = np.concatenate([self.iv, self.id] + ([self.ir] if follow else []))
+                self.qp = DaqpCondensedBackend(self.P, self.A, self.l, self.u, eq, states, daqp)
+            elif daqp.formulation == "regularised":
+                self.qp = DaqpBackend(self.P, self.A, self.l, self.u, eq, daqp)
+            else:
+                raise ValueError(f"unknown DAQP formulation {daqp.formulation!r}; 'condensed' or 'regularised'")
         self.x_prev: np.ndarray | None = None
         self.last_solve_time = 0.0
         self.last_iter = 0

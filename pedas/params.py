@@ -169,12 +169,15 @@ class OsqpSettings:
 class DaqpSettings:
     """Settings of the DAQP backend (:class:`pedas.qp.DaqpBackend`; see docs/controller.md).
 
-    primal_tol: DAQP's primal feasibility tolerance (QP units: m/s, m, kN); iter_limit: active-set iterations per
-    solve; residual_tol: largest violation of l <= A x <= u a solution may have to be used (QP units); rho: weight of
-    the equality rows folded into the Hessian (H = P + rho A_eq'A_eq); bound: magnitude that replaces an infinite
-    bound (QP units; far beyond any speed, distance or force of a drive).
+    formulation: "condensed" (the states eliminated, :class:`pedas.qp.DaqpCondensedBackend`) or "regularised" (all
+    variables, :class:`pedas.qp.DaqpBackend`); primal_tol: DAQP's primal feasibility tolerance (QP units: m/s, m,
+    kN); iter_limit: active-set iterations per solve; residual_tol: largest violation of l <= A x <= u a solution may
+    have to be used (QP units); rho: weight of the equality rows folded into the Hessian of the regularised
+    formulation (H = P + rho A_eq'A_eq); bound: magnitude that replaces an infinite bound (QP units; far beyond any
+    speed, distance or force of a drive).
     """
 
+    formulation: str = "condensed"
     primal_tol: float = 1e-6
     iter_limit: int = 1000
     residual_tol: float = 1e-5

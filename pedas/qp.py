@@ -171,80 +171,65 @@ class OsqpBackend:
         """Nothing to forget: OSQP's warm start is its previous iterate (kept across drives as before)."""
 
 
-class DaqpBackend:
-    """DAQP on the regularised QP (module docstring), set up once, hot-started from the previous working set.
+class _DaqpBase:
+    """What both DAQP formulations share: the checked solve, the cold retry after a failure, the hot start.
 
-    ``eq_rows``: rows of A that are equalities (l == u always). Rows with a single coefficient 1 become DAQP simple
-    bounds on their variable; the others stay general rows. After any failed solve the working set is cleared and
-    the solve is repeated once from a cold start (a stale working set can make the active-set method fail on a
-    feasible problem); a second failure is reported as such.
+    A subclass sets ``model`` (a set-up ``daqp.Model``), ``_sense0``, ``settings`` and ``_residual`` and implements
+    ``_fill`` (this step's DAQP vectors from q, l, u), ``_primal`` (x in the QP's variables from DAQP's solution) and
+    ``_objective`` (1/2 x'Px + q'x of that x). After any failed solve the working set is cleared and the solve is repeated once from a
+    cold start (a stale working set can make the active-set method fail on a feasible problem); a second failure is
+    reported as such.
     """
 
     name = "daqp"
 
-    def __init__(self, P: sp.csc_matrix, A: sp.csc_matrix, l: np.ndarray, u: np.ndarray, eq_rows: np.ndarray,
-                 settings: DaqpSettings) -> None:
+    def _setup(self, H: np.ndarray, Ag: np.ndarray) -> None:
         import daqp
 
-        self._residual = _CsrProduct(A)
-        self.settings = settings
-        m, nx = A.shape
-        self.bound = float(settings.bound)
-        rho = float(settings.rho)
-        Acsr = sp.csr_matrix(A)
-        nnz = np.diff(Acsr.indptr)
-        single = (nnz == 1) & (Acsr.data[np.minimum(Acsr.indptr[:-1], Acsr.data.size - 1)] == 1.0)
+        self.model = daqp.Model()
+        self.model.setup(np.ascontiguousarray(H), self._f, np.ascontiguousarray(Ag), self._hi, self._lo,
+                         self._sense0)
+        s = self.model.settings
+        s.update(primal_tol=self.settings.primal_tol, iter_limit=self.settings.iter_limit, eps_prox=0.0)
+        self.model.settings = s
+        self._cold = False
+
+    def _bounds(self, A: sp.csr_matrix, eq_rows: np.ndarray, nx: int) -> np.ndarray:
+        """Split the rows of A into DAQP simple bounds (a single coefficient 1: one row per variable) and general
+        rows; set up the gather of [l; -bound; u; +bound] into DAQP's [simple | general] order. Returns the indices
+        of the general rows."""
+        m = A.shape[0]
+        self.bound = float(self.settings.bound)
+        nnz = np.diff(A.indptr)
+        single = (nnz == 1) & (A.data[np.minimum(A.indptr[:-1], A.data.size - 1)] == 1.0)
         # simple bound of variable j: the (only) single-variable row on it, else the sentinel row m (unbounded)
         simple = np.full(nx, m)
         for r in np.flatnonzero(single):
-            j = Acsr.indices[Acsr.indptr[r]]
+            j = A.indices[A.indptr[r]]
             if simple[j] != m:
                 single[r] = False     # a second row on the same variable stays a general row
             else:
                 simple[j] = r
         general = np.flatnonzero(~single)
-        self._perm = np.concatenate([simple, general])       # DAQP constraint i <- row perm[i] of [l; -inf]
+        perm = np.concatenate([simple, general])       # DAQP constraint i <- row perm[i] of [l; -inf]
         is_eq = np.zeros(m + 1, dtype=bool)
         is_eq[eq_rows] = True
-        self._sense0 = np.where(is_eq[self._perm], 5, 0).astype(np.int32)
-        Aeq = sp.csr_matrix(Acsr[eq_rows])
-        self._eq_rows = np.asarray(eq_rows)
-        self._AeqT = _CsrProduct(sp.csr_matrix(Aeq.T) * rho)   # its product kernel computes rho A_eq' b_eq
-        self._rho = rho
-        Pfull = (P + P.T - sp.diags(P.diagonal())).tocsc()
-        self.P = Pfull
-        H = (Pfull + rho * (Aeq.T @ Aeq)).toarray()
-        self.H = np.ascontiguousarray(H)
-        self._Ag = np.ascontiguousarray(Acsr[general].toarray())
+        self._sense0 = np.where(is_eq[perm], 5, 0).astype(np.int32)
         # work vectors, updated in place each solve. [l; -bound; u; +bound] in one buffer: one gather (np.take)
         # builds DAQP's [lower | upper] bounds, one clip bounds them to +-bound
         self._lu = np.empty(2 * (m + 1))
         self._lu_l, self._lu_u = self._lu[:m], self._lu[m + 1:2 * m + 1]
         self._lu[m] = -self.bound
         self._lu[2 * m + 1] = self.bound
-        nb = self._perm.size
-        self._gather = np.concatenate([self._perm, self._perm + m + 1])
+        nb = perm.size
+        self._gather = np.concatenate([perm, perm + m + 1])
         self._lohi = np.empty(2 * nb)
         self._lo, self._hi = self._lohi[:nb], self._lohi[nb:]
-        self._beq = np.empty(self._eq_rows.size)
-        self._beq2 = np.empty(self._eq_rows.size)
-        self._f = np.empty(nx)
-        self._fill(np.zeros(nx), l, u)
-        self.model = daqp.Model()
-        self.model.setup(self.H, self._f, self._Ag, self._hi, self._lo, self._sense0)
-        s = self.model.settings
-        s.update(primal_tol=settings.primal_tol, iter_limit=settings.iter_limit, eps_prox=0.0)
-        self.model.settings = s
-        self._cold = False
+        return general
 
-    def _fill(self, q: np.ndarray, l: np.ndarray, u: np.ndarray) -> None:
-        """f = q - rho A_eq' b_eq and the DAQP bounds (simple bounds first, then general rows), clipped to +-bound."""
-        np.copyto(self._lu_l, l)
-        np.copyto(self._lu_u, u)
+    def _gather_bounds(self) -> None:
         self._lu.take(self._gather, out=self._lohi)
         _clip(self._lohi, -self.bound, self.bound, out=self._lohi)
-        l.take(self._eq_rows, out=self._beq)
-        np.subtract(q, self._AeqT.product(self._beq), out=self._f)
 
     def solve(self, q: np.ndarray, l: np.ndarray, u: np.ndarray) -> QpResult:
         self._fill(q, l, u)
@@ -265,17 +250,16 @@ class DaqpBackend:
             self._cold = False
         else:
             self.model.update(f=self._f, bupper=self._hi, blower=self._lo)
-        x, fval, flag, info = self.model.solve()
+        z, fval, flag, info = self.model.solve()
         iters, run_time = int(info["iterations"]), float(info["solve_time"])
         status = _DAQP_STATUS.get(int(flag), f"daqp exit {int(flag)}")
+        x = None
         if int(flag) in (1, 2):
+            x = self._primal(z) if _finite(z) else None
             status = _postcondition(status, x, lambda: self._residual(l, u, x) <= self.settings.residual_tol)
         if status != "solved":
             return QpResult(status, False, None, float("nan"), iters, run_time)
-        # on A_eq x = b_eq the regularised cost is the true one minus rho/2 |b_eq|^2 (module docstring)
-        beq = self._beq
-        obj = float(fval) + 0.5 * self._rho * float(_sum(np.multiply(beq, beq, out=self._beq2)))
-        return QpResult(status, True, x, obj, iters, run_time)
+        return QpResult(status, True, x, self._objective(float(fval), q, x), iters, run_time)
 
     def warm_start(self, x: np.ndarray, y: np.ndarray | None = None) -> None:
         """A primal guess is no working set: start the next solve cold (used at a hand-over between the MPCs)."""
@@ -284,3 +268,146 @@ class DaqpBackend:
     def cold_start(self) -> None:
         """Clear the working set: the next solve starts from the equality rows only."""
         self._cold = True
+
+
+class DaqpBackend(_DaqpBase):
+    """DAQP on the regularised QP (module docstring): all variables kept, the equality rows folded into the Hessian.
+
+    ``eq_rows``: rows of A that are equalities (l == u always); they stay DAQP equality rows as well.
+    """
+
+    def __init__(self, P: sp.csc_matrix, A: sp.csc_matrix, l: np.ndarray, u: np.ndarray, eq_rows: np.ndarray,
+                 settings: DaqpSettings) -> None:
+        self._residual = _CsrProduct(A)
+        self.settings = settings
+        nx = A.shape[1]
+        rho = float(settings.rho)
+        Acsr = sp.csr_matrix(A)
+        general = self._bounds(Acsr, eq_rows, nx)
+        Aeq = sp.csr_matrix(Acsr[eq_rows])
+        self._eq_rows = np.asarray(eq_rows)
+        self._AeqT = _CsrProduct(sp.csr_matrix(Aeq.T) * rho)   # its product kernel computes rho A_eq' b_eq
+        self._rho = rho
+        self.P = (P + P.T - sp.diags(P.diagonal())).tocsc()
+        self.H = (self.P + rho * (Aeq.T @ Aeq)).toarray()
+        self._beq = np.empty(self._eq_rows.size)
+        self._beq2 = np.empty(self._eq_rows.size)
+        self._f = np.empty(nx)
+        self._fill(np.zeros(nx), l, u)
+        self._setup(self.H, Acsr[general].toarray())
+
+    def _fill(self, q: np.ndarray, l: np.ndarray, u: np.ndarray) -> None:
+        """f = q - rho A_eq' b_eq and the DAQP bounds (simple bounds first, then general rows), clipped to +-bound."""
+        np.copyto(self._lu_l, l)
+        np.copyto(self._lu_u, u)
+        self._gather_bounds()
+        l.take(self._eq_rows, out=self._beq)
+        np.subtract(q, self._AeqT.product(self._beq), out=self._f)
+
+    def _primal(self, z: np.ndarray) -> np.ndarray:
+        return z
+
+    def _objective(self, fval: float, q: np.ndarray, x: np.ndarray) -> float:
+        # on A_eq x = b_eq the regularised cost is the true one minus rho/2 |b_eq|^2 (module docstring)
+        beq = self._beq
+        return fval + 0.5 * self._rho * float(_sum(np.multiply(beq, beq, out=self._beq2)))
+
+
+class DaqpCondensedBackend(_DaqpBase):
+    """DAQP on the condensed QP: the states are eliminated through the equality rows, DAQP sees the inputs only.
+
+    ``basic``: the variables the equality rows ``eq_rows`` determine (as many as rows; for the MPCs the states v,
+    d_ITS, d_rel). Taken in the right order each row fixes one more basic variable (initial state, then the
+    dynamics step by step), so ``x_B = T b_eq + S x_N`` by substitution and every x that meets the equality rows is
+    ``x = E b_eq + Z y`` with ``y = x_N``. The QP in y has the positive-definite Hessian ``Z'PZ`` (no
+    regularisation), ``f = Z'q + Z'PE b_eq`` and the rows ``l - K b_eq <= A_in Z y <= u - K b_eq`` with
+    ``K = A_in E``. ``Z'PZ``, ``Z'PE``, ``A_in Z`` and ``K`` are constant: built once, by elementwise substitution
+    and sparse products (no BLAS: the same bits on every kernel); per step only b_eq, q and the bounds change. The
+    solution is mapped back to x and checked against the full ``l <= A x <= u``, equality rows included.
+    """
+
+    def __init__(self, P: sp.csc_matrix, A: sp.csc_matrix, l: np.ndarray, u: np.ndarray, eq_rows: np.ndarray,
+                 basic: np.ndarray, settings: DaqpSettings) -> None:
+        self._residual = _CsrProduct(A)
+        self.settings = settings
+        Acsr = sp.csr_matrix(A)
+        m, nx = Acsr.shape
+        eq_rows, basic = np.asarray(eq_rows), np.asarray(basic)
+        free = np.setdiff1d(np.arange(nx), basic)
+        ineq = np.setdiff1d(np.arange(m), eq_rows)
+        Aeq = sp.csr_matrix(Acsr[eq_rows])
+        T, S = _substitute(sp.csr_matrix(Aeq[:, basic]), sp.csr_matrix(Aeq[:, free]))
+        Zd = np.zeros((nx, free.size))
+        Zd[basic] = S
+        Zd[free, np.arange(free.size)] = 1.0
+        Ed = np.zeros((nx, eq_rows.size))
+        Ed[basic] = T
+        Z, E = sp.csr_matrix(Zd), sp.csr_matrix(Ed)
+        self.P = sp.csr_matrix(P + P.T - sp.diags(P.diagonal()))
+        ZT = sp.csr_matrix(Z.T)
+        H = (ZT @ self.P @ Z).toarray()
+        self.H = 0.5 * (H + H.T)            # exactly symmetric (the two triangles may differ in the last bit)
+        A_in = sp.csr_matrix(Acsr[ineq] @ Z)
+        A_in.eliminate_zeros()
+        A_in.sort_indices()
+        self._ZT, self._Z, self._E = _CsrProduct(ZT), _CsrProduct(Z), _CsrProduct(E)
+        self._G = _CsrProduct(ZT @ self.P @ E)
+        self._K = _CsrProduct(Acsr[ineq] @ E)
+        self._Px = _CsrProduct(self.P)
+        self._eq_rows, self._ineq = eq_rows, ineq
+        general = self._bounds(A_in, np.zeros(0, dtype=int), free.size)
+        self._beq = np.empty(eq_rows.size)
+        self._lin, self._uin = np.empty(ineq.size), np.empty(ineq.size)
+        self._f = np.empty(free.size)
+        self._w = np.empty(nx)
+        self._fill(np.zeros(nx), l, u)
+        self._setup(self.H, A_in[general].toarray())
+
+    def _fill(self, q: np.ndarray, l: np.ndarray, u: np.ndarray) -> None:
+        """f = Z'q + Z'PE b_eq and the shifted inequality bounds (simple first, then general), clipped to +-bound."""
+        beq = l.take(self._eq_rows, out=self._beq)
+        np.add(self._ZT.product(q), self._G.product(beq), out=self._f)
+        shift = self._K.product(beq)
+        np.subtract(l.take(self._ineq, out=self._lin), shift, out=self._lu_l)
+        np.subtract(u.take(self._ineq, out=self._uin), shift, out=self._lu_u)
+        self._gather_bounds()
+
+    def _primal(self, z: np.ndarray) -> np.ndarray:
+        """x = E b_eq + Z y, a new array (the plan keeps it)."""
+        return np.add(self._E.product(self._beq), self._Z.product(z))
+
+    def _objective(self, fval: float, q: np.ndarray, x: np.ndarray) -> float:
+        # evaluated at x itself: DAQP's fval lacks the constant terms of the eliminated states
+        px = self._Px.product(x)
+        return 0.5 * float(_sum(np.multiply(x, px, out=self._w))) + float(_sum(np.multiply(q, x, out=self._w)))
+
+
+def _substitute(AB: sp.csr_matrix, AN: sp.csr_matrix) -> tuple[np.ndarray, np.ndarray]:
+    """``T = AB^-1`` and ``S = -AB^-1 AN`` for a square AB that is triangular up to a permutation (taken in some
+    order, each row has exactly one column not yet solved). Forward substitution on the rows of ``[I | -AN]``,
+    elementwise operations only. Raises ValueError for any other AB."""
+    n = AB.shape[0]
+    rhs = np.hstack([np.eye(n), -AN.toarray()])
+    X = np.zeros_like(rhs)             # row c: basic variable c as a linear function of [b_eq | x_N]
+    known = np.zeros(n, dtype=bool)
+    pending = list(range(n))
+    while pending:
+        rest = []
+        for r in pending:
+            cols = AB.indices[AB.indptr[r]:AB.indptr[r + 1]]
+            vals = AB.data[AB.indptr[r]:AB.indptr[r + 1]]
+            unknown = [k for k, c in enumerate(cols) if not known[c]]
+            if len(unknown) != 1:
+                rest.append(r)
+                continue
+            k = unknown[0]
+            row = rhs[r].copy()
+            for c, a in zip(cols, vals):
+                if known[c]:
+                    row -= a * X[c]
+            X[cols[k]] = row / vals[k]
+            known[cols[k]] = True
+        if len(rest) == len(pending):
+            raise ValueError("the equality rows are not triangular in the basic variables")
+        pending = rest
+    return X[:, :n], X[:, n:]

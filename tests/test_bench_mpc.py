@@ -11,7 +11,8 @@ from pedas_study.bench.mpc import run_bench
 @pytest.mark.parametrize("backend", ["daqp", "osqp"])
 def test_run_bench_small(backend):
     res = run_bench(steps=120, peer_steps=4, seed=1, backend=backend)
-    assert res.backend == backend and res.steps == 120 and res.peer_steps == 4
+    label = "daqp (condensed)" if backend == "daqp" else backend
+    assert res.backend == label and res.steps == 120 and res.peer_steps == 4
     assert 0 < res.median_ms <= res.p95_ms <= res.p99_ms <= res.max_ms
     assert res.peer_median_ms > 0 and res.ratio > 0
     # both backends agree with Clarabel at 1e-10 on the benchmark's steps: OSQP within its 1e-3 contract, DAQP exactly
@@ -20,14 +21,14 @@ def test_run_bench_small(backend):
     assert sum(res.statuses.values()) == 120
     assert res.controller_share["rt"] + res.controller_share["cf"] == 120
     assert ("eps_abs" if backend == "osqp" else "primal_tol") in res.settings
-    assert "ratio" in res.to_text() and f"[{backend}]" in res.to_text()
+    assert "ratio" in res.to_text() and f"[{label}]" in res.to_text()
 
 
 def test_cli_bench_mpc_json(cli):
     r = cli("bench", "mpc", "--json", "--steps", "60", "--peer-steps", "2")
     assert r.code == 0, r.err
     out = json.loads(r.out)
-    assert sorted(out) == ["daqp", "osqp"]
+    assert sorted(out) == ["daqp (condensed)", "daqp (regularised)", "osqp"]
     for res in out.values():
         assert res["steps"] == 60 and res["peer_steps"] == 2
         for key in ("median_ms", "p95_ms", "p99_ms", "max_ms", "peer_median_ms", "ratio"):

@@ -10,7 +10,7 @@ import pytest
 from pedas.mpc import KN, solve_qp_cvxpy, vehicle_model
 from pedas.mpc_rt import ReferenceTrackingMpc
 from pedas.params import CONTROLLER, OsqpSettings
-from pedas.qp import DaqpBackend, OsqpBackend
+from pedas.qp import DaqpBackend, DaqpCondensedBackend, OsqpBackend, _substitute
 
 REF_TOL = 1e-10
 OBJ_TOL = 1e-6   # relative objective gap |f - f_ref| / max(1, |f_ref|)
@@ -57,13 +57,22 @@ def _selection(steps) -> list[int]:
     return sorted(sel)
 
 
+def _states(mpc) -> np.ndarray:
+    return np.concatenate([mpc.iv, mpc.id] + ([mpc.ir] if mpc.follow else []))
+
+
 def _backend(kind: str, mpc):
-    if kind == "daqp":
+    if kind == "daqp-condensed":
+        return DaqpCondensedBackend(mpc.P, mpc.A, mpc.l, mpc.u, mpc.qp._eq_rows, _states(mpc), CONTROLLER.daqp)
+    if kind == "daqp-regularised":
         return DaqpBackend(mpc.P, mpc.A, mpc.l, mpc.u, mpc.qp._eq_rows, CONTROLLER.daqp)
     return OsqpBackend(mpc.P, mpc.A, mpc.q, mpc.l, mpc.u, OSQP_TIGHT)
 
 
-@pytest.mark.parametrize("kind", ["daqp", "osqp"])
+DAQP_KINDS = ["daqp-condensed", "daqp-regularised"]
+
+
+@pytest.mark.parametrize("kind", DAQP_KINDS + ["osqp"])
 def test_recorded_qps_agree_with_clarabel(recorded, kind):
     steps, mpcs = recorded
     sel = set(_selection(steps))
@@ -94,9 +103,10 @@ def test_recorded_qps_agree_with_clarabel(recorded, kind):
     assert worst_gap <= OBJ_TOL and worst_u0 <= U0_TOL, (worst_gap, worst_u0)
 
 
-def test_daqp_is_exact_to_1e_8_with_production_settings(recorded):
+@pytest.mark.parametrize("kind", DAQP_KINDS)
+def test_daqp_is_exact_to_1e_8_with_production_settings(recorded, kind):
     steps, mpcs = recorded
-    be = {follow: _backend("daqp", m) for follow, m in mpcs.items()}
+    be = {follow: _backend(kind, m) for follow, m in mpcs.items()}
     gaps = []
     for i, (follow, q, l, u, ok) in enumerate(steps):
         res = be[follow].solve(q, l, u)
@@ -112,11 +122,12 @@ def test_daqp_is_exact_to_1e_8_with_production_settings(recorded):
 
 
 def test_the_reported_objective_is_the_true_one():
-    """DAQP solves the regularised QP; the objective it reports is mapped back to 1/2 x'Px + q'x (+ constant)."""
+    """DAQP solves the condensed or the regularised QP; the objective reported is 1/2 x'Px + q'x (+ constant) of
+    the full QP."""
     m = vehicle_model()
     N = 20
-    for backend in ("daqp", "osqp"):
-        rt = ReferenceTrackingMpc(m, backend=backend)
+    for backend, form in (("daqp", "condensed"), ("daqp", "regularised"), ("osqp", "condensed")):
+        rt = ReferenceTrackingMpc(m, backend=backend, daqp=dataclasses.replace(CONTROLLER.daqp, formulation=form))
         plan = rt.plan(8.0, np.full(N, 12.0), np.zeros(N), np.full(N, 30.0), np.zeros(N))
         assert plan.ok
         f = _objective(rt.P, rt.q, plan.x) + rt.const
@@ -132,6 +143,8 @@ def test_an_unchecked_solution_never_reaches_the_plan(monkeypatch):
     rt = ReferenceTrackingMpc(m, backend="daqp")
     assert rt.plan(*args).ok
     real = rt.qp.model
+    # (the condensed formulation maps DAQP's y back to x = E b_eq + Z y: lie about y so that x is what we want)
+    to_y = lambda x: x[np.setdiff1d(np.arange(rt.nx), _states(rt))]  # noqa: E731
 
     class Lying:
         def __init__(self, x):
@@ -142,10 +155,11 @@ def test_an_unchecked_solution_never_reaches_the_plan(monkeypatch):
 
         def solve(self):
             self.calls += 1
-            return self.x.copy(), 0.0, 1, {"iterations": 1, "solve_time": 0.0}
+            return to_y(self.x), 0.0, 1, {"iterations": 1, "solve_time": 0.0}
 
     x_ok = rt.x_prev.copy()
-    for bad, why in ((np.full_like(x_ok, np.nan), "non-finite"), (x_ok + 1.0, "residual")):
+    # +100 kN on every force: far above F_b,max, whatever the states become
+    for bad, why in ((np.full_like(x_ok, np.nan), "non-finite"), (x_ok + 100.0, "residual")):
         rt.qp.model = Lying(bad)
         plan = rt.plan(*args)
         assert not plan.ok and plan.v is None and plan.status.startswith("rejected:solved:")
@@ -185,6 +199,35 @@ def test_backend_is_a_controller_setting():
         assert adv.solve_status == "solved" and not adv.fallback
     with pytest.raises(ValueError, match="QP backend"):
         PedasController(Route.synthetic(length=600.0), settings=dataclasses.replace(CONTROLLER, qp_backend="x"))
+    with pytest.raises(ValueError, match="DAQP formulation"):
+        PedasController(Route.synthetic(length=600.0), settings=dataclasses.replace(
+            CONTROLLER, daqp=dataclasses.replace(CONTROLLER.daqp, formulation="dense")))
+
+
+def test_condensing_by_substitution_hand_worked():
+    """x0 = b0; x1 - 2 x0 - y = b1  (rows in reverse order: the substitution finds the order itself):
+    x0 = b0, x1 = 2 b0 + b1 + y, so T = [[1, 0], [2, 1]] and S = [[0], [1]]."""
+    import scipy.sparse as sp
+
+    AB = sp.csr_matrix(np.array([[-2.0, 1.0], [1.0, 0.0]]))   # row 0: x1 - 2 x0, row 1: x0
+    AN = sp.csr_matrix(np.array([[-1.0], [0.0]]))
+    T, S = _substitute(AB, AN)
+    # T maps [b_row0, b_row1] -> (x0, x1): x0 = b_row1, x1 = b_row0 + 2 b_row1
+    assert T.tolist() == [[0.0, 1.0], [1.0, 2.0]] and S.tolist() == [[0.0], [1.0]]
+    with pytest.raises(ValueError, match="not triangular"):
+        _substitute(sp.csr_matrix(np.array([[1.0, 1.0], [1.0, -1.0]])), AN)
+
+
+def test_both_daqp_formulations_give_the_same_plan():
+    """The condensed and the regularised QP have the same minimiser: plans agree to 1e-9 m/s and 1e-6 kN."""
+    m = vehicle_model()
+    N = 20
+    args = (8.0, np.linspace(9.0, 14.0, N), np.zeros(N), np.full(N, 13.0), np.full(N, 0.02))
+    plans = [ReferenceTrackingMpc(m, daqp=dataclasses.replace(CONTROLLER.daqp, formulation=f)).plan(*args)
+             for f in ("condensed", "regularised")]
+    assert all(p.ok for p in plans)
+    assert np.max(np.abs(plans[0].v - plans[1].v)) < 1e-9
+    assert np.max(np.abs(plans[0].ft - plans[1].ft)) < 1e-3   # N
 
 
 @pytest.mark.sumo

@@ -94,9 +94,10 @@ def bench_route():
 
 
 def run_bench(steps: int = 5000, peer_steps: int = 300, seed: int = 0, osqp_settings: dict | None = None,
-              backend: str | None = None) -> BenchResult:
+              backend: str | None = None, daqp_formulation: str | None = None) -> BenchResult:
     """Run the drive-like sequence for `steps` controller steps (restarting the route when it ends) with one QP
-    backend (default: the controller's, ``CONTROLLER.qp_backend``)."""
+    backend (default: the controller's, ``CONTROLLER.qp_backend``) and, for DAQP, one formulation (default: the
+    controller's, ``CONTROLLER.daqp.formulation``)."""
     import dataclasses
 
     from pedas.controller import PedasController
@@ -114,6 +115,9 @@ def run_bench(steps: int = 5000, peer_steps: int = 300, seed: int = 0, osqp_sett
     route = bench_route()
     dp = dp_reference(route)
     settings = dataclasses.replace(CONTROLLER, qp_backend=backend)
+    if daqp_formulation:
+        settings = dataclasses.replace(settings, daqp=dataclasses.replace(settings.daqp, formulation=daqp_formulation))
+    label = f"{backend} ({settings.daqp.formulation})" if backend == "daqp" else backend
     ctrl = PedasController(route, v_dp=dp, settings=settings, osqp_settings=osqp_settings)
     step_t = np.empty(steps)
     solve_t = []
@@ -178,7 +182,7 @@ def run_bench(steps: int = 5000, peer_steps: int = 300, seed: int = 0, osqp_sett
     peer_med = float(np.median(peer_t) * 1e3) if peer_t else float("nan")
     used = ctrl.settings.osqp.as_dict() if backend == "osqp" else dataclasses.asdict(ctrl.settings.daqp)
     return BenchResult(
-        backend=backend, steps=steps, median_ms=med, p95_ms=float(np.percentile(ms, 95)),
+        backend=label, steps=steps, median_ms=med, p95_ms=float(np.percentile(ms, 95)),
         p99_ms=float(np.percentile(ms, 99)), max_ms=float(ms.max()), solve_median_ms=float(np.median(solve_t)) * 1e3,
         solve_p99_ms=float(np.percentile(solve_t, 99)) * 1e3, peer_steps=len(peer_t), peer_median_ms=peer_med,
         ratio=peer_med / med if peer_t else float("nan"), obj_gap_max=float(max(gaps)) if gaps else float("nan"),
@@ -192,10 +196,14 @@ def run_bench(steps: int = 5000, peer_steps: int = 300, seed: int = 0, osqp_sett
 
 
 def run_bench_all(steps: int = 5000, peer_steps: int = 300, seed: int = 0) -> dict[str, BenchResult]:
-    """:func:`run_bench` for every QP backend (same sequence seed), in :data:`pedas.qp.BACKENDS` order."""
-    from pedas.qp import BACKENDS
-
-    return {b: run_bench(steps=steps, peer_steps=peer_steps, seed=seed, backend=b) for b in BACKENDS}
+    """:func:`run_bench` for every QP backend and DAQP formulation (same sequence seed), keyed by the result's label:
+    DAQP condensed, DAQP regularised, OSQP."""
+    runs = [("daqp", "condensed"), ("daqp", "regularised"), ("osqp", None)]
+    out = {}
+    for backend, form in runs:
+        res = run_bench(steps=steps, peer_steps=peer_steps, seed=seed, backend=backend, daqp_formulation=form)
+        out[res.backend] = res
+    return out
 
 
 def _objective(P, q, x) -> float:
