@@ -15,6 +15,10 @@ REPO = Path(__file__).resolve().parents[1]
 PAPER_STUDY = REPO / "studies" / "pedas_paper"
 LK_STUDY = REPO / "studies" / "lane_keeping"
 OUTPUT = REPO / "tests" / "output"  # screenshots and other artefacts a person may want to look at
+CHROMIUM = Path(os.environ.get("PEDAS_CHROMIUM", "/usr/bin/chromium"))
+# the browser tests: under CI a missing browser fails them instead of skipping them (.ci/run installs it)
+needs_chromium = pytest.mark.skipif(not CHROMIUM.exists() and not os.environ.get("CI"),
+                                    reason="needs Debian's chromium at /usr/bin/chromium (apt-get install chromium)")
 
 
 @dataclass
@@ -77,3 +81,16 @@ def cli_proc(tmp_db):
         return CliResult(p.returncode, p.stdout, p.stderr)
 
     return run
+
+
+@pytest.fixture(scope="module")
+def browser():
+    """Debian's headless Chromium through Playwright (pedas.hud_png.launch: the HUD figures' browser settings)."""
+    from playwright.sync_api import sync_playwright
+
+    from pedas.hud_png import launch
+
+    with sync_playwright() as p:
+        b = launch(p)
+        yield b
+        b.close()

@@ -6,7 +6,6 @@ tests/output/console/. The store is checked after the server has stopped, throug
 from __future__ import annotations
 
 import io
-import os
 import re
 import zipfile
 from datetime import date, datetime, timedelta
@@ -19,7 +18,8 @@ import pytest
 from study.store import Store
 from study.webapp import SurveyServer, create_app
 from tests.test_drive_import import make_drive
-from tests.test_webform_browser import ARGS, CHROMIUM, SCALED, pick_by_click, wait_saved
+from tests.conftest import needs_chromium
+from tests.test_webform_browser import SCALED, pick_by_click, wait_saved
 
 SHOTS = Path(__file__).resolve().parent / "output" / "console"
 PASSWORD = "console pw for tests"
@@ -32,19 +32,8 @@ def slot() -> str:
 
 pytestmark = [
     pytest.mark.browser,
-    pytest.mark.skipif(not CHROMIUM.exists() and not os.environ.get("CI"),
-                       reason="needs Debian's chromium at /usr/bin/chromium (apt-get install chromium)"),
+    needs_chromium,
 ]
-
-
-@pytest.fixture(scope="module")
-def browser():
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as p:
-        b = p.chromium.launch(executable_path=str(CHROMIUM), args=ARGS)
-        yield b
-        b.close()
 
 
 @pytest.fixture

@@ -2,21 +2,19 @@
 the arrow's length follows arrow_len, the warning tone sounds once per warning, and `hud fig7` writes the PNGs."""
 from __future__ import annotations
 
-import os
 import shutil
-from pathlib import Path
 
 import pytest
 
 from pedas.hud_frame import FIG7, fig7_frames
+from tests.conftest import OUTPUT as OUTPUT_ROOT
+from tests.conftest import needs_chromium
 
-CHROMIUM = Path("/usr/bin/chromium")
-OUTPUT = Path(__file__).resolve().parent / "output" / "hud"
+OUTPUT = OUTPUT_ROOT / "hud"
 
 pytestmark = [
     pytest.mark.browser,
-    pytest.mark.skipif(not CHROMIUM.exists() and not os.environ.get("CI"),
-                       reason="needs Debian's chromium at /usr/bin/chromium (apt-get install chromium)"),
+    needs_chromium,
 ]
 
 

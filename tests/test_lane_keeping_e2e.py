@@ -19,13 +19,9 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-REPO = Path(__file__).resolve().parents[1]
-LK_STUDY = REPO / "studies" / "lane_keeping"
+from tests.conftest import LK_STUDY, OUTPUT, REPO, needs_chromium
+
 LK_DATA = REPO / "tests" / "data" / "lane_keeping"
-OUTPUT = REPO / "tests" / "output"
-CHROMIUM = Path("/usr/bin/chromium")
-ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-        "--disable-background-networking", "--disable-component-update", "--disable-sync"]
 ITEMS = [f"{c}{k}" for c in ("PE", "EE", "SI", "BI") for k in (1, 2, 3)]
 DROPOUT = "LK-24"          # motion sickness in the first drive: excluded from all analyses, no questionnaire
 WEB = "LK-01"              # answers in the web form; everyone else on paper (CSV import)
@@ -33,8 +29,7 @@ WEB = "LK-01"              # answers in the web form; everyone else on paper (CS
 pytestmark = [
     pytest.mark.slow,
     pytest.mark.browser,
-    pytest.mark.skipif(not CHROMIUM.exists() and not os.environ.get("CI"),
-                       reason="needs Debian's chromium at /usr/bin/chromium (apt-get install chromium)"),
+    needs_chromium,
 ]
 
 
@@ -85,8 +80,10 @@ def _fill_web_form(link: str, answers: dict, age: int) -> None:
     """Open the participant's link in Chromium, answer age and the 12 items by clicking, submit."""
     from playwright.sync_api import expect, sync_playwright
 
+    from pedas.hud_png import launch
+
     with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=str(CHROMIUM), args=ARGS)
+        browser = launch(p)
         try:
             page = browser.new_page(viewport={"width": 1024, "height": 768})
             page.goto(link)

@@ -17,9 +17,8 @@ import pytest
 
 from pedas.live import LiveRoute, LiveSession
 from pedas.live_protocol import ProtocolError, decode, parse_state
-from tests.conftest import OUTPUT, REPO
+from tests.conftest import OUTPUT, REPO, needs_chromium
 
-CHROMIUM = Path("/usr/bin/chromium")
 
 
 @pytest.fixture(scope="module")
@@ -231,8 +230,7 @@ def test_udp_session_logs_a_complete_drive(paper_db):
 
 
 @pytest.mark.browser
-@pytest.mark.skipif(not CHROMIUM.exists() and not os.environ.get("CI"),
-                    reason="needs Debian's chromium at /usr/bin/chromium")
+@needs_chromium
 def test_hud_page_in_chromium_follows_the_advice():
     """The server's full-screen HUD page (/) draws each frame the simulator's states produce."""
     from playwright.sync_api import expect, sync_playwright

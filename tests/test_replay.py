@@ -4,7 +4,6 @@ simulated drives end to end (slow)."""
 from __future__ import annotations
 
 import json
-import os
 import re
 from pathlib import Path
 
@@ -15,11 +14,8 @@ import pytest
 from analysis.replay import ReplayDrive, log_frames, page_data
 from pedas.constants import KMH
 from pedas.route import Route, StopSign, TrafficLight
-from tests.conftest import OUTPUT
+from tests.conftest import OUTPUT, needs_chromium
 
-CHROMIUM = Path("/usr/bin/chromium")
-needs_chromium = pytest.mark.skipif(not CHROMIUM.exists() and not os.environ.get("CI"),
-                                    reason="needs Debian's chromium at /usr/bin/chromium")
 
 
 def log(n: int = 50, condition: str = "pedas") -> pd.DataFrame:
@@ -124,18 +120,6 @@ def test_serve_gives_the_page_and_nothing_else(two_drives, tmp_path):
     finally:
         proc.send_signal(signal.SIGINT)
         assert proc.wait(timeout=30) == 0
-
-
-@pytest.fixture(scope="module")
-def browser():
-    from playwright.sync_api import sync_playwright
-
-    from pedas.hud_png import launch
-
-    with sync_playwright() as p:
-        b = launch(p)
-        yield b
-        b.close()
 
 
 def slide(page, t: float) -> None:

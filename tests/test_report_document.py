@@ -5,7 +5,6 @@ headless Chromium (Playwright): headings in order, every image loaded, tables vi
 from __future__ import annotations
 
 import html
-import os
 import re
 from html.parser import HTMLParser
 from pathlib import Path
@@ -14,14 +13,12 @@ import pandas as pd
 import pytest
 
 from analysis.document import SECTIONS, markdown_to_html
+from tests.conftest import needs_chromium
 
 REPO = Path(__file__).resolve().parents[1]
 LK_STUDY = REPO / "studies" / "lane_keeping"
 LK_DATA = REPO / "tests" / "data" / "lane_keeping"
 OUTPUT = REPO / "tests" / "output"
-CHROMIUM = Path("/usr/bin/chromium")
-ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-        "--disable-background-networking", "--disable-component-update", "--disable-sync"]
 
 
 def run(db: Path, *args) -> None:
@@ -145,33 +142,25 @@ def test_markdown_cells_and_text_are_escaped():
 
 
 @pytest.mark.browser
-@pytest.mark.skipif(not CHROMIUM.exists() and not os.environ.get("CI"),
-                    reason="needs Debian's chromium at /usr/bin/chromium (apt-get install chromium)")
-def test_document_in_chromium(lk_report):
-    from playwright.sync_api import sync_playwright
-
+@needs_chromium
+def test_document_in_chromium(lk_report, browser):
     out, _ = lk_report
     OUTPUT.mkdir(exist_ok=True)
     shot = OUTPUT / "report_document.png"
     shot.unlink(missing_ok=True)
-    with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=str(CHROMIUM), args=ARGS)
-        try:
-            page = browser.new_page(viewport={"width": 1280, "height": 900})
-            page.goto((out / "index.html").as_uri())
-            page.wait_for_load_state("load")
-            headings = page.eval_on_selector_all("h1, h2", "els => els.map(e => e.tagName + ' ' + e.textContent)")
-            assert headings == ["H1 Acceptance of a lane-keeping head-up display"] + [f"H2 {s}" for s in SECTIONS]
-            images = page.eval_on_selector_all("img", "els => els.map(e => [e.getAttribute('src'), e.complete, "
-                                                      "e.naturalWidth])")
-            assert len(images) == 2 and all(done and width > 0 for _, done, width in images), images
-            tables = page.locator("table")
-            assert tables.count() >= 10
-            for k in range(tables.count()):
-                assert tables.nth(k).is_visible(), k
-            width = page.evaluate("[document.documentElement.scrollWidth, document.documentElement.clientWidth]")
-            assert width[0] <= width[1] == 1280, width
-            page.screenshot(path=str(shot), full_page=True)
-        finally:
-            browser.close()
+    page = browser.new_page(viewport={"width": 1280, "height": 900})
+    page.goto((out / "index.html").as_uri())
+    page.wait_for_load_state("load")
+    headings = page.eval_on_selector_all("h1, h2", "els => els.map(e => e.tagName + ' ' + e.textContent)")
+    assert headings == ["H1 Acceptance of a lane-keeping head-up display"] + [f"H2 {s}" for s in SECTIONS]
+    images = page.eval_on_selector_all("img", "els => els.map(e => [e.getAttribute('src'), e.complete, "
+                                              "e.naturalWidth])")
+    assert len(images) == 2 and all(done and width > 0 for _, done, width in images), images
+    tables = page.locator("table")
+    assert tables.count() >= 10
+    for k in range(tables.count()):
+        assert tables.nth(k).is_visible(), k
+    width = page.evaluate("[document.documentElement.scrollWidth, document.documentElement.clientWidth]")
+    assert width[0] <= width[1] == 1280, width
+    page.screenshot(path=str(shot), full_page=True)
     assert shot.stat().st_size > 10_000

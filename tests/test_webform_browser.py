@@ -4,8 +4,6 @@ participant's answers; paper forms typed in twice with one deliberate discrepanc
 lane-keeping study's 7-point form filled and submitted."""
 from __future__ import annotations
 
-import os
-from pathlib import Path
 
 import pytest
 
@@ -14,32 +12,16 @@ from study.definition import load
 from study.participants import add_participant, participant_attributes
 from study.store import Store
 from study.webapp import SurveyServer, create_app
-from tests.conftest import LK_STUDY, PAPER_STUDY
+from tests.conftest import LK_STUDY, OUTPUT, PAPER_STUDY, needs_chromium
 
-CHROMIUM = Path("/usr/bin/chromium")
-ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-        "--disable-background-networking", "--disable-component-update", "--disable-sync"]
-OUTPUT = Path(__file__).resolve().parent / "output"
 INS = load(PAPER_STUDY).instrument()
 SCALED = INS.scaled_items
 PASSWORD = "pw for tests"
 
 pytestmark = [
     pytest.mark.browser,
-    # under CI a missing browser fails the tests instead of skipping them: .ci/run installs it
-    pytest.mark.skipif(not CHROMIUM.exists() and not os.environ.get("CI"),
-                       reason="needs Debian's chromium at /usr/bin/chromium (apt-get install chromium)"),
+    needs_chromium,
 ]
-
-
-@pytest.fixture(scope="module")
-def browser():
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as p:
-        b = p.chromium.launch(executable_path=str(CHROMIUM), args=ARGS)
-        yield b
-        b.close()
 
 
 def serve(db, participants: dict[str, dict]):
