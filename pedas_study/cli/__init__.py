@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import logging
 import os
 import sys
 import traceback
@@ -33,6 +34,7 @@ COMMAND_MODULES: tuple[str, ...] = tuple(f"pedas_study.cli.{name}" for name in (
     "bench",                                                           # benchmarks
 ))
 
+LOG_ENV = "PEDAS_STUDY_LOG"
 Handler = Callable[[argparse.Namespace], "int | None"]
 
 
@@ -152,6 +154,8 @@ def _silence_stdout() -> None:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run `pedas-study` with `argv` (default: the process arguments); the exit code."""
     try:
+        if os.environ.get(LOG_ENV):  # e.g. info: how long a command waited for a store another process held
+            logging.basicConfig(level=os.environ[LOG_ENV].upper(), format="pedas-study: %(message)s", force=True)
         args = build_parser().parse_args(argv)
         code = args.func(args)
         sys.stdout.flush()  # a closed pipe shows here, inside the handling below, not at interpreter exit

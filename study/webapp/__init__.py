@@ -5,8 +5,9 @@
 * researcher mode ``/r/`` (:mod:`study.webapp.researcher`): password + name, links, paper-form double entry,
   discrepancies, resolutions.
 
-The app owns ONE store connection and serialises every request's use of it with one lock
-(:mod:`study.webapp.context`); :class:`SurveyServer` runs it on a threaded werkzeug server.
+The app opens the store only while a request uses it, one request at a time, so CLI commands can work on the
+same file between requests (:mod:`study.webapp.context`, docs/store.md); :class:`SurveyServer` runs it on a
+threaded werkzeug server.
 """
 from __future__ import annotations
 
@@ -18,7 +19,7 @@ from flask import Flask, render_template, request, session
 from study.errors import UserError
 from study.instrument import is_scaled
 from study.webapp import participant, researcher
-from study.webapp.context import new_state
+from study.webapp.context import install, new_state
 from study.webapp.server import SurveyServer
 
 __all__ = ["create_app", "SurveyServer"]
@@ -49,8 +50,9 @@ def check_renderable(ins) -> None:
 
 def create_app(st, researcher_password: str, instrument: str | None = None,
                secret_key: str | None = None) -> Flask:
-    """The Flask app over an open, writable Store `st` (the app serialises all access to it), showing the store's
-    study (title, description) and `instrument` (None = the study's)."""
+    """The Flask app over the store of the open, writable Store `st`, showing the store's study (title,
+    description) and `instrument` (None = the study's). Requests open the store's file themselves (as `st`'s
+    actor); `st` may be closed once the app is made."""
     from study.studies import definition
     from study.survey import instrument_of
 
@@ -63,6 +65,7 @@ def create_app(st, researcher_password: str, instrument: str | None = None,
     app.config.update(SECRET_KEY=secret_key or secrets.token_hex(32), SESSION_COOKIE_SAMESITE="Strict",
                       SESSION_COOKIE_HTTPONLY=True, MAX_CONTENT_LENGTH=256 * 1024)
     app.extensions["survey"] = new_state(st, ins, researcher_password)
+    install(app)
     app.jinja_env.globals.update(instrument=ins, study=study, widget=widget)
     app.register_blueprint(participant.bp)
     app.register_blueprint(researcher.bp)
