@@ -69,9 +69,11 @@ def instrument_of(st, name: str | None = None) -> Instrument:
     Unknown name -> UserError listing the study's instruments.
     """
     from study.definition import StudyError, from_files
+    from study.errors import check_name
     from study.studies import definition
 
     study = definition(st)
+    check_name("instrument", name, study.instruments)
     if name is None or name in study.instruments:
         return study.instrument(name)
     cache = st.__dict__.setdefault("_earlier_instruments", {})
