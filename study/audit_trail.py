@@ -14,6 +14,8 @@ from datetime import date, datetime, time, timedelta, timezone
 from decimal import Decimal
 from typing import Any
 
+from study.errors import UserError
+
 ACTOR_ENV = "PEDAS_STUDY_ACTOR"
 
 
@@ -39,13 +41,11 @@ def utcnow() -> datetime:
     return datetime.now(timezone.utc).replace(tzinfo=None)
 
 
-def not_in_future(at: datetime, what: str = "time") -> datetime:
+def not_in_future(at: datetime) -> datetime:
     """`at` (naive UTC) unless it is later than now + :data:`CLOCK_SKEW` -> UserError."""
-    from study.errors import UserError
-
     now = utcnow()
     if at > now + CLOCK_SKEW:
-        raise UserError(f"{what} {at:%Y-%m-%d %H:%M:%S} is in the future (now {now:%Y-%m-%d %H:%M:%S} UTC; at most "
+        raise UserError(f"time {at:%Y-%m-%d %H:%M:%S} is in the future (now {now:%Y-%m-%d %H:%M:%S} UTC; at most "
                         f"{CLOCK_SKEW.total_seconds() / 60:g} min ahead is accepted as clock difference)")
     return at
 

@@ -380,6 +380,18 @@ def plausibility(frame: pd.DataFrame, labels: dict[str, str] | None = None, rate
     out = []
     t, s, v = (frame[c].to_numpy(dtype="float64") for c in ("t", "s", "v"))
     dt = np.diff(t)
+    if rate_hz is not None and dt.size:
+        med, want = float(np.median(dt)), 1.0 / rate_hz
+        if abs(med / want - 1.0) > RATE_TOLERANCE:
+            out.append(f"{lab('t')} rows 1-{len(t)}: median sampling interval {med:.6g} s, but the log mapping "
+                       f"declares {rate_hz:g} Hz ({want:.6g} s){_hint(med / want)}")
+    if dt.size and not out:  # the declared rate's message says more
+        med, (lo, hi) = float(np.median(dt)), SAMPLING_S
+        if not lo <= med <= hi:
+            unit = (": looks like a time in ms read as s" if lo <= med / 1000 <= hi else
+                    ": looks like a time in s read as ms" if lo <= med * 1000 <= hi else "")
+            out.append(f"{lab('t')} rows 1-{len(t)}: median sampling interval {med:.6g} s outside {lo:g}-{hi:g} s"
+                       f"{unit}")
     for col, (bound, unit, what) in MAGNITUDES.items():
         if col in frame.columns:
             x = pd.to_numeric(frame[col], errors="coerce").to_numpy(dtype="float64", na_value=np.nan)
@@ -387,18 +399,6 @@ def plausibility(frame: pd.DataFrame, labels: dict[str, str] | None = None, rate
             if i is not None:
                 out.append(f"{lab(col)} row {_row(i)}: {what} {x[i]:g} {unit} beyond ±{bound:g} {unit} "
                            f"(implausible for a passenger car)")
-    if rate_hz is not None and dt.size:
-        med, want = float(np.median(dt)), 1.0 / rate_hz
-        if abs(med / want - 1.0) > RATE_TOLERANCE:
-            out.append(f"{lab('t')} rows 1-{len(t)}: median sampling interval {med:.6g} s, but the log mapping "
-                       f"declares {rate_hz:g} Hz ({want:.6g} s){_hint(med / want)}")
-    if dt.size and not out:
-        med, (lo, hi) = float(np.median(dt)), SAMPLING_S
-        if not lo <= med <= hi:
-            unit = (": looks like a time in ms read as s" if lo <= med / 1000 <= hi else
-                    ": looks like a time in s read as ms" if lo <= med * 1000 <= hi else "")
-            out.append(f"{lab('t')} rows 1-{len(t)}: median sampling interval {med:.6g} s outside {lo:g}-{hi:g} s"
-                       f"{unit}")
     i = _first(dt > max_gap_s)
     if i is not None:
         out.append(f"{lab('t')} row {_row(i + 1)}: gap of {dt[i]:g} s after t = {t[i]:g} s (largest allowed "

@@ -23,7 +23,7 @@ free text that can carry names is dropped (notes, people's names: entered_by, ac
 route name, free-text answers and resolutions, the reason given for a forced import, the drive log's checksum
 that leads back to the raw file); the audit log (which repeats exact values), the long attribute table,
 appointments, survey link tokens and drafts and any table this module does not know are left out (listed in the
-manifest). docs/survey.md lists what stays and why.
+manifest). docs/store.md ("Exports") lists what stays and why.
 """
 from __future__ import annotations
 
@@ -257,12 +257,13 @@ def first_events(frames: dict[str, pd.DataFrame]) -> pd.Series:
     return pd.concat(parts).dropna().groupby("participant_id")["at"].min()
 
 
-def relative_times(df: pd.DataFrame, origins: pd.Series) -> pd.DataFrame:
+def relative_times(df: pd.DataFrame, origins: pd.Series | None) -> pd.DataFrame:
     """Each timestamp column ``<col>`` replaced in place by ``<col>_s``: seconds after the row's participant's first
-    event (`origins`, :func:`first_events`); without a participant_id column the timestamps are dropped."""
+    event (`origins`, :func:`first_events`); without a participant_id column or origins the timestamps are
+    dropped."""
     df = df.copy()
     for col in [c for c in df.columns if pd.api.types.is_datetime64_any_dtype(df[c])]:
-        if "participant_id" in df.columns:
+        if "participant_id" in df.columns and origins is not None:
             origin = pd.to_datetime(df["participant_id"].map(origins))
             df.insert(df.columns.get_loc(col), col + RELATIVE, (df[col] - origin).dt.total_seconds())
         df = df.drop(columns=col)
@@ -292,7 +293,7 @@ def deidentify_table(table: str, df: pd.DataFrame, bands: list[Bands] | tuple = 
         df = df.drop(columns=[c for c in text_attributes if c in df])
     if "meta" in df.columns:
         df["meta"] = df["meta"].map(_without_reason)
-    df = relative_times(df, origins if origins is not None else pd.Series(dtype="datetime64[us]"))
+    df = relative_times(df, origins)
     return df.drop(columns=[c for c in IDENTIFYING_COLUMNS if c in df.columns])
 
 

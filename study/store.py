@@ -132,8 +132,8 @@ class Store:
 
         `actor` is recorded in the audit log (default $PEDAS_STUDY_ACTOR, else the OS user). `read_only=True`
         neither creates nor migrates. DuckDB allows one writing process per file: while another process holds
-        the file, opening is retried with back-off for `lock_timeout` seconds (default :data:`LOCK_TIMEOUT`), then refused with a one-line
-        reason (:class:`StoreBusy`). How long it waited is :attr:`lock_wait`.
+        the file, opening is retried with back-off for `lock_timeout` seconds (default :data:`LOCK_TIMEOUT`),
+        then refused with a one-line reason (:class:`StoreBusy`). How long it waited is :attr:`lock_wait`.
         """
         path = Path(path)
         if read_only and not path.exists():
@@ -157,7 +157,7 @@ class Store:
         return st
 
     @staticmethod
-    def _connect(path: Path, read_only: bool, lock_timeout: float) -> tuple[duckdb.DuckDBPyConnection, "LockWait"]:
+    def _connect(path: Path, read_only: bool, lock_timeout: float) -> tuple[duckdb.DuckDBPyConnection, LockWait]:
         """A connection to `path`, retried with back-off while another process holds the file (see
         :class:`LockWait`); busy after `lock_timeout` seconds -> :class:`StoreBusy`."""
         wait = LockWait()

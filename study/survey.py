@@ -32,7 +32,7 @@ import pandas as pd
 
 from study import audit_trail
 from study.audit_trail import utcnow
-from study.errors import UserError
+from study.errors import UserError, check_name
 from study.instrument import Answer, Instrument
 
 WEB_ENTERED_BY = "participant"  # `responses.entered_by` of answers the participant gave on the web form
@@ -69,7 +69,6 @@ def instrument_of(st, name: str | None = None) -> Instrument:
     Unknown name -> UserError listing the study's instruments.
     """
     from study.definition import StudyError, from_files
-    from study.errors import check_name
     from study.studies import definition
 
     study = definition(st)

@@ -32,10 +32,6 @@ class StoreHolder:
         self.path, self.actor, self.lock_timeout = Path(path), actor, lock_timeout
         self.store: Store | None = None
         self.closed = False
-        self.opens = 0                  # figures: stores opened, retries and seconds spent waiting for the file
-        self.retries = 0
-        self.waited = 0.0
-        self.max_wait = 0.0
         self._lock = threading.RLock()
         self._depth = 0
         self._queued = 0                # threads waiting for the lock
@@ -53,9 +49,6 @@ class StoreHolder:
             except BaseException:
                 self._lock.release()
                 raise
-            w = self.store.lock_wait
-            self.opens, self.retries, self.waited = self.opens + 1, self.retries + w.retries, self.waited + w.seconds
-            self.max_wait = max(self.max_wait, w.seconds)
         self._depth += 1
         return True
 
