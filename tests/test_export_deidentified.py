@@ -32,7 +32,7 @@ def full(db):  # noqa: F811
     answer, a double entry with a resolution, a counterbalanced order assignment, a forced import with a route."""
     with Store.open(db, actor="ra_mueller") as st:
         add_participant(st, "P004", protocol="counterbalanced_v1")
-        advance(st, "P004", sv_first_phase(st, "P004"))
+        advance(st, "P004", first_phase(st, "P004"))
         answers = seeded_answers(4)
         sv.save_draft(st, "P004", answers)
         sv.submit_web(st, "P004")
@@ -47,7 +47,7 @@ def full(db):  # noqa: F811
     return db
 
 
-def sv_first_phase(st, pid: str) -> str:
+def first_phase(st, pid: str) -> str:
     from study.protocol import protocol_of
 
     return protocol_of(st, pid).phases[0]
