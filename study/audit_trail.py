@@ -10,9 +10,11 @@ import getpass
 import json
 import math
 import os
-from datetime import date, datetime, time, timezone
+from datetime import date, datetime, time, timedelta, timezone
 from decimal import Decimal
 from typing import Any
+
+from study.errors import UserError
 
 ACTOR_ENV = "PEDAS_STUDY_ACTOR"
 
@@ -30,9 +32,22 @@ def resolve_actor(actor: str | None = None) -> str:
         return "unknown"
 
 
+#: how far ahead of this computer's clock a given time may be (clocks of lab machines differ a little)
+CLOCK_SKEW = timedelta(minutes=5)
+
+
 def utcnow() -> datetime:
     """Current UTC time as a naive datetime (the store keeps UTC without zone)."""
     return datetime.now(timezone.utc).replace(tzinfo=None)
+
+
+def not_in_future(at: datetime) -> datetime:
+    """`at` (naive UTC) unless it is later than now + :data:`CLOCK_SKEW` -> UserError."""
+    now = utcnow()
+    if at > now + CLOCK_SKEW:
+        raise UserError(f"time {at:%Y-%m-%d %H:%M:%S} is in the future (now {now:%Y-%m-%d %H:%M:%S} UTC; at most "
+                        f"{CLOCK_SKEW.total_seconds() / 60:g} min ahead is accepted as clock difference)")
+    return at
 
 
 def _plain(value: Any) -> Any:

@@ -26,7 +26,7 @@ from typing import Any
 
 import pandas as pd
 
-from study.errors import UserError
+from study.errors import UserError, check_name
 
 STUDY_FILE = "study.toml"
 ATTRIBUTE_TYPES = ("integer", "number", "choice", "text")
@@ -254,6 +254,7 @@ class StudyDefinition:
         """The study's instrument (`name` None = its only one); unknown name -> UserError."""
         if not self.instruments:
             raise UserError(f"study {self.study_id} declares no survey instrument")
+        check_name("instrument", name, self.instruments)
         name = name or next(iter(self.instruments))
         if name not in self.instruments:
             raise UserError(f"unknown instrument {name!r} (study {self.study_id}: {', '.join(self.instruments)})")
@@ -273,6 +274,7 @@ class StudyDefinition:
     def protocol(self, name: str | None = None):
         if not self.protocols:
             raise UserError(f"study {self.study_id} declares no protocol")
+        check_name("protocol", name, self.protocols)
         name = name or next(iter(self.protocols))
         if name not in self.protocols:
             raise UserError(f"unknown protocol {name!r} (study {self.study_id}: {', '.join(self.protocols)})")

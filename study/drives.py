@@ -54,6 +54,13 @@ ENERGY_UNAVAILABLE = "unavailable"    # no power in the log and no model declare
 MIN_CHECK_DISTANCE = 50.0   # m: the distance check starts once v dt or s has covered this much
 DISTANCE_SLACK = 5.0        # m: absolute slack of the distance check (start-up, rounding of positions)
 RATE_TOLERANCE = 0.05       # relative: median time step vs the mapping's rate_hz
+SAMPLING_S = (0.01, 1.0)    # s: plausible median sampling interval of a simulator log (100 Hz .. 1 Hz)
+#: plausible magnitudes for a passenger car (docs/drive_logs.md gives the sources): column -> (bound, unit, what)
+MAGNITUDES = {
+    "p_batt": (1.0e6, "W", "battery power"),     # 1 MW: above every series-production passenger EV but hypercars
+    "ft": (5.0e4, "N", "traction force"),        # 50 kN > 3500 kg (licence B) x 9.81 m/s^2 x tyre friction 1.2
+    "fb": (5.0e4, "N", "braking force"),
+}
 #: ratios of the integral of v dt to s that a unit mix-up produces, and what it means
 _UNIT_MIXUPS = ((3.6, "a speed in km/h read as m/s"), (1 / 3.6, "a speed in m/s read as km/h"),
                 (1.609344, "a speed in mph read as km/h"), (1 / 1.609344, "a speed in km/h read as mph"),
@@ -358,7 +365,9 @@ def plausibility(frame: pd.DataFrame, labels: dict[str, str] | None = None, rate
                  route_length: float | None = None) -> list[str]:
     """Problems of a validated log that suggest a unit or timing error (each one line naming channel and row).
 
-    * sampling: the median time step agrees with `rate_hz` (when given) within 5 %; no step exceeds `max_gap_s`;
+    * sampling: the median time step lies in :data:`SAMPLING_S` (0.01-1 s) and agrees with `rate_hz` (when given)
+      within 5 %; no step exceeds `max_gap_s`;
+    * magnitudes: battery power and forces within :data:`MAGNITUDES` (a passenger car);
     * distance: the integral of v dt since the first sample and the advance of s agree within `tolerance`
       (relative) + 5 m, checked from the first 50 m on: a speed in km/h read as m/s is off by 3.6 at any speed;
       a log without s (integrated from v) must not be longer than the route.
@@ -376,6 +385,20 @@ def plausibility(frame: pd.DataFrame, labels: dict[str, str] | None = None, rate
         if abs(med / want - 1.0) > RATE_TOLERANCE:
             out.append(f"{lab('t')} rows 1-{len(t)}: median sampling interval {med:.6g} s, but the log mapping "
                        f"declares {rate_hz:g} Hz ({want:.6g} s){_hint(med / want)}")
+    if dt.size and not out:  # the declared rate's message says more
+        med, (lo, hi) = float(np.median(dt)), SAMPLING_S
+        if not lo <= med <= hi:
+            unit = (": looks like a time in ms read as s" if lo <= med / 1000 <= hi else
+                    ": looks like a time in s read as ms" if lo <= med * 1000 <= hi else "")
+            out.append(f"{lab('t')} rows 1-{len(t)}: median sampling interval {med:.6g} s outside {lo:g}-{hi:g} s"
+                       f"{unit}")
+    for col, (bound, unit, what) in MAGNITUDES.items():
+        if col in frame.columns:
+            x = pd.to_numeric(frame[col], errors="coerce").to_numpy(dtype="float64", na_value=np.nan)
+            i = _first(np.abs(x) > bound)
+            if i is not None:
+                out.append(f"{lab(col)} row {_row(i)}: {what} {x[i]:g} {unit} beyond ±{bound:g} {unit} "
+                           f"(implausible for a passenger car)")
     i = _first(dt > max_gap_s)
     if i is not None:
         out.append(f"{lab('t')} row {_row(i + 1)}: gap of {dt[i]:g} s after t = {t[i]:g} s (largest allowed "

@@ -11,3 +11,10 @@ def check_choice(name: str, value, allowed: tuple[str, ...]):
     if value not in allowed:
         raise UserError(f"{name} must be one of {'|'.join(allowed)}, not {value!r}")
     return value
+
+
+def check_name(kind: str, value, known) -> None:
+    """Refuse a `kind` (protocol, instrument) given as a path instead of a name the study declares: the study's
+    files are chosen by name from the stored definition, never read from a path."""
+    if isinstance(value, str) and ("/" in value or "\\" in value or ".." in value):
+        raise UserError(f"{kind} {value!r} is a path; give the name of one the study declares ({', '.join(known)})")

@@ -15,10 +15,15 @@ of the store itself (scope, reason, outcome, ...) are coded 1..k as well; boolea
 
 ``deidentify=True`` keeps only what is needed for analysis under the pseudonymous participant IDs: an attribute
 for which study.toml declares bands (``[export.bands]``, e.g. ``age = ["16-24", "25-34", "65+"]``) is written as
-its band (column ``<attribute>_band`` or the declared ``column``) instead of the exact value — attributes without
-declared bands are written as they are; free-text notes, people's names (entered_by, actor, ...) and source file
-names are dropped; the audit log (which repeats exact values), the long attribute table, survey link tokens and
-drafts and any table this module does not know are left out (listed in the manifest).
+its band (column ``<attribute>_band`` or the declared ``column``) instead of the exact value — numeric and choice
+attributes without declared bands are written as they are, free-text attributes are dropped; every timestamp
+``<col>`` of a participant's row becomes ``<col>_s``, seconds after that participant's first recorded event (the
+earliest timestamp of any of their rows, usually the registration), and a timestamp of no participant is dropped;
+free text that can carry names is dropped (notes, people's names: entered_by, actor, ...; source file names, the
+route name, free-text answers and resolutions, the reason given for a forced import, the drive log's checksum
+that leads back to the raw file); the audit log (which repeats exact values), the long attribute table,
+appointments, survey link tokens and drafts and any table this module does not know are left out (listed in the
+manifest). docs/store.md ("Exports") lists what stays and why.
 """
 from __future__ import annotations
 
@@ -55,6 +60,13 @@ LABELS: dict[str, str] = {
     "protocol": "Study protocol",
     "study_version": "Version of the study definition at registration",
     "created_at": "Recorded at (UTC)",
+    "created_at_s": "Recorded at (s after the participant's first event)",
+    "started_at_s": "Phase start (s after the participant's first event)",
+    "ended_at_s": "Phase end (s after the participant's first event)",
+    "entered_at_s": "Entered at (s after the participant's first event)",
+    "submitted_at_s": "Submitted at (s after the participant's first event)",
+    "resolved_at_s": "Resolved at (s after the participant's first event)",
+    "assigned_at_s": "Order assigned at (s after the participant's first event)",
     "attribute": "Participant attribute",
     "phase": "Protocol phase",
     "seq": "Position of the phase in the protocol",
@@ -115,7 +127,9 @@ LABELS: dict[str, str] = {
 DEIDENTIFIED_TABLES = ("participants", "phase_events", "exclusions", "drives", "drive_samples", "instruments",
                        "items", "responses", "survey_submissions", "survey_resolutions", "order_assignments")
 IDENTIFYING_COLUMNS = ("note", "entered_by", "submitted_by", "resolved_by", "issued_by", "actor", "file_name",
-                       "created_by", "email", "phone", "name")
+                       "created_by", "email", "phone", "name",
+                       "route", "text", "checksum")  # free text (--route, answers), a hash of the raw file
+RELATIVE = "_s"  # suffix of a timestamp column made relative to the participant's first event
 WIDE = "survey_wide_"  # file name prefix of the wide survey file of an instrument
 _BAND = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*(?:-\s*(\d+(?:\.\d+)?)|(\+))\s*$")
 
@@ -232,15 +246,54 @@ def participants_frame(st, study) -> pd.DataFrame:
     return attrs.merge(base, on="participant_id", how="left")[list(attrs.columns) + list(base.columns[1:])]
 
 
-def deidentify_table(table: str, df: pd.DataFrame, bands: list[Bands] | tuple = ()) -> pd.DataFrame:
-    """The deidentified form of one table (see module docstring); `bands` from :func:`declared_bands`."""
+def first_events(frames: dict[str, pd.DataFrame]) -> pd.Series:
+    """participant_id -> the earliest timestamp of any of the participant's rows in `frames` (the origin of the
+    relative times of a deidentified export)."""
+    parts = [df[["participant_id", c]].set_axis(["participant_id", "at"], axis=1)
+             for df in frames.values() if "participant_id" in df.columns
+             for c in df.columns if pd.api.types.is_datetime64_any_dtype(df[c])]
+    if not parts:
+        return pd.Series(dtype="datetime64[us]")
+    return pd.concat(parts).dropna().groupby("participant_id")["at"].min()
+
+
+def relative_times(df: pd.DataFrame, origins: pd.Series | None) -> pd.DataFrame:
+    """Each timestamp column ``<col>`` replaced in place by ``<col>_s``: seconds after the row's participant's first
+    event (`origins`, :func:`first_events`); without a participant_id column or origins the timestamps are
+    dropped."""
+    df = df.copy()
+    for col in [c for c in df.columns if pd.api.types.is_datetime64_any_dtype(df[c])]:
+        if "participant_id" in df.columns and origins is not None:
+            origin = pd.to_datetime(df["participant_id"].map(origins))
+            df.insert(df.columns.get_loc(col), col + RELATIVE, (df[col] - origin).dt.total_seconds())
+        df = df.drop(columns=col)
+    return df
+
+
+def _without_reason(meta):
+    """drives.meta without the free-text reason of a forced import (the overridden problems stay)."""
+    if not isinstance(meta, str):
+        return meta
+    m = json.loads(meta)
+    if isinstance(m.get("forced"), dict):
+        m["forced"] = {k: v for k, v in m["forced"].items() if k != "reason"}
+    return json.dumps(m, sort_keys=True)
+
+
+def deidentify_table(table: str, df: pd.DataFrame, bands: list[Bands] | tuple = (), origins: pd.Series | None = None,
+                     text_attributes: tuple[str, ...] = ()) -> pd.DataFrame:
+    """The deidentified form of one table (see module docstring); `bands` from :func:`declared_bands`, `origins`
+    from :func:`first_events` (None: timestamps are dropped), `text_attributes` the study's free-text attributes."""
     df = df.copy()
     if table == "participants":
         for b in bands:
             if b.attribute in df:
                 df.insert(df.columns.get_loc(b.attribute), b.column, b.apply(df[b.attribute]))
                 df = df.drop(columns=b.attribute)
-        df = df.drop(columns=[c for c in ("created_at",) if c in df])
+        df = df.drop(columns=[c for c in text_attributes if c in df])
+    if "meta" in df.columns:
+        df["meta"] = df["meta"].map(_without_reason)
+    df = relative_times(df, origins)
     return df.drop(columns=[c for c in IDENTIFYING_COLUMNS if c in df.columns])
 
 
@@ -266,7 +319,11 @@ def collect(st, deidentify: bool = False) -> tuple[dict[str, pd.DataFrame], tupl
         else:
             order = " ORDER BY drive_id, idx" if table == "drive_samples" else ""
             df = st.df(f'SELECT * FROM "{table}"{order}')
-        frames[table] = deidentify_table(table, df, bands) if deidentify else df
+        frames[table] = df
+    if deidentify:
+        origins = first_events(frames)
+        text_attributes = tuple(a.name for a in study.attributes if a.type == "text") if study is not None else ()
+        frames = {t: deidentify_table(t, df, bands, origins, text_attributes) for t, df in frames.items()}
     instruments = [r[0] for r in st.con.execute("SELECT DISTINCT instrument FROM responses ORDER BY 1").fetchall()]
     if not instruments:
         instruments = [r[0] for r in st.con.execute("SELECT instrument FROM instruments ORDER BY 1").fetchall()]
@@ -276,10 +333,12 @@ def collect(st, deidentify: bool = False) -> tuple[dict[str, pd.DataFrame], tupl
         except (UserError, ValueError, KeyError):  # a codebook no stored study version declares: the long
             skipped.append(f"{WIDE}{ins}")         # responses table is still exported
             continue
-        if deidentify:  # attribute items repeat the participants' exact attributes: those are in participants
-            from study.survey import attribute_items, instrument_of
+        if deidentify:  # attribute items repeat the participants' exact attributes: those are in participants;
+            from study.survey import attribute_items, instrument_of  # free-text answers can carry names
 
-            wide = wide.drop(columns=[c for c in attribute_items(instrument_of(st, ins)) if c in wide.columns])
+            spec = instrument_of(st, ins)
+            text_items = [i for i, kind in spec.items["response_type"].items() if kind == "text"]
+            wide = wide.drop(columns=[c for c in list(attribute_items(spec)) + text_items if c in wide.columns])
         frames[f"{WIDE}{ins}"] = wide
     return frames, tuple(skipped)
 

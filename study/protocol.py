@@ -25,7 +25,7 @@ from typing import Any
 
 import pandas as pd
 
-from study.audit_trail import utcnow
+from study.audit_trail import not_in_future, utcnow
 from study.errors import UserError
 
 
@@ -123,7 +123,7 @@ def _when(at: datetime | str | None) -> datetime:
             raise UserError(f"bad time {at!r} (use ISO 8601, e.g. 2026-05-04T09:30)") from None
     if at.tzinfo is not None:  # the store keeps UTC without zone
         at = at.astimezone(timezone.utc).replace(tzinfo=None)
-    return at
+    return not_in_future(at)  # a time not yet come would block the participant's next step
 
 
 def _closed_by_exclusion(st, participant_id: str) -> str | None:

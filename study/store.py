@@ -15,19 +15,99 @@ newer schema than this code is refused.
 """
 from __future__ import annotations
 
+import logging
+import os
 import time
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Iterator, Mapping, Sequence
 
 import duckdb
 
+try:
+    import fcntl
+except ImportError:  # Windows
+    fcntl = None
+
 from study import audit_trail, migrate
 from study.errors import UserError
 
 
+log = logging.getLogger(__name__)
+
+#: how long opening waits for another process to release the store (s): longer than a command holds it
+LOCK_TIMEOUT = 30.0
+#: opening a store another process holds is retried after 5 ms, 7.5 ms, ... at most 100 ms apart
+LOCK_BACKOFF_FIRST = 0.005
+LOCK_BACKOFF_FACTOR = 1.5
+LOCK_BACKOFF_MAX = 0.1
+
+
 def _one_line(exc: BaseException) -> str:
     return " ".join(str(exc).split())
+
+
+class StoreBusy(UserError):
+    """Another process held the store for longer than the opener was willing to wait."""
+
+
+@dataclass
+class LockWait:
+    """How long :meth:`Store.open` waited for another process to release the file."""
+
+    retries: int = 0
+    seconds: float = 0.0
+
+
+class _Queue:
+    """Openers waiting for the store announce it with a shared ``flock`` on ``<store>.waiting`` (released on
+    success, failure or the process's death); an opener that finds it held lets the waiting ones go first.
+    Without ``fcntl`` (Windows) or a writable folder there is no queue, only the retries."""
+
+    def __init__(self, path: Path) -> None:
+        self.file = path.with_name(path.name + ".waiting")
+        self.fd: int | None = None
+
+    @property
+    def joined(self) -> bool:
+        return self.fd is not None
+
+    def _open(self) -> int | None:
+        try:
+            return os.open(self.file, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError:
+            return None
+
+    def others_waiting(self) -> bool:
+        if fcntl is None or not self.file.exists():
+            return False
+        fd = self._open()
+        if fd is None:
+            return False
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            return False
+        except OSError:
+            return True
+        finally:
+            os.close(fd)  # closing drops the probe's lock
+
+    def join(self) -> None:
+        if self.fd is None and fcntl is not None:
+            self.fd = self._open()
+            if self.fd is not None:
+                fcntl.flock(self.fd, fcntl.LOCK_SH)
+
+    def leave(self) -> None:
+        if self.fd is not None:
+            os.close(self.fd)
+            self.fd = None
+
+
+def others_waiting(path: str | Path) -> bool:
+    """True while another opener (any process) waits for the store at `path` to be released."""
+    return _Queue(Path(path)).others_waiting()
 
 
 class Store:
@@ -42,23 +122,27 @@ class Store:
         self._columns: dict[str, list[str]] = {}
         self._keys: dict[str, list[str]] = {}
         self.applied: list[int] = []
+        self.lock_wait = LockWait()
 
     # ------------------------------------------------------------------ opening
     @classmethod
     def open(cls, path: str | Path, actor: str | None = None, read_only: bool = False,
-             lock_timeout: float = 10.0) -> "Store":
+             lock_timeout: float | None = None) -> "Store":
         """Open (creating and migrating if needed) the store at `path`.
 
         `actor` is recorded in the audit log (default $PEDAS_STUDY_ACTOR, else the OS user). `read_only=True`
         neither creates nor migrates. DuckDB allows one writing process per file: while another process holds
-        the file, opening is retried for `lock_timeout` seconds, then refused with a one-line reason.
+        the file, opening is retried with back-off for `lock_timeout` seconds (default :data:`LOCK_TIMEOUT`),
+        then refused with a one-line reason (:class:`StoreBusy`). How long it waited is :attr:`lock_wait`.
         """
         path = Path(path)
         if read_only and not path.exists():
             raise UserError(f"store {path} does not exist (run `pedas-study init`)")
         if not read_only:
             path.parent.mkdir(parents=True, exist_ok=True)
-        con = cls._connect(path, read_only, lock_timeout)
+        con, wait = cls._connect(path, read_only, LOCK_TIMEOUT if lock_timeout is None else lock_timeout)
+        if wait.retries:
+            log.info("waited %.3f s (%d retries) for store %s", wait.seconds, wait.retries, path)
         try:
             con.execute("SET TimeZone = 'UTC'")
             applied = [] if read_only else migrate.migrate(con)
@@ -66,26 +150,43 @@ class Store:
                 migrate.check_not_newer(con)
             st = cls(con, path, audit_trail.resolve_actor(actor), read_only)
             st.applied = [m.version for m in applied]  # migrations applied by this open (for `init`)
+            st.lock_wait = wait
         except BaseException:
             con.close()
             raise
         return st
 
     @staticmethod
-    def _connect(path: Path, read_only: bool, lock_timeout: float) -> duckdb.DuckDBPyConnection:
-        deadline = time.monotonic() + lock_timeout
-        while True:
-            try:
-                return duckdb.connect(str(path), read_only=read_only)
-            except duckdb.IOException as exc:
-                msg = str(exc)
-                if "lock" not in msg.lower():
-                    raise UserError(f"cannot open store {path}: {_one_line(exc)}") from exc
-                if time.monotonic() >= deadline:
-                    raise UserError(f"store {path} is in use by another process; try again later") from exc
-                time.sleep(0.1)
-            except duckdb.Error as exc:
-                raise UserError(f"cannot open store {path}: {_one_line(exc)}") from exc
+    def _connect(path: Path, read_only: bool, lock_timeout: float) -> tuple[duckdb.DuckDBPyConnection, LockWait]:
+        """A connection to `path`, retried with back-off while another process holds the file (see
+        :class:`LockWait`); busy after `lock_timeout` seconds -> :class:`StoreBusy`."""
+        wait = LockWait()
+        start = time.monotonic()
+        queue = _Queue(path)
+        try:
+            while True:
+                # an opener that arrives while others wait lets them in first (fairness: a server that reopens
+                # the store for every request would otherwise always win the race against a waiting command)
+                polite = not queue.joined and queue.others_waiting()
+                if not polite:
+                    try:
+                        con = duckdb.connect(str(path), read_only=read_only)
+                        wait.seconds = time.monotonic() - start
+                        return con, wait
+                    except duckdb.IOException as exc:
+                        if "lock" not in str(exc).lower():
+                            raise UserError(f"cannot open store {path}: {_one_line(exc)}") from exc
+                        busy = exc
+                    except duckdb.Error as exc:
+                        raise UserError(f"cannot open store {path}: {_one_line(exc)}") from exc
+                    queue.join()
+                if time.monotonic() - start >= lock_timeout:
+                    raise StoreBusy(f"store {path} is in use by another process; try again later") from (
+                        None if polite else busy)
+                time.sleep(min(LOCK_BACKOFF_MAX, LOCK_BACKOFF_FIRST * LOCK_BACKOFF_FACTOR ** wait.retries))
+                wait.retries += 1
+        finally:
+            queue.leave()
 
     def close(self) -> None:
         self.con.close()

@@ -32,7 +32,7 @@ import pandas as pd
 
 from study import audit_trail
 from study.audit_trail import utcnow
-from study.errors import UserError
+from study.errors import UserError, check_name
 from study.instrument import Answer, Instrument
 
 WEB_ENTERED_BY = "participant"  # `responses.entered_by` of answers the participant gave on the web form
@@ -72,6 +72,7 @@ def instrument_of(st, name: str | None = None) -> Instrument:
     from study.studies import definition
 
     study = definition(st)
+    check_name("instrument", name, study.instruments)
     if name is None or name in study.instruments:
         return study.instrument(name)
     cache = st.__dict__.setdefault("_earlier_instruments", {})

@@ -270,3 +270,37 @@ def test_cli_init_of_a_new_store_needs_a_study(cli, tmp_db, tmp_path):
     r = cli("init", "--study", tmp_path / "broken")
     assert r.code == 2 and "study.toml" in r.err and len(r.err.strip().splitlines()) == 1
     assert not tmp_db.exists()  # a refused study creates no store
+
+
+def test_a_waiting_opener_queues_and_gets_the_store_when_released(tmp_db):
+    """While another process holds the store, an opener retries with back-off and announces that it waits
+    (`others_waiting`, which a server checks before it reopens the store); it gets the store once released."""
+    import subprocess
+    import sys
+    import threading
+    import time
+
+    from study.store import others_waiting
+
+    Store.open(tmp_db).close()
+    assert not others_waiting(tmp_db)
+    holder = subprocess.Popen(
+        [sys.executable, "-c", "import sys; from study.store import Store; s = Store.open(sys.argv[1]); "
+                               "print('ready', flush=True); sys.stdin.readline()", str(tmp_db)],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    got = {}
+    try:
+        assert holder.stdout.readline().strip() == "ready"
+        opener = threading.Thread(target=lambda: got.setdefault("st", Store.open(tmp_db, lock_timeout=60)))
+        opener.start()
+        deadline = time.monotonic() + 30
+        while not others_waiting(tmp_db) and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert others_waiting(tmp_db) and opener.is_alive()
+    finally:
+        holder.communicate("\n", timeout=30)
+    opener.join(timeout=60)
+    st = got["st"]
+    assert st.lock_wait.retries > 0 and st.lock_wait.seconds > 0
+    assert not others_waiting(tmp_db)           # the queue is left on success
+    st.close()

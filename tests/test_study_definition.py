@@ -151,9 +151,26 @@ def test_new_writes_a_template_that_passes_the_check_and_serves_a_store(cli, tmp
                                             "model: 3 constructs, 1 regressions, 2 hypotheses"), r.out
     db = tmp_path / "s.duckdb"
     assert cli("init", "--study", d, db=db).code == 0
-    assert cli("participant", "add", "S001", "--attr", "age=30", "--attr", "gender=male", db=db).code == 0
-    r = cli("participant", "add", "S002", "--attr", "age=20", "--attr", "license_years=9", db=db)
+    assert 'id_pattern = "^P[0-9]{3,}$"' in (d / "study.toml").read_text()
+    assert cli("participant", "add", "P001", "--attr", "age=30", "--attr", "gender=male", db=db).code == 0
+    r = cli("participant", "add", "P002", "--attr", "age=20", "--attr", "license_years=9", db=db)
     assert r.code == 2 and "license years impossible" in r.err
+
+
+@pytest.mark.parametrize("pattern,good,bad", [("^VP[0-9]{2}$", "VP07", "P007"), ("^S-[0-9]{3}$", "S-012", "S012")])
+def test_a_lab_s_own_id_scheme(cli, tmp_path, pattern, good, bad):
+    """The id pattern is the study's: a lab's own scheme is accepted, the template's P001 then refused."""
+    d = tmp_path / "s"
+    assert cli("study", "new", d, db=None).code == 0
+    toml = d / "study.toml"
+    toml.write_text(re.sub(r'id_pattern = "[^"]*"\s*#[^\n]*\nid_example = "P001"',
+                           f'id_pattern = "{pattern}"\nid_example = "{good}"', toml.read_text()))
+    db = tmp_path / "s.duckdb"
+    assert cli("init", "--study", d, db=db).code == 0
+    assert cli("participant", "add", good, db=db).code == 0
+    r = cli("participant", "add", bad, db=db)
+    assert r.code == 2 and f"bad participant id {bad!r}" in r.err
+    assert list(cli("participant", "list", "--format", "csv", db=db).out.splitlines()[1:2])[0].startswith(good)
 
 
 def test_new_refuses_an_existing_folder_with_files(cli, tmp_path):

@@ -7,20 +7,25 @@ parsed ``argparse.Namespace`` and return an exit code (``None`` means 0). Heavy 
 so that ``--help`` and small commands start fast.
 
 Errors: an exception reaching :func:`main` is printed as one line ``pedas-study: error: ...``. Bad input exits 2:
-``ValueError`` (with ``study.errors.UserError``), ``FileNotFoundError`` and argparse's usage errors. Anything else
-is a bug: exit 1, ``pedas-study: error: internal error: ...``. ``PEDAS_STUDY_DEBUG=1`` shows the traceback.
+``ValueError`` (with ``study.errors.UserError``), the file-system errors of a bad path (missing, a directory, no
+permission) and argparse's usage errors, which are one line too (``pedas-study session advance: error: the
+following arguments are required: PHASE (see `pedas-study session advance --help`)``), not argparse's usage
+dump. Anything else is a bug: exit 1, ``pedas-study: error: internal error: ...``. ``PEDAS_STUDY_DEBUG=1`` shows
+the traceback.
 Output into a pipe whose reader stopped (``... | head``) ends the command quietly with exit 0.
 """
 from __future__ import annotations
 
 import argparse
 import importlib
+import logging
 import os
 import sys
 import traceback
 from typing import Callable, Sequence
 
 from pedas_study.cli.common import DEFAULT_DB, is_user_error
+from study.errors import UserError
 
 COMMAND_MODULES: tuple[str, ...] = tuple(f"pedas_study.cli.{name}" for name in (
     "init", "study", "participant", "session", "exclude", "drive", "export",   # the study and its store
@@ -30,7 +35,20 @@ COMMAND_MODULES: tuple[str, ...] = tuple(f"pedas_study.cli.{name}" for name in (
     "bench",                                                           # benchmarks
 ))
 
+LOG_ENV = "PEDAS_STUDY_LOG"
 Handler = Callable[[argparse.Namespace], "int | None"]
+
+
+class UsageError(UserError):
+    """A command line argparse refuses (exit 2, one line)."""
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse with its usage errors raised as :class:`UsageError` (one line naming the command and its
+    ``--help``) instead of printing the usage and exiting; sub-parsers are of this class too."""
+
+    def error(self, message: str):
+        raise UsageError(f"{self.prog}: {message} (see `{self.prog} --help`)")
 
 
 class Group:
@@ -94,7 +112,7 @@ class Cli:
 
 def build_cli() -> Cli:
     """The registry with every command module registered."""
-    parser = argparse.ArgumentParser(
+    parser = Parser(
         prog="pedas-study",
         description="Driving-simulator user studies of the pEDAS eco-driving assistance system.",
     )
@@ -116,6 +134,8 @@ def build_parser() -> argparse.ArgumentParser:
 def error_line(exc: BaseException) -> str:
     """The one line printed for an exception: its message for bad input, else marked as an internal error."""
     text = " ".join(str(exc).split())
+    if isinstance(exc, UsageError):
+        return f"{text.split(': ', 1)[0]}: error: {text.split(': ', 1)[1]}"
     if is_user_error(exc):
         return f"pedas-study: error: {text or type(exc).__name__}"
     hint = "" if os.environ.get("PEDAS_STUDY_DEBUG") else " (PEDAS_STUDY_DEBUG=1 shows the traceback)"
@@ -134,8 +154,10 @@ def _silence_stdout() -> None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run `pedas-study` with `argv` (default: the process arguments); the exit code."""
-    args = build_parser().parse_args(argv)
     try:
+        if os.environ.get(LOG_ENV):  # e.g. info: how long a command waited for a store another process held
+            logging.basicConfig(level=os.environ[LOG_ENV].upper(), format="pedas-study: %(message)s", force=True)
+        args = build_parser().parse_args(argv)
         code = args.func(args)
         sys.stdout.flush()  # a closed pipe shows here, inside the handling below, not at interpreter exit
     except BrokenPipeError:

@@ -11,8 +11,10 @@ from study.errors import UserError
 DEFAULT_DB = Path("data") / "study.duckdb"
 LIST_FORMATS = ("table", "csv", "json")
 DRIVE_CACHE_HELP = "cache of simulated drives (default $PEDAS_DRIVE_CACHE or .report-cache/drives)"
-# the errors that mean bad input (exit code 2); UserError is a ValueError
-USER_ERRORS: tuple[type[BaseException], ...] = (ValueError, FileNotFoundError)
+# the errors that mean bad input (exit code 2): UserError is a ValueError; the others are a path given on the
+# command line that is missing, a directory where a file is meant (or the reverse), unreadable or unwritable
+USER_ERRORS: tuple[type[BaseException], ...] = (ValueError, FileNotFoundError, IsADirectoryError,
+                                                NotADirectoryError, PermissionError, FileExistsError)
 
 
 def is_user_error(exc: BaseException) -> bool:

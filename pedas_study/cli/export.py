@@ -20,5 +20,5 @@ def register(cli) -> None:
     p.add_argument("format", choices=("csv", "parquet", "sav"))
     p.add_argument("outdir", metavar="OUTDIR")
     p.add_argument("--deidentify", action="store_true",
-                   help="attributes as the bands study.toml declares ([export.bands]), no notes or names, "
-                        "no audit log")
+                   help="attributes as the bands study.toml declares ([export.bands]); times as seconds after the "
+                        "participant's first event; no notes, names, file names or free text; no audit log")

@@ -20,10 +20,10 @@ description = """You drove a simulated car twice, once with an assistance system
 Please tell us what you think of the system."""   # shown to participants above the survey
 
 [participants]
-id_pattern = "^S[0-9]{{3}}$"       # regular expression every (pseudonymous) participant id must match
-id_example = "S001"
+id_pattern = "^P[0-9]{{3,}}$"      # regular expression every (pseudonymous) participant id must match,
+id_example = "P001"               # e.g. "^VP[0-9]{{2}}$" for VP07 or "^S-[0-9]{{3}}$" for S-012
 
-# Participant attributes: recorded at registration (`participant add S001 --attr age=30`), usable as covariates
+# Participant attributes: recorded at registration (`participant add P001 --attr age=30`), usable as covariates
 # in the model file and as groups of KPIs. type = integer | number | choice | text.
 [[attributes]]
 name = "age"

@@ -4,7 +4,6 @@ from __future__ import annotations
 import os
 
 from pedas_study.cli.common import add_format_option, format_frame, open_store
-from study.errors import UserError
 
 PASSWORD_ENV = "PEDAS_SURVEY_PASSWORD"
 
@@ -21,13 +20,7 @@ def _import(args):
 def _link(args):
     from study import survey as sv
 
-    try:
-        st = open_store(args)
-    except UserError as exc:
-        if "in use" in str(exc):  # `survey serve` owns the store: DuckDB allows one writing process
-            raise UserError(f"{exc} (while `survey serve` runs, issue links on its researcher page /r/)") from None
-        raise
-    with st:
+    with open_store(args) as st:
         token = sv.issue_link(st, args.participant_id, args.instrument)
     print(f"{args.base_url.rstrip('/')}/s/{token}")
 
@@ -92,25 +85,25 @@ def _serve(args):
     generated = not password
     if generated:
         password = secrets.token_urlsafe(12)
-    with open_store(args) as st:
+    with open_store(args) as st:  # checked and closed again: each request opens the store while it runs
         settings = SignInSettings(trust_proxy=args.trust_proxy,
                                   secure_cookies="always" if args.secure_cookies else "auto")
         app = create_app(st, password, instrument=args.instrument, signin=settings)
-        server = SurveyServer(app, args.host, args.port)
-        print(f"survey form on {server.url}/  (researcher pages: {server.url}/r/)", flush=True)
-        if generated:
-            print(f"researcher password (set {PASSWORD_ENV} to choose one): {password}", flush=True)
-        if args.host not in ("127.0.0.1", "localhost", "::1") and not args.trust_proxy:
-            print(f"warning: bound to {args.host}: reachable from other machines; plain HTTP", flush=True)
-        stop = threading.Event()
-        signal.signal(signal.SIGTERM, lambda *_: stop.set())
-        server.start()
-        try:
-            stop.wait()
-        except KeyboardInterrupt:
-            pass
-        finally:
-            server.close()
+    server = SurveyServer(app, args.host, args.port)
+    print(f"survey form on {server.url}/  (researcher pages: {server.url}/r/)", flush=True)
+    if generated:
+        print(f"researcher password (set {PASSWORD_ENV} to choose one): {password}", flush=True)
+    if args.host not in ("127.0.0.1", "localhost", "::1") and not args.trust_proxy:
+        print(f"warning: bound to {args.host}: reachable from other machines; plain HTTP", flush=True)
+    stop = threading.Event()
+    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    server.start()
+    try:
+        stop.wait()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        server.close()
     print("survey server stopped")
 
 

@@ -7,8 +7,9 @@
 * the researcher console ``/r/...`` (:mod:`study.webapp.console`): the study day in one place (agenda,
   registration, phases, exclusions, drive uploads, links with QR code, completeness, exports).
 
-The app owns ONE store connection and serialises every request's use of it with one lock
-(:mod:`study.webapp.context`); :class:`SurveyServer` runs it on a threaded werkzeug server.
+The app opens the store only while a request uses it, one request at a time, so CLI commands can work on the
+same file between requests (:mod:`study.webapp.context`, docs/store.md); :class:`SurveyServer` runs it on a
+threaded werkzeug server.
 """
 from __future__ import annotations
 
@@ -21,7 +22,7 @@ from flask.sessions import SecureCookieSessionInterface
 from study.errors import UserError
 from study.instrument import is_scaled
 from study.webapp import console, participant, researcher
-from study.webapp.context import new_state
+from study.webapp.context import install, new_state
 from study.webapp.server import SurveyServer
 from study.webapp.signin import SignIn, SignInSettings
 
@@ -61,9 +62,10 @@ class _SessionInterface(SecureCookieSessionInterface):
 
 def create_app(st, researcher_password: str, instrument: str | None = None,
                secret_key: str | None = None, signin: SignInSettings | None = None) -> Flask:
-    """The Flask app over an open, writable Store `st` (the app serialises all access to it), showing the store's
-    study (title, description) and `instrument` (None = the study's); `signin` = how researcher sign-in is
-    guarded and whether a TLS proxy is trusted (default :class:`SignInSettings`)."""
+    """The Flask app over the store of the open, writable Store `st`, showing the store's study (title,
+    description) and `instrument` (None = the study's). Requests open the store's file themselves (as `st`'s
+    actor); `st` may be closed once the app is made. `signin` = how researcher sign-in is guarded and whether a
+    TLS proxy is trusted (default :class:`SignInSettings`)."""
     from study.studies import definition
     from study.survey import instrument_of
 
@@ -76,6 +78,7 @@ def create_app(st, researcher_password: str, instrument: str | None = None,
     app.config.update(SECRET_KEY=secret_key or secrets.token_hex(32), SESSION_COOKIE_SAMESITE="Strict",
                       SESSION_COOKIE_HTTPONLY=True, MAX_CONTENT_LENGTH=256 * 1024)
     app.extensions["survey"] = new_state(st, ins, researcher_password)
+    install(app)
     app.extensions["signin"] = SignIn(researcher_password, signin)
     app.session_interface = _SessionInterface()
     hops = app.extensions["signin"].settings.trust_proxy
