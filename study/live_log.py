@@ -14,12 +14,14 @@ import hashlib
 import json
 import threading
 import uuid
+from contextlib import contextmanager
 
 import numpy as np
 import pandas as pd
 
 from study.audit_trail import utcnow
 from study.errors import UserError
+from study.store import StoreHolder
 
 LIVE_COLUMNS = ("t", "s", "v", "segment", "speed_limit", "a", "grade", "tl_id", "tl_state", "d_tl", "leader_gap",
                 "leader_v", "v_advice", "controller", "hud_arrow", "hud_in_band", "warning")
@@ -27,19 +29,24 @@ LIVE_COLUMNS = ("t", "s", "v", "segment", "speed_limit", "a", "grade", "tl_id", 
 
 class LiveDriveLog:
     """Log of one live drive of `participant_id` in `condition` (rows with the keys of LIVE_COLUMNS, SI units, t
-    from the first sample). Thread-safe: the server appends in its event loop and flushes in a worker thread."""
+    from the first sample). Thread-safe: the server appends in its event loop and flushes in a worker thread.
+
+    `st`: an open Store, or a :class:`study.store.StoreHolder` — then the store is open only while a flush writes
+    (about once a second), so CLI commands can use the same file during a live session."""
 
     def __init__(self, st, participant_id: str, condition: str, route: str | None, replace: bool = False) -> None:
         from study.participants import require
         from study.studies import definition
 
-        definition(st).check_condition(condition)
-        require(st, participant_id)
-        have = st.one("SELECT drive_id FROM drives WHERE participant_id = ? AND condition = ?",
-                      [participant_id, condition])
+        self._source = st
+        with self._store() as st:
+            definition(st).check_condition(condition)
+            require(st, participant_id)
+            have = st.one("SELECT drive_id FROM drives WHERE participant_id = ? AND condition = ?",
+                          [participant_id, condition])
         if have is not None and not replace:
             raise UserError(f"{participant_id} already has a {condition} drive; start the session with replace")
-        self.st, self.participant_id, self.condition, self.route = st, participant_id, condition, route
+        self.participant_id, self.condition, self.route = participant_id, condition, route
         self.session = str(uuid.uuid4())
         self.started_at = utcnow()
         self.drive_id: int | None = None
@@ -49,6 +56,15 @@ class LiveDriveLog:
         self._last: dict | None = None
         self._lock = threading.Lock()    # the queue (held for microseconds: append runs in the event loop)
         self._write = threading.Lock()   # the store (flush and close, in a worker thread)
+
+    @contextmanager
+    def _store(self):
+        """The store; opened for the duration of the block when a holder was given."""
+        if isinstance(self._source, StoreHolder):
+            with self._source as holder:
+                yield holder.store
+        else:
+            yield self._source
 
     def _meta(self, complete: bool, **extra) -> str:
         return json.dumps({"live": {"complete": complete, "session": self.session, "started_at": str(self.started_at),
@@ -71,8 +87,7 @@ class LiveDriveLog:
             first = self._first or rows[0]
             frame = pd.DataFrame(rows, columns=list(LIVE_COLUMNS))
             last = rows[-1]
-            st = self.st
-            with st.transaction():
+            with self._store() as st, st.transaction():
                 if self.drive_id is None:
                     old = st.one("SELECT drive_id FROM drives WHERE participant_id = ? AND condition = ?",
                                  [self.participant_id, self.condition])
@@ -107,15 +122,17 @@ class LiveDriveLog:
         with self._write:
             if self.drive_id is None:
                 return None
-            frame = drive_samples(self.st, self.participant_id, self.condition)[list(LIVE_COLUMNS)]
-            try:
-                return import_drive_frame(self.st, self.participant_id, self.condition, frame, source="import",
-                                          route=self.route, replace=True, file_name=f"live session {self.session}",
-                                          meta=json.loads(self._meta(True, samples=len(frame))))
-            except UserError as exc:
-                self.st.update("drives", {"drive_id": self.drive_id},
-                               {"meta": self._meta(True, samples=len(frame), import_error=str(exc))})
-                return None
+            with self._store() as st:
+                frame = drive_samples(st, self.participant_id, self.condition)[list(LIVE_COLUMNS)]
+                try:
+                    return import_drive_frame(st, self.participant_id, self.condition, frame, source="import",
+                                              route=self.route, replace=True,
+                                              file_name=f"live session {self.session}",
+                                              meta=json.loads(self._meta(True, samples=len(frame))))
+                except UserError as exc:
+                    st.update("drives", {"drive_id": self.drive_id},
+                              {"meta": self._meta(True, samples=len(frame), import_error=str(exc))})
+                    return None
 
 
 def _typed(frame: pd.DataFrame) -> pd.DataFrame:

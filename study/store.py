@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import logging
 import os
+import threading
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -398,3 +399,68 @@ class Store:
     def _writable(self) -> None:
         if self.read_only:
             raise UserError(f"store {self.path} is open read-only")
+
+
+class StoreHolder:
+    """A long-running process's store (the survey server, the live server), open only while requests use it, so
+    that CLI commands can use the same file between requests (DuckDB allows one writing process per file).
+
+    Use it like a re-entrant lock (``with holder:``, ``acquire()``/``release()``): the outermost acquire opens the
+    store (waiting, with back-off, for a command that holds it: :meth:`Store.open`), the matching release closes
+    it — unless another request is already waiting for the lock and no other process waits for the file: then
+    the next request gets the open store (a burst of requests opens the file once). Everything a request does
+    under one acquire sees one connection, so a check and the write it guards stay together. One thread at a
+    time: a DuckDB connection must not be shared by two threads. After :meth:`shut` acquiring no longer opens
+    the store (:attr:`store` is None).
+    """
+
+    def __init__(self, path: str | Path, actor: str, lock_timeout: float | None = None) -> None:
+        self.path, self.actor, self.lock_timeout = Path(path), actor, lock_timeout
+        self.store: Store | None = None
+        self.closed = False
+        self._lock = threading.RLock()
+        self._depth = 0
+        self._queued = 0                # threads waiting for the lock
+        self._count = threading.Lock()
+
+    def acquire(self) -> bool:
+        with self._count:
+            self._queued += 1
+        self._lock.acquire()
+        with self._count:
+            self._queued -= 1
+        if self._depth == 0 and self.store is None and not self.closed:
+            try:
+                self.store = Store.open(self.path, actor=self.actor, lock_timeout=self.lock_timeout)
+            except BaseException:
+                self._lock.release()
+                raise
+        self._depth += 1
+        return True
+
+    def release(self) -> None:
+        self._depth -= 1
+        try:
+            if self._depth == 0 and self.store is not None:
+                with self._count:
+                    handover = self._queued > 0
+                if not handover or others_waiting(self.path):
+                    st, self.store = self.store, None
+                    st.close()
+        finally:
+            self._lock.release()
+
+    def __enter__(self) -> "StoreHolder":
+        self.acquire()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.release()
+
+    def shut(self) -> None:
+        """Wait until no request holds the store, close it, and never open it again."""
+        with self._lock:
+            self.closed = True
+            if self.store is not None:
+                st, self.store = self.store, None
+                st.close()

@@ -135,7 +135,7 @@ def start_server(db: Path | None, *extra: str):
     return start_live_server(db, *route, *extra, cwd=REPO)
 
 
-def test_killed_session_keeps_what_was_logged(paper_db):
+def test_killed_session_keeps_what_was_logged(paper_db, cli_proc):
     from websockets.sync.client import connect
 
     from study.participants import add_participant
@@ -157,6 +157,9 @@ def test_killed_session_keeps_what_was_logged(paper_db):
                 time.sleep(0.01)
                 if time.monotonic() > t_end:
                     break
+            # the session is still open: the server holds the store only while a flush writes
+            r = cli_proc("participant", "list", db=paper_db, timeout=120)
+            assert r.code == 0 and "P002" in r.out, r.err
             os.kill(proc.pid, signal.SIGKILL)                                # no bye, no clean shutdown
             proc.wait(timeout=30)
     finally:

@@ -11,7 +11,14 @@ from study.errors import UserError
 def _serve(args) -> None:
     from pedas.live import LiveRoute, LiveServer
 
-    st = None if args.no_log else open_store(args)   # a missing store fails before the route is loaded
+    from study.store import StoreHolder
+
+    st = None
+    if not args.no_log:
+        # a missing store fails before the route is loaded; then the store is open only while a drive log writes
+        # (about once a second), so CLI commands can use it during a session (docs/store.md)
+        with open_store(args) as checked:
+            st = StoreHolder(checked.path, checked.actor)
     try:
         live = LiveRoute.load(args.route)
 
@@ -33,7 +40,7 @@ def _serve(args) -> None:
             raise UserError(f"cannot listen on {args.host}:{args.port}: {exc.strerror or exc}") from None
     finally:
         if st is not None:
-            st.close()
+            st.shut()
 
 
 def _drive(args) -> None:
