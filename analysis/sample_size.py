@@ -32,6 +32,7 @@ import pandas as pd
 from scipy import stats
 
 from analysis.hypotheses import supported
+from analysis.mvn import cholesky, draw
 from analysis.regression import ModelSpec, ols
 
 POWER_COLUMNS = ["hypothesis", "path", "sign", "n", "reps", "supported", "power", "ci_low", "ci_high"]
@@ -101,23 +102,6 @@ def population_from_csv(path: str | Path) -> Population:
     return pop
 
 
-def cholesky(cov: Sequence[Sequence[float]]) -> list[list[float]]:
-    """Lower Cholesky factor L (L L' = cov) in plain Python; ValueError if cov is not positive definite."""
-    k = len(cov)
-    L = [[0.0] * k for _ in range(k)]
-    for i in range(k):
-        for j in range(i + 1):
-            s = math.fsum(L[i][m] * L[j][m] for m in range(j))
-            if i == j:
-                d = cov[i][i] - s
-                if not d > 1e-12 * max(1.0, abs(cov[i][i])):
-                    raise ValueError("the population covariance matrix is not positive definite")
-                L[i][j] = math.sqrt(d)
-            else:
-                L[i][j] = (cov[i][j] - s) / L[j][j]
-    return L
-
-
 def targets(study_models: Sequence[ModelSpec], hypotheses, names: Sequence[str]) -> list[Target]:
     """The hypotheses as :class:`Target` s: each reads its predictor in its model at its step (covariate columns
     expanded as in the analysis's model specs). ValueError if a variable is not in the population."""
@@ -136,17 +120,6 @@ def targets(study_models: Sequence[ModelSpec], hypotheses, names: Sequence[str])
     return out
 
 
-def _draw(L: list[list[float]], mean: Sequence[float], n: int, rng: np.random.Generator) -> np.ndarray:
-    z = rng.standard_normal((n, len(L)))
-    x = np.empty_like(z)
-    for i, row in enumerate(L):
-        col = np.full(n, mean[i])
-        for j in range(i + 1):
-            col += z[:, j] * row[j]
-        x[:, i] = col
-    return x
-
-
 def _count(job: tuple) -> list[int]:
     """Supported counts per target for replicates `reps` (a range) at size n (one worker's share)."""
     pop, tgts, n, reps, seed, alpha = job
@@ -154,7 +127,7 @@ def _count(job: tuple) -> list[int]:
     col = {name: i for i, name in enumerate(pop.names)}
     hits = [0] * len(tgts)
     for r in reps:
-        x = _draw(L, pop.mean, n, np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(n, r))))
+        x = draw(L, pop.mean, n, np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(n, r))))
         for t_i, t in enumerate(tgts):
             try:
                 fit = ols(x[:, col[t.dv]], x[:, [col[p] for p in t.predictors]])

@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.kpis import KPI_FIELDS, ROUTE_SEGMENTS, SEGMENTS, KpiParams
+from analysis.mvn import cholesky, draw
 
 
 def kpis_pandas(samples: pd.DataFrame, params: KpiParams | None = None) -> pd.DataFrame:
@@ -126,7 +127,7 @@ def _thresholds(k: int) -> np.ndarray:
 
 def simulate_study_responses(study, n: int = 40, seed: int = 1, *, instrument=None, loading: float = 0.8,
                              phi=0.4, signals: dict[str, dict[str, float]] | None = None,
-                             thresholds=None) -> pd.DataFrame:
+                             thresholds=None, latent: str = "cholesky") -> pd.DataFrame:
     """Wide survey frame (participant_id + every scaled item of the study's instrument, raw answers as ticked) of
     `n` synthetic participants with a clean factor structure.
 
@@ -136,7 +137,10 @@ def simulate_study_responses(study, n: int = 40, seed: int = 1, *, instrument=No
     in `signals`, the weighted sum {construct: weight} of factors; a reverse-scored item is generated negatively
     keyed (as a participant ticks it). The continuous value is cut into the item's scale_min..scale_max by
     `thresholds` (default: evenly spaced cut points leaning towards agreement, :func:`_thresholds`).
-    Deterministic for (study, n, seed, options). A test fixture, not a model of any real survey.
+    Deterministic for (study, n, seed, options) on every machine: the factors are drawn with :mod:`analysis.mvn`
+    (no BLAS). ``latent="numpy-svd"`` draws them with numpy's ``multivariate_normal`` instead, as the generator did
+    before; its bits depend on the OpenBLAS kernel (the committed test data of tests/data were drawn that way under
+    ``OPENBLAS_CORETYPE=Haswell``). A test fixture, not a model of any real survey.
 
     Examples
     --------
@@ -157,7 +161,12 @@ def simulate_study_responses(study, n: int = 40, seed: int = 1, *, instrument=No
     else:
         corr = np.asarray(phi.loc[factors, factors] if isinstance(phi, pd.DataFrame) else phi, dtype=float)
     rng = np.random.default_rng(seed)
-    eta = rng.multivariate_normal(np.zeros(len(factors)), corr, size=n)
+    if latent == "cholesky":
+        eta = draw(cholesky(corr.tolist()), [0.0] * len(factors), n, rng)
+    elif latent == "numpy-svd":
+        eta = rng.multivariate_normal(np.zeros(len(factors)), corr, size=n)
+    else:
+        raise ValueError(f"latent must be 'cholesky' or 'numpy-svd', not {latent!r}")
     col = {f: k for k, f in enumerate(factors)}
     out = {"participant_id": participant_ids(study, n)}
     for c, items in inst.constructs.items():

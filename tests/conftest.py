@@ -94,3 +94,23 @@ def browser():
         b = launch(p)
         yield b
         b.close()
+
+
+def python_under_kernel(coretype: str, code: str) -> str:
+    """stdout of `code` run by this Python in a fresh process with OpenBLAS forced to kernel `coretype`."""
+    env = {**os.environ, "OPENBLAS_CORETYPE": coretype, "PYTHONPATH": str(REPO)}
+    p = subprocess.run([sys.executable, "-c", code], cwd=REPO, env=env, capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stderr[-2000:]
+    return p.stdout
+
+
+def needs_r(*packages: str):
+    """Skip unless Rscript and every R package in `packages` are installed (the R cross-checks rerun the committed
+    R scripts; CI does not install R, the committed fixtures are what the other tests compare with)."""
+    import shutil
+
+    if shutil.which("Rscript") is None:
+        return pytest.mark.skipif(True, reason="R (Rscript) is not installed")
+    probe = "quit(status = !all(sapply(c(%s), requireNamespace, quietly = TRUE)))" % ", ".join(f'"{p}"' for p in packages)
+    ok = subprocess.run(["Rscript", "-e", probe], capture_output=True).returncode == 0
+    return pytest.mark.skipif(not ok, reason=f"R packages {', '.join(packages)} are not all installed")

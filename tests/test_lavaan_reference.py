@@ -21,6 +21,7 @@ import pytest
 from analysis.acceptance import SurveyAnalysis, analyze_survey
 from analysis.testing import simulate_study_participants, simulate_study_responses
 from study.definition import load
+from tests.conftest import python_under_kernel
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO / "tests" / "data" / "lane_keeping"
@@ -33,8 +34,10 @@ TOL_P = 1e-4
 
 
 def generate(study) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """(survey, participants) of the committed files: seeded synthetic answers and ages of 24 participants."""
-    answers = simulate_study_responses(study, N, SEED)
+    """(survey, participants) of the committed files: seeded synthetic answers and ages of 24 participants, drawn
+    with numpy's multivariate_normal as when the lavaan reference was computed (the same bits only under the
+    OpenBLAS kernel the files were written with, Haswell: test_committed_data_are_the_generators)."""
+    answers = simulate_study_responses(study, N, SEED, latent="numpy-svd")
     people = simulate_study_participants(study, N, SEED)[["participant_id", "age"]]
     survey = answers.copy()
     survey.insert(1, "AGE", people["age"].to_numpy())
@@ -58,11 +61,17 @@ def api(study):
     return analyze_survey(survey, study, attributes=people, n_boot=0)
 
 
-def test_committed_data_are_the_generators(study):
-    survey, people = generate(study)
-    assert (DATA / "survey.csv").read_text() == survey.to_csv(index=False, lineterminator="\n")
-    assert (DATA / "participants.csv").read_text() == people.to_csv(index=False, lineterminator="\n")
-    assert survey.shape == (24, 14) and survey["EE3"].between(1, 7).all()
+def test_committed_data_are_the_generators():
+    out = python_under_kernel("Haswell", "import json, sys; from study.definition import load; "
+                                         "from tests.test_lavaan_reference import STUDY_DIR, generate; "
+                                         "s, p = generate(load(STUDY_DIR)); "
+                                         "json.dump([s.to_csv(index=False, lineterminator='\\n'), "
+                                         "p.to_csv(index=False, lineterminator='\\n')], sys.stdout)")
+    survey, people = json.loads(out)
+    assert (DATA / "survey.csv").read_text() == survey
+    assert (DATA / "participants.csv").read_text() == people
+    committed = pd.read_csv(DATA / "survey.csv")
+    assert committed.shape == (24, 14) and committed["EE3"].between(1, 7).all()
 
 
 def test_reference_was_computed_on_these_data(reference):

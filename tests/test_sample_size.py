@@ -12,6 +12,7 @@ import pandas as pd
 import pytest
 
 from analysis import sample_size as ss
+from tests.conftest import needs_r
 
 REPO = Path(__file__).resolve().parents[1]
 REF = REPO / "tests" / "data" / "r_reference_power"
@@ -22,7 +23,7 @@ def _reference() -> pd.DataFrame:
     return pd.read_csv(REF / "power_reference.csv")
 
 
-@pytest.mark.skipif(shutil.which("Rscript") is None, reason="R is not installed")
+@needs_r("pwr")
 def test_r_reproduces_the_committed_fixture(tmp_path):
     copy = tmp_path / "power_reference.R"
     shutil.copy(REF / "power_reference.R", copy)
@@ -87,13 +88,15 @@ def test_measurement_df_of_the_paper_and_a_hand_count():
 
 
 def test_cholesky_and_sampling_reproduce_the_covariance():
+    from analysis.mvn import cholesky, draw
+
     cov = ((2.0, 0.6, 0.2), (0.6, 1.0, 0.3), (0.2, 0.3, 1.5))
-    L = np.array(ss.cholesky(cov))
+    L = np.array(cholesky(cov))
     np.testing.assert_allclose(L @ L.T, cov, atol=1e-14)
-    x = ss._draw(L.tolist(), (1.0, 2.0, 3.0), 40000, np.random.default_rng(0))
+    x = draw(L.tolist(), (1.0, 2.0, 3.0), 40000, np.random.default_rng(0))
     np.testing.assert_allclose(np.cov(x.T), cov, atol=0.05)
     with pytest.raises(ValueError, match="not positive definite"):
-        ss.cholesky(((1.0, 2.0), (2.0, 1.0)))
+        cholesky(((1.0, 2.0), (2.0, 1.0)))
 
 
 def test_plan_power_cli_on_a_given_population(tmp_path, capsys):

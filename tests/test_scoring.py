@@ -88,3 +88,14 @@ def test_bad_input(raw, mutate, match):
 def test_constant_column_is_named():
     with pytest.raises(ValueError, match="item b is constant"):
         check_not_constant(pd.DataFrame({"a": [1, 2], "b": [3, 3]}))
+
+
+def test_simulated_answers_are_the_same_under_every_blas_kernel():
+    """The default generator draws its factors without BLAS (analysis.mvn): the same answers whatever kernel
+    OpenBLAS picks."""
+    from tests.conftest import python_under_kernel
+
+    code = ("import hashlib, sys; from analysis.paper.synthetic import simulate_paper_responses; "
+            "sys.stdout.write(hashlib.sha256(simulate_paper_responses(60, 3).to_csv().encode()).hexdigest())")
+    outs = {k: python_under_kernel(k, code) for k in ("Prescott", "Sandybridge", "Haswell", "SkylakeX")}
+    assert len(set(outs.values())) == 1, outs
