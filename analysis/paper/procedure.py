@@ -1,0 +1,287 @@
+"""Which extraction produced Table 3's "standardized factor loadings"? A feasibility test per construct.
+
+For a construct with k items, the printed λ, Cα, CR, AVE and item SDs are *consistent with* an extraction when some
+correlation matrix R of the k items (unit diagonal, positive semi-definite) yields exactly the printed λ under that
+extraction and, with the printed item SDs, exactly the printed Cα. CR and AVE are Hair's functions of λ
+(:func:`analysis.paper.audit.cr_ave`), so they are checked on the printed λ.
+
+The key fact: for each extraction of :mod:`analysis.extraction`, "λ is the solution for R" is a set of k *linear*
+equations in the k(k-1)/2 off-diagonal correlations (plus "the eigenvalue is the largest"):
+
+* pca: R v = μ v with v = λ/√μ, μ = Σλ²:           Σ_{j≠i} r_ij λ_j = λ_i (μ - 1)
+* paf (fixed point, communalities h² = λ²):         Σ_{j≠i} r_ij λ_j = λ_i (μ - λ_i²)
+* ml (one factor, ψ_i = 1 - λ_i², γ = 1 + Σλ²/ψ):    Σ_{j≠i} r_ij λ_j/ψ_j = λ_i (γ - 1/ψ_i)
+  (Jöreskog's stationarity condition R Ψ⁻¹λ = γ λ; it is also a one-construct CFA)
+
+and Cα is a monotone function of the one linear form q = Σ_{i<j} s_i s_j r_ij. Hence:
+
+* k = 2 and k = 3: the equations fix R (2 items under PCA also need λ₁ = λ₂). Cα is then *determined* by the
+  printed λ and SDs; over the rounding box of the printed digits (λ ± half a unit of the last digit, SDs in their
+  truncation interval [printed, printed + unit)) it spans an interval. Disjoint from the printed Cα's interval: the
+  extraction is *rejected* - a proof. Overlapping: the extraction is consistent, and with 1 (k = 3) or 1-2 (k = 2)
+  more printed numbers than unknowns this is a test the numbers could have failed.
+* k >= 4: the solutions form an affine family of dimension k(k-1)/2 - k; a matrix of it that is a correlation matrix,
+  has the printed Cα and for which λ belongs to the largest eigenvalue is searched with SLSQP from seeded starts.
+  A matrix found is a *witness*: the extraction is consistent (proven constructively, but not singled out: other
+  extractions may fit too). None found is evidence, not proof.
+
+Reversing an item multiplies its row and column of R by -1: its loading changes sign, nothing else (other λ, Cα of
+the retained items, CR, AVE). So the printed numbers cannot tell whether PEoU3 was reversed before the extraction;
+its sign only says that the item *as analysed* ran against the others.
+"""
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+import pandas as pd
+from scipy import optimize
+
+from analysis import extraction as X
+from analysis.paper import audit as A
+from analysis.paper import grim
+from analysis.paper import published as P
+
+METHODS = ("pca", "paf", "ml")
+METHOD_NAMES = {"pca": "principal components (SPSS FACTOR default)", "paf": "principal axis factoring",
+                "ml": "ML factor analysis / one-construct CFA"}
+N_STARTS = 1
+SEED = 20240
+
+
+@dataclass
+class Feasibility:
+    """One construct x extraction x item set: status fits | rejected | not found, the numbers that decide it."""
+
+    construct: str
+    method: str
+    item_set: str                  # retained | all
+    items: list[str]
+    k: int
+    unknowns: int
+    equations: int                 # k loading equations + 1 for Cα
+    alpha_printed: float
+    alpha_low: float               # the Cα range the printed λ allow (determined case) or the witness' Cα
+    alpha_high: float
+    status: str
+    how: str                       # closed form | witness | search
+    witness: np.ndarray | None = None
+
+
+def system(lam: np.ndarray, method: str) -> tuple[np.ndarray, np.ndarray, list[tuple[int, int]]]:
+    """The linear equations M r = b in the off-diagonal correlations r (pairs i < j) of the module docstring."""
+    lam = np.asarray(lam, float)
+    k = len(lam)
+    pairs = list(itertools.combinations(range(k), 2))
+    mu = float((lam ** 2).sum())
+    if method == "ml":
+        psi = 1.0 - lam ** 2
+        w = lam / psi
+        b = lam * (1.0 + (lam ** 2 / psi).sum() - 1.0 / psi)
+    elif method in ("pca", "paf"):
+        w = lam
+        b = lam * (mu - 1.0) if method == "pca" else lam * (mu - lam ** 2)
+    else:
+        raise ValueError(f"unknown extraction {method!r} (one of {', '.join(METHODS)})")
+    M = np.zeros((k, len(pairs)))
+    for p, (i, j) in enumerate(pairs):
+        M[i, p], M[j, p] = w[j], w[i]
+    return M, b, pairs
+
+
+def to_matrix(r: np.ndarray, pairs: list[tuple[int, int]], k: int) -> np.ndarray:
+    R = np.eye(k)
+    for p, (i, j) in enumerate(pairs):
+        R[i, j] = R[j, i] = r[p]
+    return R
+
+
+def top_gap(R: np.ndarray, lam: np.ndarray, method: str) -> float:
+    """How far the eigenvalue λ belongs to lies above every other eigenvalue of the matrix the extraction
+    decomposes (> 0 needed): μ minus the largest eigenvalue on the complement of λ's direction."""
+    lam = np.asarray(lam, float)
+    if method == "ml":
+        psi = 1.0 - lam ** 2
+        d = 1.0 / np.sqrt(psi)
+        m, v, mu = R * np.outer(d, d), lam * d, 1.0 + (lam ** 2 / psi).sum()
+    else:
+        m, v, mu = R.copy(), lam.copy(), (lam ** 2).sum()
+        if method == "paf":
+            np.fill_diagonal(m, lam ** 2)
+    v = v / np.linalg.norm(v)
+    proj = np.eye(len(v)) - np.outer(v, v)
+    others = np.linalg.eigvalsh(proj @ m @ proj)
+    # the complement's eigenvalues plus the 0 that v contributes; drop that one 0
+    others = np.delete(others, np.argmin(np.abs(others)))
+    return float(mu - others.max())
+
+
+def is_solution(R: np.ndarray, lam: np.ndarray, method: str, tol: float = 1e-6) -> bool:
+    """Postcondition of a witness: a correlation matrix (PSD) whose extraction by ``method`` gives ``lam``."""
+    if np.linalg.eigvalsh(R)[0] < -1e-9 or np.max(np.abs(R)) > 1 + 1e-12:
+        return False
+    if method == "paf":  # iterate to the fixed point, not SPSS's stopping rule, to check the solution itself
+        ex = X.paf_loadings(R, max_iter=20000, tol=1e-13)
+    else:
+        ex = X.extract(R, method)
+    return bool(np.max(np.abs(ex.loadings - lam)) < tol)
+
+
+def _alpha(R: np.ndarray, sd: np.ndarray, sub: list[int]) -> float:
+    return A.alpha_from_cov((np.outer(sd, sd) * R)[np.ix_(sub, sub)])
+
+
+def _boxes(values: np.ndarray, decimals: np.ndarray, mode: str) -> list[tuple[float, float]]:
+    return [grim.interval(v, int(d), mode) for v, d in zip(values, decimals)]
+
+
+def determined_alpha_range(lam, lam_dec, sd, sd_dec, sub: list[int], method: str) -> tuple[float, float] | None:
+    """Cα over the corners of the rounding box when the equations fix R (k <= 3); None if no corner solves them.
+
+    The box is tiny (half-widths <= 0.005) and Cα smooth in λ and the SDs, so its extremes are at corners."""
+    lb, sb = _boxes(lam, lam_dec, "round"), _boxes(sd, sd_dec, "truncate")
+    k = len(lam)
+    if k == 2 and method == "pca":
+        # both loadings equal √((1 + r)/2): only the common part of the two boxes can be a solution
+        lo, hi = max(lb[0][0], lb[1][0]), min(lb[0][1], lb[1][1])
+        if lo > hi:
+            return None
+        lb = [(lo, hi), (lo, hi)]
+        corners = [((a, a), s) for a in (lo, hi) for s in itertools.product(*sb)]
+    else:
+        corners = [(l_, s) for l_ in itertools.product(*lb) for s in itertools.product(*sb)]
+    vals = []
+    for l_, s in corners:
+        M, b, pairs = system(np.array(l_), method)
+        r, *_ = np.linalg.lstsq(M, b, rcond=None)
+        if np.max(np.abs(M @ r - b)) > 1e-9:
+            continue
+        vals.append(_alpha(to_matrix(r, pairs, k), np.array(s), sub))
+    return (min(vals), max(vals)) if vals else None
+
+
+def family_alpha_range(lam, sd, sub: list[int], method: str, half_width: float = 2.5, steps: int = 251
+                       ) -> tuple[float, float, np.ndarray | None, np.ndarray | None]:
+    """Scan a 1- or 2-dimensional solution family (k = 4: 6 correlations, 4 equations) on a grid of its
+    coordinates (orthonormal directions, ±``half_width``, ``steps`` per axis): the Cα range over the members that
+    are correlation matrices with λ on the largest eigenvalue, and the members attaining the minimum and maximum.
+    Returns (nan, nan, None, None) when no member qualifies."""
+    lam, sd = np.asarray(lam, float), np.asarray(sd, float)
+    k = len(lam)
+    M, b, pairs = system(lam, method)
+    r0, *_ = np.linalg.lstsq(M, b, rcond=None)
+    null = np.linalg.svd(M)[2][np.linalg.matrix_rank(M):].T
+    axes = [np.linspace(-half_width, half_width, steps)] * null.shape[1]
+    T = np.array(np.meshgrid(*axes, indexing="ij")).reshape(null.shape[1], -1).T
+    r = r0[None, :] + T @ null.T
+    r = r[np.all(np.abs(r) <= 1.0, axis=1)]
+    Rs = np.repeat(np.eye(k)[None], len(r), axis=0)
+    for p, (i, j) in enumerate(pairs):
+        Rs[:, i, j] = Rs[:, j, i] = r[:, p]
+    ok = np.linalg.eigvalsh(Rs)[:, 0] >= 0
+    Rs = Rs[ok]
+    gaps = np.array([top_gap(R, lam, method) for R in Rs])
+    Rs = Rs[gaps > 0]
+    if not len(Rs):
+        return float("nan"), float("nan"), None, None
+    cov = np.einsum("nij,i,j->nij", Rs, sd, sd)[:, sub][:, :, sub]
+    kk = len(sub)
+    alphas = kk / (kk - 1) * (1 - np.trace(cov, axis1=1, axis2=2) / cov.sum(axis=(1, 2)))
+    return float(alphas.min()), float(alphas.max()), Rs[int(np.argmin(alphas))], Rs[int(np.argmax(alphas))]
+
+
+def search_witness(lam, sd, sub: list[int], alpha: float, method: str, r_pref: np.ndarray | None = None,
+                   starts: int = N_STARTS, seed: int = SEED) -> np.ndarray | None:
+    """A correlation matrix solving the equations with Cα(sub) = alpha and λ on the largest eigenvalue, nearest
+    ``r_pref`` (default: the one-factor pattern λ_iλ_j); None when no start succeeds. Seeded, deterministic."""
+    lam, sd = np.asarray(lam, float), np.asarray(sd, float)
+    k = len(lam)
+    M, b, pairs = system(lam, method)
+    r0, *_ = np.linalg.lstsq(M, b, rcond=None)
+    if np.max(np.abs(M @ r0 - b)) > 1e-9:
+        return None
+    null = np.linalg.svd(M)[2][np.linalg.matrix_rank(M):].T            # basis of the family's directions
+    pref = r_pref if r_pref is not None else np.array([lam[i] * lam[j] for i, j in pairs])
+    R_of = lambda t: to_matrix(r0 + null @ t, pairs, k)  # noqa: E731
+    cons = [{"type": "eq", "fun": lambda t: _alpha(R_of(t), sd, sub) - alpha},
+            {"type": "ineq", "fun": lambda t: np.linalg.eigvalsh(R_of(t))[0] - 1e-6},
+            {"type": "ineq", "fun": lambda t: top_gap(R_of(t), lam, method) - 1e-6}]
+    # (a positive semi-definite matrix with unit diagonal has |r_ij| <= 1: no bound needed)
+    rng = np.random.default_rng(seed)
+    best = None
+    for s in range(starts):
+        t0 = np.zeros(null.shape[1]) if s == 0 else rng.normal(0, 0.3, null.shape[1])
+        res = optimize.minimize(lambda t: float(((r0 + null @ t - pref) ** 2).sum()), t0, method="SLSQP",
+                                constraints=cons, options={"maxiter": 100, "ftol": 1e-12})
+        if not res.success:
+            continue
+        R = R_of(res.x)
+        if abs(_alpha(R, sd, sub) - alpha) < 1e-7 and is_solution(R, lam, method) and (
+                best is None or res.fun < best[0]):
+            best = (res.fun, R)
+    return None if best is None else best[1]
+
+
+@lru_cache(maxsize=1)
+def _default_feasibility() -> tuple[Feasibility, ...]:
+    return tuple(feasibility(P.load_published()))
+
+
+def feasibility(published: pd.DataFrame | None = None, methods=METHODS, starts: int = N_STARTS) -> list[Feasibility]:
+    """Every construct x extraction x item set (retained; all items where some were omitted).
+
+    Without ``published`` the shipped values are used and the result is cached (the witness search takes ~10 s)."""
+    if published is None:
+        return list(_default_feasibility())
+    pub = published
+    t3, tc = P.table3(pub), P.table3_constructs(pub).set_index("construct")
+    dec = pub[pub["table"] == "table3"].set_index(["quantity", "row"])["decimals"].astype(int)
+    out = []
+    for c in P.TABLE4_ORDER:
+        g_all = t3[t3["construct"] == c]
+        sets = [("retained", g_all[~g_all["omitted"]])]
+        if g_all["omitted"].any():
+            sets.append(("all", g_all))
+        for name, g in sets:
+            items = g["item"].tolist()
+            sub = [i for i, it in enumerate(items) if not g.set_index("item").loc[it, "omitted"]]
+            lam, sd = g["loading"].values.astype(float), g["sd"].values.astype(float)
+            lam_dec = np.array([dec[("loading", i)] for i in items])
+            sd_dec = np.array([dec[("sd", i)] for i in items])
+            alpha = float(tc.loc[c, "alpha"])
+            a_lo, a_hi = grim.interval(alpha, int(dec[("alpha", c)]))
+            k = len(items)
+            for m in methods:
+                M, _, _ = system(lam, m)
+                unknowns = k * (k - 1) // 2
+                rank = np.linalg.matrix_rank(M)
+                if unknowns - rank <= 0 or k <= 3:
+                    rng_ = determined_alpha_range(lam, lam_dec, sd, sd_dec, sub, m)
+                    if rng_ is None:
+                        status, lo, hi = "rejected", np.nan, np.nan
+                    else:
+                        lo, hi = rng_
+                        status = "fits" if (lo <= a_hi and hi >= a_lo) else "rejected"
+                    out.append(Feasibility(c, m, name, items, k, unknowns, k + 1, alpha, lo, hi, status,
+                                           "closed form"))
+                elif unknowns - rank <= 2:
+                    lo, hi, _, _ = family_alpha_range(lam, sd, sub, m)
+                    status = "fits" if (lo <= a_hi and hi >= a_lo) else "rejected"
+                    out.append(Feasibility(c, m, name, items, k, unknowns, k + 1, alpha, lo, hi, status,
+                                           "family scan"))
+                else:
+                    wit = search_witness(lam, sd, sub, alpha, m, starts=starts)
+                    a = _alpha(wit, sd, sub) if wit is not None else np.nan
+                    out.append(Feasibility(c, m, name, items, k, unknowns, k + 1, alpha, a, a,
+                                           "fits" if wit is not None else "not found",
+                                           "witness" if wit is not None else "search", wit))
+    return out
+
+
+def feasibility_table(results: list[Feasibility]) -> pd.DataFrame:
+    """Tidy: construct, method, item_set, k, unknowns, equations, alpha_printed, alpha_low, alpha_high, status, how."""
+    cols = ["construct", "method", "item_set", "k", "unknowns", "equations", "alpha_printed", "alpha_low",
+            "alpha_high", "status", "how"]
+    return pd.DataFrame([{c: getattr(r, c) for c in cols} for r in results], columns=cols)
