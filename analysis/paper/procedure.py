@@ -162,12 +162,11 @@ def determined_alpha_range(lam, lam_dec, sd, sd_dec, sub: list[int], method: str
     return (min(vals), max(vals)) if vals else None
 
 
-def family_alpha_range(lam, sd, sub: list[int], method: str, half_width: float = 2.5, steps: int = 251
-                       ) -> tuple[float, float, np.ndarray | None, np.ndarray | None]:
+def family_members(lam, sd, sub: list[int], method: str, half_width: float = 2.5, steps: int = 251
+                   ) -> tuple[np.ndarray, np.ndarray]:
     """Scan a 1- or 2-dimensional solution family (k = 4: 6 correlations, 4 equations) on a grid of its
-    coordinates (orthonormal directions, ±``half_width``, ``steps`` per axis): the Cα range over the members that
-    are correlation matrices with λ on the largest eigenvalue, and the members attaining the minimum and maximum.
-    Returns (nan, nan, None, None) when no member qualifies."""
+    coordinates (orthonormal directions, ±``half_width``, ``steps`` per axis). Returns the members that are
+    correlation matrices with λ on the largest eigenvalue (m x k x k) and their Cα over the items ``sub``."""
     lam, sd = np.asarray(lam, float), np.asarray(sd, float)
     k = len(lam)
     M, b, pairs = system(lam, method)
@@ -180,16 +179,18 @@ def family_alpha_range(lam, sd, sub: list[int], method: str, half_width: float =
     Rs = np.repeat(np.eye(k)[None], len(r), axis=0)
     for p, (i, j) in enumerate(pairs):
         Rs[:, i, j] = Rs[:, j, i] = r[:, p]
-    ok = np.linalg.eigvalsh(Rs)[:, 0] >= 0
-    Rs = Rs[ok]
-    gaps = np.array([top_gap(R, lam, method) for R in Rs])
-    Rs = Rs[gaps > 0]
-    if not len(Rs):
-        return float("nan"), float("nan"), None, None
+    Rs = Rs[np.linalg.eigvalsh(Rs)[:, 0] >= 0]
+    Rs = Rs[np.array([top_gap(R, lam, method) > 0 for R in Rs], dtype=bool)] if len(Rs) else Rs
     cov = np.einsum("nij,i,j->nij", Rs, sd, sd)[:, sub][:, :, sub]
     kk = len(sub)
     alphas = kk / (kk - 1) * (1 - np.trace(cov, axis1=1, axis2=2) / cov.sum(axis=(1, 2)))
-    return float(alphas.min()), float(alphas.max()), Rs[int(np.argmin(alphas))], Rs[int(np.argmax(alphas))]
+    return Rs, alphas
+
+
+def family_alpha_range(lam, sd, sub: list[int], method: str) -> tuple[float, float]:
+    """The Cα range over the members of :func:`family_members` ((nan, nan) when none qualifies)."""
+    _, alphas = family_members(lam, sd, sub, method)
+    return (float(alphas.min()), float(alphas.max())) if len(alphas) else (float("nan"), float("nan"))
 
 
 def search_witness(lam, sd, sub: list[int], alpha: float, method: str, r_pref: np.ndarray | None = None,
@@ -267,7 +268,7 @@ def feasibility(published: pd.DataFrame | None = None, methods=METHODS, starts: 
                     out.append(Feasibility(c, m, name, items, k, unknowns, k + 1, alpha, lo, hi, status,
                                            "closed form"))
                 elif unknowns - rank <= 2:
-                    lo, hi, _, _ = family_alpha_range(lam, sd, sub, m)
+                    lo, hi = family_alpha_range(lam, sd, sub, m)
                     status = "fits" if (lo <= a_hi and hi >= a_lo) else "rejected"
                     out.append(Feasibility(c, m, name, items, k, unknowns, k + 1, alpha, lo, hi, status,
                                            "family scan"))
@@ -285,3 +286,42 @@ def feasibility_table(results: list[Feasibility]) -> pd.DataFrame:
     cols = ["construct", "method", "item_set", "k", "unknowns", "equations", "alpha_printed", "alpha_low",
             "alpha_high", "status", "how"]
     return pd.DataFrame([{c: getattr(r, c) for c in cols} for r in results], columns=cols)
+
+
+def target_blocks(published: pd.DataFrame | None = None, method: str = "pca") -> dict[str, tuple[list[str], np.ndarray, str]]:
+    """Per construct, a correlation matrix of its items under which ``method`` reproduces the printed λ - the
+    within-construct target of the reconstruction: construct -> (items, R, how).
+
+    Preference: an item set on which the method fits (all items before retained ones, so that the omitted items'
+    λ are met too); the matrix is the closed-form solution at the printed λ (2-3 items), else a witness with the
+    printed Cα. Where the method fits no item set (PEoU), a well-conditioned member of the all-items family
+    whose Cα is within 0.01 of the reachable value nearest the printed one."""
+    pub = published if published is not None else P.load_published()
+    t3, tc = P.table3(pub), P.table3_constructs(pub).set_index("construct")
+    res = [r for r in feasibility(published) if r.method == method]
+    out = {}
+    for c in P.TABLE4_ORDER:
+        rows = sorted((r for r in res if r.construct == c), key=lambda r: (r.status != "fits", r.item_set != "all"))
+        r = rows[0]
+        g = t3.set_index("item").loc[r.items]
+        lam, sd = g["loading"].to_numpy(float), g["sd"].to_numpy(float)
+        sub = [i for i, it in enumerate(r.items) if not g.loc[it, "omitted"]]
+        alpha = float(tc.loc[c, "alpha"])
+        if r.status == "fits" and r.how == "closed form":
+            M, b, pairs = system(lam, method)
+            R, how = to_matrix(np.linalg.lstsq(M, b, rcond=None)[0], pairs, len(lam)), "closed form"
+        elif r.status == "fits":
+            R = r.witness if r.witness is not None else search_witness(lam, sd, sub, alpha, method)
+            how = f"witness with Cα {alpha:g}"
+        else:
+            # the most interior member (largest smallest eigenvalue) among those within 0.01 of the reachable Cα
+            # nearest the printed one: an edge member is nearly singular, which integer data cannot approach
+            Rs, alphas = family_members(lam, sd, sub, method)
+            gap = np.abs(alphas - alpha)
+            near = Rs[gap <= gap.min() + 0.01]
+            R = near[int(np.argmax(np.linalg.eigvalsh(near)[:, 0]))]
+            how = f"Cα {_alpha(R, sd, sub):.4f} (printed {alpha:g} not reachable)"
+        if R is None or not is_solution(R, lam, method):
+            raise ValueError(f"{c}: no {method} target matrix reproduces the printed loadings")
+        out[c] = (list(r.items), R, how)
+    return out
