@@ -162,29 +162,43 @@ def determined_alpha_range(lam, lam_dec, sd, sd_dec, sub: list[int], method: str
     return (min(vals), max(vals)) if vals else None
 
 
-def family_members(lam, sd, sub: list[int], method: str, half_width: float = 2.5, steps: int = 251
-                   ) -> tuple[np.ndarray, np.ndarray]:
+def family_members(lam, sd, sub: list[int], method: str, half_width: float = 2.5, steps: int = 251,
+                   refine: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """Scan a 1- or 2-dimensional solution family (k = 4: 6 correlations, 4 equations) on a grid of its
-    coordinates (orthonormal directions, ±``half_width``, ``steps`` per axis). Returns the members that are
-    correlation matrices with λ on the largest eigenvalue (m x k x k) and their Cα over the items ``sub``."""
+    coordinates (orthonormal directions, ±``half_width``, ``steps`` per axis), then on a 100x finer grid around
+    the members with the smallest and the largest Cα (the extremes lie on the region's boundary, which the
+    coarse grid only approaches; ``refine=False`` skips this). Returns the members that are correlation matrices with λ on the largest
+    eigenvalue (m x k x k) and their Cα over the items ``sub``."""
     lam, sd = np.asarray(lam, float), np.asarray(sd, float)
-    k = len(lam)
     M, b, pairs = system(lam, method)
     r0, *_ = np.linalg.lstsq(M, b, rcond=None)
     null = np.linalg.svd(M)[2][np.linalg.matrix_rank(M):].T
-    axes = [np.linspace(-half_width, half_width, steps)] * null.shape[1]
+    step = 2 * half_width / (steps - 1)
+    T, Rs, alphas = _members(lam, sd, sub, method, r0, null, pairs, np.zeros(null.shape[1]), half_width, steps)
+    if refine and len(alphas):
+        for t in (T[np.argmin(alphas)], T[np.argmax(alphas)]):
+            T2, R2, a2 = _members(lam, sd, sub, method, r0, null, pairs, t, step, 201)
+            T, Rs, alphas = np.vstack([T, T2]), np.concatenate([Rs, R2]), np.concatenate([alphas, a2])
+    return Rs, alphas
+
+
+def _members(lam, sd, sub, method, r0, null, pairs, centre, half_width, steps):
+    k = len(lam)
+    axes = [np.linspace(c - half_width, c + half_width, steps) for c in centre]
     T = np.array(np.meshgrid(*axes, indexing="ij")).reshape(null.shape[1], -1).T
     r = r0[None, :] + T @ null.T
-    r = r[np.all(np.abs(r) <= 1.0, axis=1)]
+    keep = np.all(np.abs(r) <= 1.0, axis=1)
+    T, r = T[keep], r[keep]
     Rs = np.repeat(np.eye(k)[None], len(r), axis=0)
     for p, (i, j) in enumerate(pairs):
         Rs[:, i, j] = Rs[:, j, i] = r[:, p]
-    Rs = Rs[np.linalg.eigvalsh(Rs)[:, 0] >= 0]
-    Rs = Rs[np.array([top_gap(R, lam, method) > 0 for R in Rs], dtype=bool)] if len(Rs) else Rs
+    ok = np.linalg.eigvalsh(Rs)[:, 0] >= 0
+    ok[ok] = [top_gap(R, lam, method) > 0 for R in Rs[ok]]
+    T, Rs = T[ok], Rs[ok]
     cov = np.einsum("nij,i,j->nij", Rs, sd, sd)[:, sub][:, :, sub]
     kk = len(sub)
     alphas = kk / (kk - 1) * (1 - np.trace(cov, axis1=1, axis2=2) / cov.sum(axis=(1, 2)))
-    return Rs, alphas
+    return T, Rs, alphas
 
 
 def family_alpha_range(lam, sd, sub: list[int], method: str) -> tuple[float, float]:
@@ -316,7 +330,7 @@ def target_blocks(published: pd.DataFrame | None = None, method: str = "pca") ->
         else:
             # the most interior member (largest smallest eigenvalue) among those within 0.01 of the reachable Cα
             # nearest the printed one: an edge member is nearly singular, which integer data cannot approach
-            Rs, alphas = family_members(lam, sd, sub, method)
+            Rs, alphas = family_members(lam, sd, sub, method, refine=False)  # interior members are wanted
             gap = np.abs(alphas - alpha)
             near = Rs[gap <= gap.min() + 0.01]
             R = near[int(np.argmax(np.linalg.eigvalsh(near)[:, 0]))]
