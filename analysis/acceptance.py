@@ -543,8 +543,8 @@ def _analyze(responses, study, *, attributes, instrument, model, n_boot, seed, l
     for _, r in fl[~fl["pass"]].iterrows():
         warn.append(f"Fornell-Larcker fails for {r['a']}-{r['b']}: |r| = {abs(r['r']):.3f} >= "
                     f"min sqrt(AVE) = {min(r['sqrt_ave_a'], r['sqrt_ave_b']):.3f}")
-    settings = {"instrument": inst.name, "listwise": listwise, "loadings": loading_method, "n_boot": n_boot, "seed": seed,
-                "boot_method": boot_method, "dropped_items": list(plan.dropped), "rules": plan.rules,
+    settings = {"instrument": inst.name, "listwise": listwise, "loadings": loading_method, "n_boot": n_boot,
+                "seed": seed, "boot_method": boot_method, "dropped_items": list(plan.dropped), "rules": plan.rules,
                 "models": [m.__dict__ for m in specs], "hypothesis_alpha": plan.alpha,
                 "study": study.study_id, "study_hash": study.hash,
                 "hypothesis_signs": {h.hypothesis: h.sign for h in plan.hypotheses},

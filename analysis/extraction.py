@@ -4,7 +4,8 @@ Many papers report the loadings of SPSS "Analyze > Dimension Reduction > Factor"
 CFA. The procedure's default extraction is principal components; principal axis factoring and ML are options.
 All three work on the item *correlation* matrix R (k x k) and return one loading per item:
 
-* ``pca``: first principal component, λ = √μ₁ · v₁ (μ₁, v₁ the largest eigenvalue and its unit eigenvector of R).
+* ``pca``: first principal component, λ = √μ₁ · v₁ (μ₁, v₁ the largest eigenvalue of R and its unit
+  eigenvector).
   Σλ² = μ₁, so AVE = mean λ² = μ₁/k. Two items correlating r: μ₁ = 1 + r, λ = √((1 + r)/2) for both.
 * ``paf``: principal axis factoring (SPSS PAF): initial communalities h² = SMC = 1 - 1/diag(R⁻¹); repeat
   "put h² on the diagonal of R, λ = √μ₁ v₁ of that reduced matrix, h² = λ²" until the largest change of a

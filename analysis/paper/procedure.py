@@ -21,7 +21,8 @@ and Cα is a monotone function of the one linear form q = Σ_{i<j} s_i s_j r_ij.
   extraction is *rejected* - a proof. Overlapping: the extraction is consistent, and with 1 (k = 3) or 1-2 (k = 2)
   more printed numbers than unknowns this is a test the numbers could have failed.
 * k >= 4: the solutions form an affine family of dimension k(k-1)/2 - k; a matrix of it that is a correlation matrix,
-  has the printed Cα and for which λ belongs to the largest eigenvalue is searched with SLSQP from seeded starts.
+  has the printed Cα and for which λ belongs to the largest eigenvalue is searched with SLSQP (from the family's
+  least-squares point; further starts, if asked for, are seeded).
   A matrix found is a *witness*: the extraction is consistent (proven constructively, but not singled out: other
   extractions may fit too). None found is evidence, not proof.
 
@@ -167,11 +168,13 @@ def family_members(lam, sd, sub: list[int], method: str, half_width: float = 2.5
     """Scan a 1- or 2-dimensional solution family (k = 4: 6 correlations, 4 equations) on a grid of its
     coordinates (orthonormal directions, ±``half_width``, ``steps`` per axis), then on a 100x finer grid around
     the members with the smallest and the largest Cα (the extremes lie on the region's boundary, which the
-    coarse grid only approaches; ``refine=False`` skips this). Returns the members that are correlation matrices with λ on the largest
-    eigenvalue (m x k x k) and their Cα over the items ``sub``."""
+    coarse grid only approaches; ``refine=False`` skips this). Returns the members that are correlation matrices
+    with λ on the largest eigenvalue (m x k x k) and their Cα over the items ``sub``."""
     lam, sd = np.asarray(lam, float), np.asarray(sd, float)
     M, b, pairs = system(lam, method)
     r0, *_ = np.linalg.lstsq(M, b, rcond=None)
+    # r0 is the minimum-norm solution (orthogonal to the family's directions), so a member r has coordinates
+    # t = nullᵀr with |t| <= |r| <= √6 (|r_ij| <= 1): ±2.5 covers every member
     null = np.linalg.svd(M)[2][np.linalg.matrix_rank(M):].T
     step = 2 * half_width / (steps - 1)
     T, Rs, alphas = _members(lam, sd, sub, method, r0, null, pairs, np.zeros(null.shape[1]), half_width, steps)
@@ -302,7 +305,8 @@ def feasibility_table(results: list[Feasibility]) -> pd.DataFrame:
     return pd.DataFrame([{c: getattr(r, c) for c in cols} for r in results], columns=cols)
 
 
-def target_blocks(published: pd.DataFrame | None = None, method: str = "pca") -> dict[str, tuple[list[str], np.ndarray, str]]:
+def target_blocks(published: pd.DataFrame | None = None, method: str = "pca"
+                  ) -> dict[str, tuple[list[str], np.ndarray, str]]:
     """Per construct, a correlation matrix of its items under which ``method`` reproduces the printed λ - the
     within-construct target of the reconstruction: construct -> (items, R, how).
 

@@ -35,7 +35,7 @@ import pandas as pd
 
 from analysis.paper import audit as A
 from analysis.paper import grim
-from analysis.paper import procedure as P_
+from analysis.paper import procedure
 from analysis.paper import published as P
 
 N_IMPLIED = 40
@@ -195,7 +195,7 @@ def build_targets(published: pd.DataFrame | None = None, n: int = N_IMPLIED) -> 
             T[i, j] = a[ii] * a[jj] * phi
     # within a construct: a matrix under which the paper's procedure (first principal component, audit finding
     # "extraction") gives exactly the printed loadings with the printed Cα (procedure.target_blocks)
-    for c, (its, block, how) in P_.target_blocks(pub).items():
+    for c, (its, block, how) in procedure.target_blocks(pub).items():
         idx = [items.index(i) for i in its]
         T[np.ix_(idx, idx)] = block
         notes.append(f"{c}: within-construct target under principal components: {how} ({len(its)} items)")
