@@ -127,3 +127,17 @@ def test_without_the_papers_procedure_loadings_are_compared_with_the_cfa():
     pub = P.load_published()
     table = RP.reproduce(_fake_analysis(pub), pub)
     assert set(table["procedure"]) == {"cfa"} and table["computed"].equals(table["computed_cfa"])
+
+
+def test_under_the_papers_procedure_peou_is_credited_to_the_extraction_finding():
+    """PEoU fits no extraction (audit finding #10): a PEoU loading off under PCA is that finding; another
+    construct's loading off under PCA is a miss (the procedure fits it, so nothing in the paper explains it)."""
+    pub = P.load_published()
+    t3 = P.table3(pub)
+    lo = pd.concat([t3.assign(stage="initial"), t3[~t3["omitted"]].assign(stage="final")])
+    lo.loc[lo["item"].isin(["PEoU1", "PBC1"]), "loading"] -= 0.2
+    pca = SimpleNamespace(loadings=lo[["stage", "construct", "item", "loading"]])
+    table = RP.reproduce(_fake_analysis(pub), pub, paper_procedure=pca).set_index(["table", "quantity", "row"])
+    assert table.loc[("table3", "loading", "PEoU1"), "status"] == "audit finding #10"
+    assert table.loc[("table3", "loading", "PBC1"), "status"] == "miss"
+    assert table.loc[("table3", "loading", "PU1"), "status"] == "match (PCA)"

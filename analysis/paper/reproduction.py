@@ -56,9 +56,12 @@ PROCEDURE_QUANTITIES = {("table3", "loading"), ("table3", "cr"), ("table3", "ave
 
 def _finding_group(table: str, quantity: str, row: str, column: str, procedure: str = "cfa") -> str | None:
     """Which audit finding explains a published value that cannot be met (None: no finding covers it)."""
-    if procedure == "pca" and table == "table3" and (table, quantity) in PROCEDURE_QUANTITIES \
-            and row.rstrip("0123456789") == "PEoU":
-        return "extraction"          # PEoU's λ and Cα fit no extraction (audit finding "extraction")
+    if procedure == "pca" and (table, quantity) in PROCEDURE_QUANTITIES:
+        # under the paper's procedure only PEoU is unexplained by it (audit finding "extraction": no extraction
+        # fits PEoU) and its diagonal by the 4-item √AVE; any other value off is a defect, not the paper's
+        if table == "table4":
+            return "peou_diagonal" if row == "PEoU" else None
+        return "extraction" if row.rstrip("0123456789") == "PEoU" else None
     if table == "table3":
         if row == "PBC2" and quantity in ("mean", "sd"):
             return "grim_pbc2"
