@@ -506,7 +506,8 @@ def _analyze(responses, study, *, attributes, instrument, model, n_boot, seed, l
     final = _cfa.fit_cfa(scored, retained, label="final")
     warn += initial.warnings + final.warnings
     if loading_method != "cfa":
-        initial, final = (_with_extraction(r, scored, loading_method, warn) for r in (initial, final))
+        initial, final = (_with_extraction(r, scored, loading_method, warn, stage)
+                          for r, stage in ((initial, "initial"), (final, "final")))
     flagged = _cfa.flag_items(initial.loadings, scored, constructs, **plan.rules)
     flagged.insert(0, "stage", "initial")
     flagged["retained"] = ~flagged["item"].isin(plan.dropped)
@@ -559,13 +560,13 @@ def _analyze(responses, study, *, attributes, instrument, model, n_boot, seed, l
 LOADING_METHODS = ("cfa", "pca", "paf")
 
 
-def _with_extraction(res, scored: pd.DataFrame, method: str, warn: list[str]):
+def _with_extraction(res, scored: pd.DataFrame, method: str, warn: list[str], stage: str):
     """A copy of the CFA result `res` whose std loadings ("loading") are SPSS-style extractions per construct."""
     import dataclasses
 
     from analysis.extraction import construct_loadings
 
-    ex, w = construct_loadings(scored, res.constructs, method)
+    ex, w = construct_loadings(scored, res.constructs, method, stage)
     warn += w
     lo = res.loadings.drop(columns="loading").merge(ex, on=["construct", "item"], how="left")
     return dataclasses.replace(res, loadings=lo[list(res.loadings.columns)])

@@ -146,9 +146,10 @@ def _check(R) -> np.ndarray:
     return R
 
 
-def construct_loadings(scored, constructs: dict[str, list[str]], method: str) -> tuple["pd.DataFrame", list[str]]:
+def construct_loadings(scored, constructs: dict[str, list[str]], method: str, label: str = ""
+                       ) -> tuple["pd.DataFrame", list[str]]:
     """Per construct, the extraction ``method`` of its items' Pearson correlation matrix (complete rows), as SPSS
-    FACTOR run once per construct reports it. Returns (frame construct, item, loading; warnings)."""
+    FACTOR run once per construct reports it. Returns (frame construct, item, loading; warnings, tagged ``label``)."""
     import pandas as pd
 
     rows, warn = [], []
@@ -156,7 +157,8 @@ def construct_loadings(scored, constructs: dict[str, list[str]], method: str) ->
         R = scored[items].dropna().corr().to_numpy()
         ex = extract(R, method)
         if not ex.converged:
-            warn.append(f"{method.upper()} loadings of {c}: extraction did not converge (or a communality "
-                        f"exceeded 1); the loadings are unreliable")
+            tag = f"{method.upper()} loadings{' ' + label if label else ''} of {c}"
+            warn.append(f"{tag}: extraction did not converge (or a communality exceeded 1); the loadings are "
+                        "unreliable")
         rows += [{"construct": c, "item": it, "loading": float(v)} for it, v in zip(items, ex.loadings)]
     return pd.DataFrame(rows, columns=["construct", "item", "loading"]), warn

@@ -163,3 +163,18 @@ def test_cli_loadings_pca(cli, tmp_path):
     r = cli("analyze", "survey", "--responses", csv, "--study", "studies/pedas_paper", "--out", tmp_path / "x",
             "--loadings", "varimax")
     assert r.code == 2 and not (tmp_path / "x").exists()
+
+
+def test_a_paf_that_does_not_converge_is_warned_per_stage():
+    from analysis.extraction import construct_loadings
+
+    rng = np.random.default_rng(3)
+    x = rng.normal(size=(40, 1))
+    # two items almost identical and one unrelated: the communalities run past 1 (a Heywood case)
+    data = pd.DataFrame(np.hstack([x, x + 0.01 * rng.normal(size=(40, 1)), rng.normal(size=(40, 1))]),
+                        columns=["a1", "a2", "a3"])
+    _, warn = construct_loadings(data, {"A": ["a1", "a2", "a3"]}, "paf", "initial")
+    assert warn == ["PAF loadings initial of A: extraction did not converge (or a communality exceeded 1); the "
+                    "loadings are unreliable"]
+    frame, warn = construct_loadings(data, {"A": ["a1", "a2", "a3"]}, "pca")
+    assert warn == [] and list(frame.columns) == ["construct", "item", "loading"]
