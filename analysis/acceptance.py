@@ -247,7 +247,7 @@ class SurveyAnalysis:
 
 def analyze_survey(responses: pd.DataFrame, study, *, attributes: pd.DataFrame | None = None, instrument=None,
                    model=None, n_boot: int = 2000, seed: int = 20240101, listwise: bool = True,
-                   boot_method: str = "percentile") -> SurveyAnalysis:
+                   boot_method: str = "percentile", loadings: str = "cfa") -> SurveyAnalysis:
     """Run the whole acceptance analysis of `study` on a wide survey frame (docs/contracts.md "Survey CSV").
 
     Parameters
@@ -270,12 +270,18 @@ def analyze_survey(responses: pd.DataFrame, study, *, attributes: pd.DataFrame |
     listwise : bool
         Drop participants with any missing scaled answer (default); otherwise composites average the answered
         items and CFA/alpha use complete rows.
+    loadings : str
+        The λ reported in Table 3 and used for CR/AVE/√AVE and the item rules: "cfa" (default, standardized
+        loadings of the CFA), or SPSS FACTOR's extractions per construct, "pca" (first principal component) or
+        "paf" (principal axis factoring) - to compare with papers that report those (:mod:`analysis.extraction`).
+        The CFA is fitted either way (fit indices, latent correlations, omega).
 
     Raises ValueError (one line) on bad input.
     """
     with _single_threaded_blas():
         return _analyze(responses, _study(study), attributes=attributes, instrument=instrument, model=model,
-                        n_boot=n_boot, seed=seed, listwise=listwise, boot_method=boot_method)
+                        n_boot=n_boot, seed=seed, listwise=listwise, boot_method=boot_method,
+                        loading_method=loadings)
 
 
 def _study(study):
@@ -461,8 +467,10 @@ def _single_threaded_blas():
         yield
 
 
-def _analyze(responses, study, *, attributes, instrument, model, n_boot, seed, listwise, boot_method
-             ) -> SurveyAnalysis:
+def _analyze(responses, study, *, attributes, instrument, model, n_boot, seed, listwise, boot_method,
+             loading_method="cfa") -> SurveyAnalysis:
+    if loading_method not in LOADING_METHODS:
+        raise ValueError(f"unknown loadings {loading_method!r} (one of {', '.join(LOADING_METHODS)})")
     if boot_method not in ("percentile", "bca"):
         raise ValueError(f"unknown bootstrap CI method {boot_method!r} (percentile or bca)")
     if int(n_boot) < 0:
@@ -497,6 +505,9 @@ def _analyze(responses, study, *, attributes, instrument, model, n_boot, seed, l
     initial = _cfa.fit_cfa(scored, constructs, label="initial")
     final = _cfa.fit_cfa(scored, retained, label="final")
     warn += initial.warnings + final.warnings
+    if loading_method != "cfa":
+        initial, final = (_with_extraction(r, scored, loading_method, warn, stage)
+                          for r, stage in ((initial, "initial"), (final, "final")))
     flagged = _cfa.flag_items(initial.loadings, scored, constructs, **plan.rules)
     flagged.insert(0, "stage", "initial")
     flagged["retained"] = ~flagged["item"].isin(plan.dropped)
@@ -533,8 +544,8 @@ def _analyze(responses, study, *, attributes, instrument, model, n_boot, seed, l
     for _, r in fl[~fl["pass"]].iterrows():
         warn.append(f"Fornell-Larcker fails for {r['a']}-{r['b']}: |r| = {abs(r['r']):.3f} >= "
                     f"min sqrt(AVE) = {min(r['sqrt_ave_a'], r['sqrt_ave_b']):.3f}")
-    settings = {"instrument": inst.name, "listwise": listwise, "n_boot": n_boot, "seed": seed,
-                "boot_method": boot_method, "dropped_items": list(plan.dropped), "rules": plan.rules,
+    settings = {"instrument": inst.name, "listwise": listwise, "loadings": loading_method, "n_boot": n_boot,
+                "seed": seed, "boot_method": boot_method, "dropped_items": list(plan.dropped), "rules": plan.rules,
                 "models": [m.__dict__ for m in specs], "hypothesis_alpha": plan.alpha,
                 "study": study.study_id, "study_hash": study.hash,
                 "hypothesis_signs": {h.hypothesis: h.sign for h in plan.hypotheses},
@@ -544,6 +555,21 @@ def _analyze(responses, study, *, attributes, instrument, model, n_boot, seed, l
                           correlations=correlations, fornell_larcker=fl, htmt=ht, regressions=regressions,
                           hypotheses=hyp, composites=comp, latent_correlations=final.latent_corr, n=sample.n,
                           n_input=sample.n_input, settings=settings, warnings=warn)
+
+
+LOADING_METHODS = ("cfa", "pca", "paf")
+
+
+def _with_extraction(res, scored: pd.DataFrame, method: str, warn: list[str], stage: str):
+    """A copy of the CFA result `res` whose std loadings ("loading") are SPSS-style extractions per construct."""
+    import dataclasses
+
+    from analysis.extraction import construct_loadings
+
+    ex, w = construct_loadings(scored, res.constructs, method, stage)
+    warn += w
+    lo = res.loadings.drop(columns="loading").merge(ex, on=["construct", "item"], how="left")
+    return dataclasses.replace(res, loadings=lo[list(res.loadings.columns)])
 
 
 def table_titles(study) -> dict[str, str]:

@@ -160,6 +160,9 @@ def survey_step(cfg: ReportConfig) -> None:
         reason = survey_missing(st, definition(st))
         if reason is None:
             res, responses = analyze_store(st, n_boot=cfg.n_boot, seed=cfg.seed or 20240101)
+            # Table 3 the way SPSS FACTOR reports it (first principal component per construct), beside our CFA;
+            # only the loadings differ, so no bootstrap
+            pca, _ = analyze_store(st, n_boot=0, seed=cfg.seed or 20240101, loadings="pca")
             ext, ext_reason = _extended_survey(st, definition(st), responses, cfg)
     with _fresh_dir(cfg.out / "survey") as out:
         if reason is not None:
@@ -167,12 +170,24 @@ def survey_step(cfg: ReportConfig) -> None:
             return
         res.write(out)
         responses.to_csv(out / "responses.csv", index=False)
+        write_table3_pca(pca, out / "pca")
         # the extended statistics (docs/acceptance_statistics.md) in survey/extended/
         if ext is not None:
             ext.write(out / "extended")
         else:
             (out / "extended").mkdir()
             (out / "extended" / SKIPPED).write_text(ext_reason + "\n", encoding="utf-8")
+
+
+def write_table3_pca(pca, out: Path) -> None:
+    """survey/pca/: loadings.csv, reliability.csv and table3.{md,tex,csv} of the analysis with PCA loadings."""
+    from analysis.tables_survey import render_table
+
+    out.mkdir(parents=True, exist_ok=True)
+    for name in ("loadings", "reliability"):
+        getattr(pca, name).to_csv(out / f"{name}.csv", index=False, lineterminator="\n", float_format="%.12g")
+    for fmt in ("md", "tex", "csv"):
+        (out / f"table3.{fmt}").write_text(render_table(pca, "table3", fmt), encoding="utf-8")
 
 
 def _extended_survey(st, study, responses, cfg):
@@ -222,7 +237,9 @@ def reproduction_step(cfg: ReportConfig) -> None:
     survey = SimpleNamespace(**{name: pd.read_csv(cfg.out / "survey" / f"{name}.csv")
                                 for name in ("descriptives", "loadings", "reliability", "correlations", "regressions")})
     audit = pd.read_csv(cfg.out / "paper" / "audit.csv")
-    table = reproduce(survey, audit=audit)
+    pca_dir = cfg.out / "survey" / "pca"
+    pca = SimpleNamespace(loadings=pd.read_csv(pca_dir / "loadings.csv")) if pca_dir.exists() else None
+    table = reproduce(survey, audit=audit, paper_procedure=pca)
     table.to_csv(cfg.out / "reproduction.csv", index=False, lineterminator="\n", float_format="%.12g")
     md = [render_markdown(table, source="the reference survey in the study store").rstrip(), ""]
     bands = cfg.out / "drives" / "bands.csv"
@@ -276,7 +293,7 @@ def collect_step(cfg: ReportConfig) -> None:
     tables, figs = cfg.out / "tables", cfg.out / "figures"
     tables.mkdir(parents=True, exist_ok=True)
     figs.mkdir(parents=True, exist_ok=True)
-    for sub in ("survey", "survey/extended", "drives", "paper"):
+    for sub in ("survey", "survey/pca", "survey/extended", "drives", "paper"):
         d = cfg.out / sub
         if not d.exists():
             continue
@@ -400,8 +417,9 @@ def build_pipeline(cfg: ReportConfig, study=None) -> Pipeline:
     pipe.add(Step("drives", lambda: drives_step(cfg), outputs=[cfg.out / "drives"], after=after_store,
                   inputs=[*store_inputs, CODE["analysis"], params]))
     if "audit" not in skips:
+        # the audit's bootstrap check of finding #8 runs on the shipped reconstruction
         pipe.add(Step("audit", lambda: audit_step(cfg), outputs=[cfg.out / "paper"],
-                      inputs=[PAPER_STUDY_DIR, CODE["analysis"], params]))
+                      inputs=[PAPER_STUDY_DIR, REFERENCE_DIR / "survey.csv", CODE["analysis"], params]))
         pipe.add(Step("reproduction", lambda: reproduction_step(cfg), after=["survey", "drives", "audit"],
                       outputs=[cfg.out / "reproduction.md", cfg.out / "reproduction.csv"],
                       inputs=[CODE["analysis"], params]))

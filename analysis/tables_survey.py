@@ -14,6 +14,12 @@ from __future__ import annotations
 from analysis.render import fmt_cell, latex_table, markdown_table
 from analysis.validity import stars
 
+# what λ is, per `analyze_survey(loadings=...)`
+LOADING_NOTES = {"cfa": "standardized factor loading of the CFA",
+                 "pca": "loading on the first principal component of the construct's items (SPSS FACTOR default)",
+                 "paf": "loading of a one-factor principal axis factoring of the construct's items"}
+
+
 def table3_rows(res) -> tuple[list[str], list[list[str]], list[str]]:
     desc = res.descriptives.set_index("item")
     lo = res.loadings
@@ -31,8 +37,8 @@ def table3_rows(res) -> tuple[list[str], list[list[str]], list[str]]:
             name = item + ("†" if bool(desc.loc[item, "reversed"]) else "")
             lam = fmt_cell(fin.loc[item, "loading"]) if item in fin.index else fmt_cell(ini.loc[item, "loading"]) + "*"
             rows.append([name, fmt_cell(desc.loc[item, "mean"]), fmt_cell(desc.loc[item, "sd"]), lam, "", "", ""])
-    notes = [f"N = {res.n}. λ = standardized factor loading (final CFA; * initial CFA, item omitted from the "
-             "analysis), "
+    notes = [f"N = {res.n}. λ = {LOADING_NOTES[res.settings.get('loadings', 'cfa')]} (final items; * all items "
+             "of the construct, item omitted from the analysis), "
              "Cα = Cronbach's alpha, CR = composite reliability, AVE = average variance extracted (final items).",
              "† reverse-scored item (mean and SD after reverse scoring)."]
     return header, rows, notes

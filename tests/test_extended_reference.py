@@ -38,7 +38,9 @@ INV_N, INV_SEED = 240, 7
 
 
 def _paper_inputs():
-    survey = pd.read_csv(REPO / "data" / "reference" / "survey.csv", dtype={"participant_id": str})
+    # a frozen copy of the reference survey the R fixtures were computed on (data/reference/survey.csv is
+    # regenerated whenever the reconstruction changes; R is not available to recompute the fixtures)
+    survey = pd.read_csv(REF / "survey.csv", dtype={"participant_id": str})
     return survey, None
 
 

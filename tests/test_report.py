@@ -175,6 +175,7 @@ def test_report_on_a_lab_store_without_paper_comparison(cli, tmp_path):
     r = cli("report", "--out", out, "--bootstrap", "50", "--cache-dir", tmp_path / "cache", db=db)
     assert r.code == 0, r.err
     assert (out / "survey" / "table3.md").exists()
+    assert "principal component" in (out / "survey" / "pca" / "table3.md").read_text()  # Table 3 both ways
     assert (out / "figures" / "participant_flow.png").exists()
     assert not (out / "reproduction.md").exists() and not (out / "paper").exists()
     assert (out / "drives" / "objective.md").read_text().count("no drives") == 1
@@ -186,6 +187,9 @@ def test_report_on_a_lab_store_without_paper_comparison(cli, tmp_path):
     r = cli("report", "--out", out, "--bootstrap", "50", "--compare-paper", "--cache-dir", tmp_path / "cache", db=db)
     assert r.code == 0, r.err
     assert "reproduction:" in r.out and (out / "reproduction.csv").exists() and (out / "paper" / "audit.csv").exists()
+    rep = pd.read_csv(out / "reproduction.csv")
+    assert set(rep.loc[rep["quantity"] == "loading", "procedure"]) == {"pca"}
+    assert "## Table 3 both ways" in (out / "reproduction.md").read_text()
 
 
 def test_report_on_missing_store_is_one_line_error(cli, tmp_path):

@@ -7,6 +7,13 @@ Status per value:
 - ``audit finding #k``: outside tolerance, and the audit shows the published value cannot be met together with the
   rest of the paper (the row names the finding and the audit row);
 - ``miss``: outside tolerance without such an explanation - a defect of the reconstruction or of the analysis.
+
+Table 3's loadings, CR and AVE and Table 4's √AVE diagonal were produced by principal components (audit finding
+"extraction"). Given the analysis of the same data with ``loadings="pca"`` (``paper_procedure``), those values are
+compared with the paper's procedure - λ of each construct's extraction on all its items (the item set on which
+finding #10 fits ATT; the other constructs but PEoU have no omitted item), CR/AVE/√AVE from the retained items' λ
+(Hair) - and their status says so: ``match (PCA)``, ``within tolerance (PCA)``. ``computed_cfa`` keeps our CFA's
+value beside it (Table 3 both ways).
 """
 from __future__ import annotations
 
@@ -41,11 +48,20 @@ TOLERANCES: dict[str, tuple[float, str]] = {
 }
 
 COLUMNS = ["table", "quantity", "row", "column", "line", "printed", "published", "computed", "delta", "tolerance",
-           "status", "finding", "audit_row", "note"]
+           "status", "finding", "audit_row", "note", "procedure", "computed_cfa"]
+
+# the published values that depend on how loadings were extracted
+PROCEDURE_QUANTITIES = {("table3", "loading"), ("table3", "cr"), ("table3", "ave"), ("table4", "sqrt_ave")}
 
 
-def _finding_group(table: str, quantity: str, row: str, column: str) -> str | None:
+def _finding_group(table: str, quantity: str, row: str, column: str, procedure: str = "cfa") -> str | None:
     """Which audit finding explains a published value that cannot be met (None: no finding covers it)."""
+    if procedure == "pca" and (table, quantity) in PROCEDURE_QUANTITIES:
+        # under the paper's procedure only PEoU is unexplained by it (audit finding "extraction": no extraction
+        # fits PEoU) and its diagonal by the 4-item √AVE; any other value off is a defect, not the paper's
+        if table == "table4":
+            return "peou_diagonal" if row == "PEoU" else None
+        return "extraction" if row.rstrip("0123456789") == "PEoU" else None
     if table == "table3":
         if row == "PBC2" and quantity in ("mean", "sd"):
             return "grim_pbc2"
@@ -123,35 +139,63 @@ def computed_values(analysis) -> dict[tuple[str, str, str, str], float]:
     return out
 
 
-def reproduce(analysis, published: pd.DataFrame | None = None, audit: pd.DataFrame | None = None) -> pd.DataFrame:
+def paper_procedure_values(analysis) -> dict[tuple[str, str, str, str], float]:
+    """The values of :data:`PROCEDURE_QUANTITIES` from an analysis run with ``loadings="pca"``: λ from the extraction
+    of all of a construct's items (``initial`` stage), CR/AVE/√AVE from the retained items' λ (Hair)."""
+    from analysis.reliability import average_variance_extracted, composite_reliability
+
+    L = analysis.loadings
+    ini = L[L["stage"] == "initial"].set_index("item")["loading"]
+    fin = L[L["stage"] == "final"]
+    out = {("table3", "loading", item, "loading"): float(v) for item, v in ini.items()}
+    for c, g in fin.groupby("construct", sort=False):
+        lam = ini.loc[g["item"]].to_numpy(float)
+        ave = average_variance_extracted(lam)
+        out[("table3", "cr", c, "cr")] = composite_reliability(lam)
+        out[("table3", "ave", c, "ave")] = ave
+        out[("table4", "sqrt_ave", c, c)] = float(np.sqrt(ave))
+    return out
+
+
+def _classify(value: float, r, decimals: int, tol: float) -> str:
+    mode = "truncate" if r.quantity == "sd" else "round"
+    if not np.isfinite(value):
+        return "miss"
+    if _prints_as(value, r.value, decimals, mode):
+        return "match"
+    return "within tolerance" if abs(value - r.value) <= tol else "miss"
+
+
+def reproduce(analysis, published: pd.DataFrame | None = None, audit: pd.DataFrame | None = None,
+              paper_procedure=None) -> pd.DataFrame:
     """Compare a :class:`analysis.acceptance.SurveyAnalysis` with every published value of Tables 3-5.
 
+    ``paper_procedure``: the same data analysed with ``loadings="pca"``; when given, λ, CR, AVE and √AVE are
+    compared under the paper's procedure (module docstring).
+
     Returns one row per published value: table, quantity, row, column, line, printed, published, computed, delta,
-    tolerance, status (match | within tolerance | audit finding #k | miss), finding, audit_row, note."""
+    tolerance, status (match | within tolerance | match (PCA) | within tolerance (PCA) | audit finding #k | miss),
+    finding, audit_row, note, procedure (cfa | pca: which value ``computed`` holds), computed_cfa."""
     pub = published if published is not None else P.load_published()
     aud = audit if audit is not None else A.run_audit(pub)
     comp = computed_values(analysis)
+    alt = paper_procedure_values(paper_procedure) if paper_procedure is not None else {}
     rows = []
     for r in pub[pub["table"].isin(["table3", "table4", "table5"])].itertuples():
         key = (r.table, r.quantity, r.row, r.column)
-        value = comp.get(key, float("nan"))
+        value_cfa = comp.get(key, float("nan"))
+        procedure = "pca" if key in alt else "cfa"
+        value = alt[key] if key in alt else value_cfa
         tol, _why = TOLERANCES[r.quantity]
         delta = value - r.value
-        note = ""
-        mode = "truncate" if r.quantity == "sd" else "round"
         decimals = max(int(r.decimals), 3) if r.table == "table3" and r.quantity == "mean" else int(r.decimals)
-        if not np.isfinite(value):
-            status = "miss"
-            note = "not computed by the analysis"
-        elif _prints_as(value, r.value, decimals, mode):
-            status = "match"
-        elif abs(delta) <= tol:
-            status = "within tolerance"
-        else:
-            status = "miss"
+        status = _classify(value, r, decimals, tol)
+        note = "" if np.isfinite(value) else "not computed by the analysis"
+        if status != "miss" and procedure == "pca":
+            status += " (PCA)"
         finding, audit_row = pd.NA, ""
         if status == "miss":
-            group = _finding_group(r.table, r.quantity, r.row, r.column)
+            group = _finding_group(r.table, r.quantity, r.row, r.column, procedure)
             k = A.finding_for(aud, group) if group else None
             hit = aud[(aud["group"] == group) & (aud["status"] == "inconsistent")]
             evidence = _specific_row(hit, r.table, r.row, r.column, group) if k is not None else None
@@ -160,16 +204,27 @@ def reproduce(analysis, published: pd.DataFrame | None = None, audit: pd.DataFra
                 status = f"audit finding #{k}"
                 note = A.FINDING_TITLES.get(group, group)
         rows.append([r.table, r.quantity, r.row, r.column, int(r.line), r.printed, float(r.value), value, delta,
-                     tol, status, finding, audit_row, note])
+                     tol, status, finding, audit_row, note, procedure, value_cfa])
     df = pd.DataFrame(rows, columns=COLUMNS)
     df["finding"] = df["finding"].astype("Int64")
     return df
 
 
+def table3_both_ways(table: pd.DataFrame) -> pd.DataFrame:
+    """Table 3's procedure-dependent values side by side: row, quantity, printed, cfa (our CFA, the modern
+    method), pca (the paper's procedure; NaN without it), status."""
+    t = table[[(a, b) in PROCEDURE_QUANTITIES for a, b in zip(table["table"], table["quantity"])]]
+    t = t[t["table"] == "table3"]
+    pca = t["computed"].where(t["procedure"] == "pca")
+    return pd.DataFrame({"row": t["row"].values, "quantity": t["quantity"].values, "printed": t["printed"].values,
+                         "cfa": t["computed_cfa"].values, "pca": pca.values, "status": t["status"].values})
+
+
 def summary(table: pd.DataFrame) -> pd.DataFrame:
     """Counts per status (match, within tolerance, audit finding #k..., miss)."""
     counts = table["status"].value_counts()
-    order = ["match", "within tolerance"] + sorted(s for s in counts.index if s.startswith("audit")) + ["miss"]
+    order = ["match", "within tolerance", "match (PCA)", "within tolerance (PCA)"] + \
+        sorted((s for s in counts.index if s.startswith("audit")), key=lambda s: int(s.split("#")[1])) + ["miss"]
     return pd.DataFrame({"status": order, "count": [int(counts.get(s, 0)) for s in order]})
 
 
@@ -181,7 +236,8 @@ def largest_deltas(table: pd.DataFrame, k: int = 3, statuses: tuple[str, ...] | 
 
 def render_markdown(table: pd.DataFrame, source: str = "") -> str:
     """reproduction.md: summary counts, the three largest deltas, then every value."""
-    cols = ["table", "quantity", "row", "column", "printed", "computed", "delta", "tolerance", "status", "audit_row"]
+    cols = ["table", "quantity", "row", "column", "printed", "computed", "delta", "tolerance", "status", "audit_row",
+            "procedure"]
 
     def md(df: pd.DataFrame, cs: list[str]) -> list[str]:
         return markdown_table(cs, [[fmt_cell(v, 4) for v in row] for row in df[cs].itertuples(index=False)]).splitlines()
@@ -190,10 +246,19 @@ def render_markdown(table: pd.DataFrame, source: str = "") -> str:
     lines = ["# Reproduction of the paper's Tables 3-5", "",
              f"Computed by `analyze_survey` on {source or 'the survey data'} and compared with "
              "`studies/pedas_paper/published.csv`. Status: `match` (prints as published), `within tolerance`, "
-             "`audit finding #k` (the published value contradicts other published values; see audit.md), `miss`.", "",
+             "`audit finding #k` (the published value contradicts other published values; see audit.md), `miss`; "
+             "\"(PCA)\": λ, CR, AVE and √AVE compared under the paper's procedure, principal components.", "",
              "## Summary", ""] + md(s, ["status", "count"]) + ["", "## Three largest deltas", ""]
     lines += md(largest_deltas(table), cols) + ["", "Among values that are not audit findings:", ""]
     lines += md(largest_deltas(table, statuses=("match", "within tolerance", "miss")), cols)
+    both = table3_both_ways(table)
+    if both["pca"].notna().any():
+        lines += ["", "## Table 3 both ways", "",
+                  "λ, CR and AVE computed two ways on the same data: our CFA (the modern method: standardized "
+                  "loadings of the correlated-factors model) and the paper's procedure (first principal component "
+                  "of each construct's items, audit finding \"extraction\"); the status is that of the paper's "
+                  "procedure.", ""]
+        lines += md(both, ["row", "quantity", "printed", "cfa", "pca", "status"])
     lines += ["", "## Tolerances", ""]
     lines += markdown_table(["quantity", "tolerance", "why"],
                             [[q, f"{t:g}", why] for q, (t, why) in TOLERANCES.items()]).splitlines()
@@ -212,14 +277,17 @@ def write_reproduction(table: pd.DataFrame, out_dir: str | Path, source: str = "
 
 
 def reproduce_files(responses: str | Path | None, out_dir: str | Path, n_boot: int = 2000, seed: int = 1) -> pd.DataFrame:
-    """Analyse a survey CSV (default: the shipped reconstruction) and write the comparison into ``out_dir``."""
+    """Analyse a survey CSV (default: the shipped reconstruction) with our CFA and with the paper's procedure
+    (principal components, no bootstrap: only Table 3 differs) and write the comparison into ``out_dir``."""
     from analysis.acceptance import analyze_survey
     from pedas.paths import REFERENCE_DIR
 
     path = Path(responses) if responses else REFERENCE_DIR / "survey.csv"
     if not path.exists():
         raise FileNotFoundError(f"survey CSV not found: {path}")
-    analysis = analyze_survey(pd.read_csv(path), P.paper_study(), n_boot=n_boot, seed=seed)
-    table = reproduce(analysis)
+    data = pd.read_csv(path)
+    analysis = analyze_survey(data, P.paper_study(), n_boot=n_boot, seed=seed)
+    pca = analyze_survey(data, P.paper_study(), n_boot=0, seed=seed, loadings="pca")
+    table = reproduce(analysis, paper_procedure=pca)
     write_reproduction(table, out_dir, source=f"`{path.name}`")
     return table

@@ -30,7 +30,7 @@ def _survey(args) -> int:
             raise FileNotFoundError(f"model file not found: {path}")
         model = path.read_text(encoding="utf-8")
     kw = dict(instrument=args.instrument, model=model, n_boot=args.bootstrap, seed=args.seed,
-              listwise=not args.available_case, boot_method=args.boot_ci)
+              listwise=not args.available_case, boot_method=args.boot_ci, loadings=args.loadings)
     db = db_path(args)
     if args.responses:
         responses = _read_csv(args.responses, "survey")
@@ -165,6 +165,9 @@ def register(cli) -> None:
                    help="a model file in lavaan syntax instead of the study's (docs/study_folder.md)")
     p.add_argument("--available-case", action="store_true",
                    help="keep participants with missing answers (composites over answered items) instead of listwise")
+    p.add_argument("--loadings", choices=("cfa", "pca", "paf"), default="cfa",
+                   help="loadings of Table 3 and CR/AVE: cfa (standardized CFA loadings, default), pca (first "
+                        "principal component per construct, SPSS FACTOR's default) or paf (principal axis factoring)")
 
     p = g.command("drives", "objective KPIs per drive and driving style, effects of pEDAS, reproduction bands and "
                   "Figs. 9-12", _drives)

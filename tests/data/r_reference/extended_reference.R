@@ -5,7 +5,8 @@
 #   Rscript tests/data/r_reference/extended_reference.R      (from the repository root; needs lavaan, semTools)
 #
 # Data sets:
-# * paper: data/reference/survey.csv (the reconstructed reference data of the paper's study, 40 respondents);
+# * paper: survey.csv beside this script (40 respondents: a frozen copy of data/reference/survey.csv as the
+#          reconstruction of commit e1d8ecb wrote it; the shipped reference data has since been regenerated);
 # * lk:    tests/data/lane_keeping/survey.csv (24 synthetic respondents; EE3 reversed x -> 8 - x; AGE as covariate);
 # * inv:   invariance_survey.csv beside this script (240 synthetic respondents of the paper's study with a style
 #          column; written by tests/test_extended_reference.py).
@@ -114,7 +115,7 @@ run <- function(tag, data, study) {
   put(tag, "harman", "first_share", eigen(cor(data[, items]))$values[1] / length(items))
 }
 
-paper <- read.csv(file.path(repo, "data", "reference", "survey.csv"), stringsAsFactors = FALSE)
+paper <- read.csv(file.path(here, "survey.csv"), stringsAsFactors = FALSE)
 run("paper", paper, "pedas_paper")
 lk <- read.csv(file.path(repo, "tests", "data", "lane_keeping", "survey.csv"), stringsAsFactors = FALSE)
 lk$EE3 <- 8 - lk$EE3
