@@ -72,3 +72,12 @@ def simulate_and_store(args, tasks, **simulate_kw) -> list:
     for task, df, r in stored:
         print(summary_line(task, df, r))
     return stored
+
+
+def add_scenario_option(p) -> None:
+    """`--scenario NAME`: the traffic scenario of the simulated drives (pedas.scenario)."""
+    from pedas.scenario import DEFAULT_SCENARIO, SCENARIOS
+
+    p.add_argument("--scenario", default=DEFAULT_SCENARIO, choices=tuple(SCENARIOS),
+                   help=f"traffic scenario of the simulated drives (default {DEFAULT_SCENARIO}; "
+                        "docs/route_and_traffic.md)")
