@@ -1,7 +1,7 @@
 """`pedas-study bench ...`: the benchmarks of `pedas_study.bench`, each printed as text or one JSON object."""
 from __future__ import annotations
 
-from pedas_study.cli.common import add_scenario_option
+from pedas_study.cli.common import add_scenario_option, scenario_of
 
 
 # ---------------------------------------------------------------------------------------------- bench import
@@ -46,7 +46,7 @@ def _drive(args) -> int:
 
     if args.repeats < 1 or args.cohort < 0:
         raise ValueError("--repeats must be >= 1 and --cohort >= 0")
-    res = bench_drive(repeats=args.repeats, cohort=args.cohort, seed=args.seed, scenario=args.scenario)
+    res = bench_drive(repeats=args.repeats, cohort=args.cohort, seed=args.seed, scenario=scenario_of(args))
     if args.json:
         print(json.dumps(res, sort_keys=True))
         return 0

@@ -78,6 +78,16 @@ def add_scenario_option(p) -> None:
     """`--scenario NAME`: the traffic scenario of the simulated drives (pedas.scenario)."""
     from pedas.scenario import DEFAULT_SCENARIO, SCENARIOS
 
-    p.add_argument("--scenario", default=DEFAULT_SCENARIO, choices=tuple(SCENARIOS),
-                   help=f"traffic scenario of the simulated drives (default {DEFAULT_SCENARIO}; "
-                        "docs/route_and_traffic.md)")
+    p.add_argument("--scenario", default=DEFAULT_SCENARIO, metavar="NAME",
+                   help=f"traffic scenario of the simulated drives: {'|'.join(SCENARIOS)} (default "
+                        f"{DEFAULT_SCENARIO}; docs/route_and_traffic.md)")
+
+
+def scenario_of(args, option: str = "scenario") -> str:
+    """The scenario name given by `--scenario` (or another option); UserError (one line, exit 2) if unknown."""
+    from pedas.scenario import get_scenario
+
+    try:
+        return get_scenario(getattr(args, option)).name
+    except ValueError as exc:
+        raise UserError(f"--{option.replace('_', '-')}: {exc}") from None
