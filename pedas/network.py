@@ -49,7 +49,7 @@ def binary(name: str) -> Path:
     return path
 
 
-def _sources(source_dir: Path | None, scenario) -> tuple[Path, Path]:
+def _sources(source_dir: Path | None, scenario) -> tuple[Path, tuple[Path, ...]]:
     """(netconvert configuration, every netconvert input): the study.* files of `source_dir` (a copy of the
     single-lane sources), else those of the scenario."""
     if source_dir is not None:

@@ -3,8 +3,9 @@
 The same `.net.xml` that SUMO simulates is the source of the pEDAS route description, so distances agree
 exactly with the ego vehicle's odometer in SUMO (`vehicle.getDistance`):
 
-* the ego path is the lane sequence of :data:`EGO_EDGES` joined by the internal junction lanes (the `via`
-  chain of each connection); `s` is the cumulative SUMO lane length along it;
+* the ego path is the lane sequence of the scenario's ego route (:func:`ego_edges`; :data:`EGO_EDGES` in the
+  single-lane scenario) joined by the internal junction lanes (the `via` chain of each connection, on the lanes
+  :func:`ego_connections` follows); `s` is the cumulative SUMO lane length along it;
 * curvature (1/m, signed, left positive) from the lane shapes, grade (rad) from the shapes' z (node elevations);
 * speed limits from the lanes (junction lanes keep the limit of the approach; the turn speed follows from
   the curvature); v_min = 80 km/h on the highway main carriageway (Sec. 4.3), 0 elsewhere;
