@@ -143,6 +143,14 @@ def test_report_on_reduced_reference_cohort(tmp_path):
     assert "figures/fig9a_savings.png" in html and "reproduction.md" in html
     assert "Verdict: every published value is met or explained." in html
     assert "Mean energy savings were larger in " in html  # a figure's reading from the numbers
+    # the same cohort in the previous scenario: its own drive analysis and both scenarios' bands side by side
+    sides = pd.read_csv(out / "scenarios" / "bands.csv")
+    assert list(dict.fromkeys(sides["scenario"])) == ["motorway", "single-lane"] and len(sides) == 8
+    assert sides.set_index(["scenario", "band"]).loc["motorway", "our_value"].tolist() == \
+        pd.read_csv(out / "drives" / "bands.csv")["our_value"].tolist()
+    assert (out / "scenarios" / "single-lane" / "per_participant.csv").exists()
+    assert "Reproduction bands by traffic scenario" in html
+    assert "## The same cohort in the single-lane scenario" in (out / "reproduction.md").read_text()
 
     # warm: nothing changed -> every step but the always-run collection is cached
     res = run_report(cfg)
