@@ -78,9 +78,10 @@ def add_scenario_option(p) -> None:
     """`--scenario NAME`: the traffic scenario of the simulated drives (pedas.scenario)."""
     from pedas.scenario import DEFAULT_SCENARIO, SCENARIOS
 
+    known = "; ".join(sc.description for sc in SCENARIOS.values())
     p.add_argument("--scenario", default=DEFAULT_SCENARIO, metavar="NAME",
-                   help=f"traffic scenario of the simulated drives: {'|'.join(SCENARIOS)} (default "
-                        f"{DEFAULT_SCENARIO}; docs/route_and_traffic.md)")
+                   help=f"traffic scenario of the simulated drives (default {DEFAULT_SCENARIO}; {known}; "
+                        "docs/route_and_traffic.md)")
 
 
 def scenario_of(args, option: str = "scenario") -> str:
