@@ -323,6 +323,7 @@ SURVEY_TABLES = ("survey_table3", "survey_table4", "survey_table5", "survey_hypo
                  "survey_item_flags", "survey_loadings", "survey_reliability", "survey_correlations", "survey_htmt",
                  "survey_fornell_larcker", "survey_regressions", "survey_descriptives")
 DRIVE_TABLES = ("drives_style_table", "drives_summary", "drives_bands", "drives_band_diagnostics",
+                "scenarios_bands", "scenarios_band_diagnostics",
                 "drives_participant_table", "drives_per_participant", "drives_kpis")
 
 

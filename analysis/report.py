@@ -33,6 +33,7 @@ import pandas as pd
 from analysis.pipeline import Pipeline, Step, StepResult
 from analysis.render import write_table
 from pedas.paths import NETWORK_DIR, REFERENCE_DIR, REPO_ROOT
+from pedas.scenario import DEFAULT_SCENARIO, SINGLE_LANE
 
 CODE = {name: REPO_ROOT / name for name in ("study", "pedas", "analysis")}
 #: the one-line reason a step that skipped writes into its output folder
@@ -53,6 +54,17 @@ class ReportConfig:
     force: bool = False
     cache_dir: Path = field(default_factory=lambda: REPO_ROOT / ".report-cache")
     reference_dir: Path = REFERENCE_DIR
+    scenario: str = DEFAULT_SCENARIO  # the traffic scenario of the reference cohort's drives (pedas.scenario)
+    # reference mode: the same cohort also driven in this scenario, its bands beside the default's (None: not)
+    compare_scenario: str | None = SINGLE_LANE
+
+    def comparison_db(self) -> Path:
+        """The store of the comparison scenario's drives, beside `db`."""
+        return self.db.with_name(f"{self.db.stem}-{self.compare_scenario}{self.db.suffix}")
+
+    def compares(self) -> bool:
+        """Reference mode with a comparison scenario other than the default."""
+        return self.reference and self.compare_scenario not in (None, self.scenario)
 
 
 @dataclass
@@ -88,8 +100,9 @@ def load_reference(st, ref_dir: Path = REFERENCE_DIR) -> None:
     import_survey(st, ref_dir / "survey.csv")
 
 
-def build_reference_store(cfg: ReportConfig) -> None:
-    """Create the store from data/reference and the simulated drives (written to a temporary file, then moved).
+def build_reference_store(cfg: ReportConfig, scenario: str | None = None, db: Path | None = None) -> None:
+    """Create the store `db` (default `cfg.db`) from data/reference and the drives simulated in the traffic
+    `scenario` (default `cfg.scenario`), written to a temporary file, then moved.
 
     With `cfg.participants`, only the first N participants of the objective sample are driven (a reduced cohort
     for quick runs); every participant and survey answer is loaded regardless.
@@ -99,22 +112,24 @@ def build_reference_store(cfg: ReportConfig) -> None:
     from study.simulated import participants_to_simulate, store_simulated
     from study.store import Store
 
-    tmp = cfg.db.with_name(cfg.db.name + ".building")
+    db = Path(db or cfg.db)
+    tmp = db.with_name(db.name + ".building")
     for p in (tmp, tmp.with_name(tmp.name + ".wal")):
         p.unlink(missing_ok=True)
     with Store.open(tmp, actor="report") as st:
         load_reference(st, cfg.reference_dir)
         drivers = sorted(included_participants(st, "objective"))[:cfg.participants]
         # the same who-and-how as `simulate cohort`: tasks by participant id, baseline before pedas
-        tasks = cohort_tasks(participants_to_simulate(st, drivers), base_seed=cfg.seed)
+        tasks = cohort_tasks(participants_to_simulate(st, drivers), base_seed=cfg.seed,
+                             scenario=scenario or cfg.scenario)
         logs = simulate_cohort(tasks, workers=cfg.workers, scheduler=cfg.scheduler,
                                cache_dir=cfg.cache_dir / "drives")
         with st.transaction():
             store_simulated(st, tasks, logs)
-    cfg.db.parent.mkdir(parents=True, exist_ok=True)
-    for p in (cfg.db, cfg.db.with_name(cfg.db.name + ".wal")):
+    db.parent.mkdir(parents=True, exist_ok=True)
+    for p in (db, db.with_name(db.name + ".wal")):
         p.unlink(missing_ok=True)
-    tmp.replace(cfg.db)
+    tmp.replace(db)
 
 
 @contextmanager
@@ -214,6 +229,22 @@ def drives_step(cfg: ReportConfig) -> None:
             (out / SKIPPED).write_text("the store has no drives, so there are no drive KPIs\n", encoding="utf-8")
 
 
+def scenarios_step(cfg: ReportConfig) -> None:
+    """scenarios/: the drive analysis of the comparison scenario's store (in a folder named after it) and the
+    bands and their diagnostics of the default and the comparison scenario side by side."""
+    from analysis.kpis_report import analyze_drives
+    from analysis.scenario_comparison import read_scenario, write_comparison
+    from study.store import Store
+
+    with _fresh_dir(cfg.out / "scenarios") as out:
+        with Store.open(cfg.comparison_db(), actor="report", read_only=True) as st:
+            analyze_drives(st, out / cfg.compare_scenario)
+        per = {cfg.scenario: read_scenario(cfg.out / "drives"),
+               cfg.compare_scenario: read_scenario(out / cfg.compare_scenario)}
+        write_comparison(out, per, labels={cfg.scenario: f"{cfg.scenario} (default)",
+                                           cfg.compare_scenario: f"{cfg.compare_scenario} (previous)"})
+
+
 def audit_step(cfg: ReportConfig) -> None:
     from analysis.paper.audit import write_audit
 
@@ -255,12 +286,34 @@ def reproduction_step(cfg: ReportConfig) -> None:
                "tuned to these bands; a band that does not hold is reported as such, with what lies behind it:", "",
                diagnostics_markdown(diag).rstrip(), ""]
         md += [line for w in why_missed(bands_df, diag) for line in (f"- {w}", "")]
+        md += _scenarios_markdown(cfg)
     else:
         md += ["No drives in the store.", ""]
     md += ["# Audit findings", "", "Published values that contradict other published values "
            "(details: [paper/audit.md](paper/audit.md)).", ""]
     md += [f"{int(r.finding)}. {r.title}" for r in findings(audit).itertuples()]
     (cfg.out / "reproduction.md").write_text("\n".join(md) + "\n", encoding="utf-8")
+
+
+def _scenarios_markdown(cfg: ReportConfig) -> list[str]:
+    """The reproduction document's lines on the comparison scenario: the bands side by side, the diagnostics,
+    and why each band the comparison scenario misses is missed (nothing without a comparison)."""
+    from analysis.band_diagnostics import why_missed
+
+    folder = cfg.out / "scenarios"
+    if not cfg.compares() or not (folder / "bands.md").exists():
+        return []
+    sub = folder / cfg.compare_scenario
+    md = [f"## The same cohort in the {cfg.compare_scenario} scenario", "",
+          f"Traffic scenarios: docs/route_and_traffic.md. The cohort above drove the {cfg.scenario} scenario; the "
+          f"same virtual participants (same seeds) drove the {cfg.compare_scenario} scenario:", "",
+          (folder / "bands.md").read_text(encoding="utf-8").rstrip(), "",
+          (folder / "band_diagnostics.md").read_text(encoding="utf-8").rstrip(), ""]
+    missed = why_missed(pd.read_csv(sub / "bands.csv"), pd.read_csv(sub / "band_diagnostics.csv"))
+    if missed:
+        md += [f"In the {cfg.compare_scenario} scenario:", ""]
+        md += [line for w in missed for line in (f"- {w}", "")]
+    return md
 
 
 def core_figures_step(cfg: ReportConfig) -> None:
@@ -293,7 +346,7 @@ def collect_step(cfg: ReportConfig) -> None:
     tables, figs = cfg.out / "tables", cfg.out / "figures"
     tables.mkdir(parents=True, exist_ok=True)
     figs.mkdir(parents=True, exist_ok=True)
-    for sub in ("survey", "survey/pca", "survey/extended", "drives", "paper"):
+    for sub in ("survey", "survey/pca", "survey/extended", "drives", "scenarios", "paper"):
         d = cfg.out / sub
         if not d.exists():
             continue
@@ -398,29 +451,42 @@ def build_pipeline(cfg: ReportConfig, study=None) -> Pipeline:
     cache = cfg.cache_dir / ("report-" + ("reference" if cfg.reference else "lab"))
     pipe = Pipeline(cache)
     params = json.dumps({"participants": cfg.participants, "seed": cfg.seed, "n_boot": cfg.n_boot,
-                         "db": str(cfg.db.resolve()), "out": str(cfg.out.resolve())}, sort_keys=True)
+                         "db": str(cfg.db.resolve()), "out": str(cfg.out.resolve()), "scenario": cfg.scenario,
+                         "compare_scenario": cfg.compare_scenario if cfg.compares() else None}, sort_keys=True)
     store_inputs: list = [cfg.db]
     if cfg.reference:
         from pedas.network import build_network
 
-        sources = sorted(p for p in NETWORK_DIR.iterdir() if p.suffix in (".xml", ".json", ".netccfg"))
-        pipe.add(Step("network", lambda: build_network(), inputs=[*sources, CODE["pedas"] / "network.py"]))
+        sources = sorted(p for p in NETWORK_DIR.rglob("*") if p.suffix in (".xml", ".json", ".netccfg")
+                         and NETWORK_DIR / "build" not in p.parents)
+        scenarios = [cfg.scenario] + ([cfg.compare_scenario] if cfg.compares() else [])
+        pipe.add(Step("network", lambda: [build_network(scenario=s) for s in scenarios],
+                      inputs=[*sources, CODE["pedas"] / "network.py", CODE["pedas"] / "scenario.py", params]))
         # the store is built by this module and analysis.paper.reference_cohort besides study/ and pedas/, for the
         # paper's study folder
+        store_code = [cfg.reference_dir, PAPER_STUDY_DIR, CODE["study"], CODE["pedas"], Path(__file__),
+                      CODE["analysis"] / "paper" / "reference_cohort.py", params]
         pipe.add(Step("store", lambda: build_reference_store(cfg), after=["network"], outputs=[cfg.db],
-                      inputs=[cfg.reference_dir, PAPER_STUDY_DIR, CODE["study"], CODE["pedas"], Path(__file__),
-                              CODE["analysis"] / "paper" / "reference_cohort.py", params]))
+                      inputs=store_code))
+        if cfg.compares():
+            pipe.add(Step("comparison store", lambda: build_reference_store(cfg, cfg.compare_scenario,
+                                                                            cfg.comparison_db()),
+                          after=["network"], outputs=[cfg.comparison_db()], inputs=store_code))
         store_inputs = []
     after_store = ["store"] if cfg.reference else []
     pipe.add(Step("survey", lambda: survey_step(cfg), outputs=[cfg.out / "survey"], after=after_store,
                   inputs=[*store_inputs, CODE["analysis"], params]))
     pipe.add(Step("drives", lambda: drives_step(cfg), outputs=[cfg.out / "drives"], after=after_store,
                   inputs=[*store_inputs, CODE["analysis"], params]))
+    if cfg.compares():
+        pipe.add(Step("scenarios", lambda: scenarios_step(cfg), outputs=[cfg.out / "scenarios"],
+                      after=["drives", "comparison store"], inputs=[CODE["analysis"], params]))
     if "audit" not in skips:
         # the audit's bootstrap check of finding #8 runs on the shipped reconstruction
         pipe.add(Step("audit", lambda: audit_step(cfg), outputs=[cfg.out / "paper"],
                       inputs=[PAPER_STUDY_DIR, REFERENCE_DIR / "survey.csv", CODE["analysis"], params]))
-        pipe.add(Step("reproduction", lambda: reproduction_step(cfg), after=["survey", "drives", "audit"],
+        pipe.add(Step("reproduction", lambda: reproduction_step(cfg),
+                      after=["survey", "drives", "audit", *(["scenarios"] if cfg.compares() else [])],
                       outputs=[cfg.out / "reproduction.md", cfg.out / "reproduction.csv"],
                       inputs=[CODE["analysis"], params]))
     if "core figures" not in skips:

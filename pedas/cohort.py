@@ -23,10 +23,9 @@ from pathlib import Path
 import pandas as pd
 
 from pedas.paths import NETWORK_DIR, REPO_ROOT
+from pedas.scenario import DEFAULT_SCENARIO
 
 _SUMO_LOCK = threading.Lock()  # one libsumo simulation per process
-_NETWORK_FILES = ("study.nod.xml", "study.edg.xml", "study.con.xml", "study.tll.xml", "study.netccfg",
-                  "study.rou.xml", "vtypes.add.xml", "demand.json")
 
 
 @dataclass(frozen=True)
@@ -38,6 +37,7 @@ class DriveTask:
     style: str
     condition: str
     traffic_seed: int | None = None
+    scenario: str = DEFAULT_SCENARIO
 
 
 def default_cache_dir() -> Path:
@@ -55,10 +55,10 @@ def code_version() -> str:
     for p in sorted([*pkg.glob("*.py"), *pkg.glob("*.json")]):
         h.update(p.name.encode())
         h.update(p.read_bytes())
-    for name in _NETWORK_FILES:
-        p = NETWORK_DIR / name
-        h.update(name.encode())
-        h.update(p.read_bytes() if p.exists() else b"")
+    # every network and traffic source of every scenario (not the built networks)
+    for p in sorted(q for q in NETWORK_DIR.rglob("*") if q.is_file() and NETWORK_DIR / "build" not in q.parents):
+        h.update(str(p.relative_to(NETWORK_DIR)).encode())
+        h.update(p.read_bytes())
     try:
         from importlib.metadata import version
 
@@ -124,7 +124,8 @@ def run_task(task: DriveTask, cache_dir: str | None = None, key: str | None = No
         return hit
     with _SUMO_LOCK:
         try:
-            df = drive(task.seed, task.style, task.condition, traffic_seed=task.traffic_seed)
+            df = drive(task.seed, task.style, task.condition, traffic_seed=task.traffic_seed,
+                       scenario=task.scenario)
         except DriveError as exc:  # the message names the drive; add whose it is
             raise exc.named(task.participant_id) from None
     _store_cached(key, df, cdir)
@@ -188,13 +189,14 @@ def simulate_cohort(tasks: list[DriveTask], workers: int | None = None, schedule
 
 
 def cohort_tasks(participants: pd.DataFrame, base_seed: int = 0,
-                 conditions: tuple[str, ...] = ("baseline", "pedas")) -> list[DriveTask]:
+                 conditions: tuple[str, ...] = ("baseline", "pedas"),
+                 scenario: str = DEFAULT_SCENARIO) -> list[DriveTask]:
     """Tasks for a participants frame (participant_id, style): both conditions per person, same person seed and
-    traffic in both. A missing style is simulated as 'normal'."""
+    traffic in both, in the traffic `scenario`. A missing style is simulated as 'normal'."""
     tasks = []
     for row in participants.itertuples(index=False):
         style = row.style if isinstance(row.style, str) and row.style else "normal"
         seed = participant_seed(row.participant_id, base_seed)
         for cond in conditions:
-            tasks.append(DriveTask(row.participant_id, seed, style, cond))
+            tasks.append(DriveTask(row.participant_id, seed, style, cond, scenario=scenario))
     return tasks

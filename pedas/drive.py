@@ -33,6 +33,7 @@ from pedas.constants import DT
 from pedas.drivers import DriverParams, HumanDriver, Perception, sample_driver
 from pedas.network import build_network
 from pedas.route_study import study_route
+from pedas.scenario import get_scenario
 from pedas.traffic import Traffic
 from pedas.vocabulary import CONDITIONS
 
@@ -91,6 +92,7 @@ class DriveInfo:
     style: str
     condition: str
     traffic_seed: int
+    scenario: str  # the traffic scenario (pedas.scenario)
     driver: dict
     t_insert: float  # SUMO time of the ego's insertion (s)
     duration_s: float  # simulated drive time (s)
@@ -164,17 +166,18 @@ def drive_name(participant_seed: int, style: str, condition: str, traffic_seed: 
 
 
 @lru_cache(maxsize=2)
-def _setup(net_file: str):
-    """Route and DP reference of a network, once per process (the DP takes ~1 s)."""
+def _setup(net_file: str, scenario: str):
+    """Route and DP reference of a scenario's network, once per process (the DP takes ~1 s)."""
     from pedas.dp import dp_reference
 
-    route = study_route(net_file)
+    route = study_route(net_file, scenario=scenario)
     return route, dp_reference(route)
 
 
 def drive(participant_seed: int, style: str, condition: str, *, traffic_seed: int | None = None,
           driver: DriverParams | None = None, net_file: str | Path | None = None,
-          max_duration: float = MAX_DURATION, settings=None, controller=None) -> pd.DataFrame:
+          max_duration: float = MAX_DURATION, settings=None, controller=None,
+          scenario: str | None = None) -> pd.DataFrame:
     """Drive the study route once; the drive log (docs/contracts.md columns, every DT s) as a DataFrame.
 
     participant_seed: the virtual person (driver parameters, :func:`pedas.drivers.sample_driver`); style:
@@ -183,13 +186,15 @@ def drive(participant_seed: int, style: str, condition: str, *, traffic_seed: in
     demand). settings: the controller's :class:`pedas.params.ControllerParams` (default
     :data:`pedas.params.CONTROLLER`). controller: the advice of the pedas condition from this object's
     ``step(t, s, v, leader)`` instead of a new PedasController (the live reference client,
-    :class:`pedas.live_client.RemoteController`). Raises SafetyViolation when an invariant fails.
+    :class:`pedas.live_client.RemoteController`). scenario: the traffic scenario (:mod:`pedas.scenario`, default
+    :data:`pedas.scenario.DEFAULT_SCENARIO`). Raises SafetyViolation when an invariant fails.
     ``df.attrs['drive']`` holds a :class:`DriveInfo` as dict.
     """
     if condition not in CONDITIONS:
         raise ValueError(f"unknown condition {condition!r} (expected baseline|pedas)")
-    net_file = str(net_file or build_network())
-    route, v_dp = _setup(net_file)
+    sc = get_scenario(scenario)
+    net_file = str(net_file or build_network(scenario=sc))
+    route, v_dp = _setup(net_file, sc.name)
     drv = driver or sample_driver(participant_seed, style)
     tseed = int(participant_seed if traffic_seed is None else traffic_seed)
     assisted = condition == "pedas"
@@ -209,7 +214,7 @@ def drive(participant_seed: int, style: str, condition: str, *, traffic_seed: in
                                              "warning")}
     wall0 = time.perf_counter()
     try:
-        with Traffic(tseed, net_file) as tr:
+        with Traffic(tseed, net_file, scenario=sc) as tr:
             steps, max_veh, t_ins = _loop(tr, lights, human, ctrl, guard, alive, cols, max_duration)
     except DriveError as exc:
         raise exc.named(drive_name(participant_seed, style, condition, tseed)) from None
@@ -218,7 +223,7 @@ def drive(participant_seed: int, style: str, condition: str, *, traffic_seed: in
                          f"{exc}") from exc
     wall = time.perf_counter() - wall0
     df = _log_frame(cols, route)
-    info = DriveInfo(int(participant_seed), style, condition, tseed, drv.as_dict(), float(t_ins),
+    info = DriveInfo(int(participant_seed), style, condition, tseed, sc.name, drv.as_dict(), float(t_ins),
                      float(df["t"].iloc[-1]), wall, steps, max_veh, dict(ctrl.stats) if ctrl is not None else None)
     df.attrs["drive"] = info.__dict__
     return df

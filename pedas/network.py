@@ -1,4 +1,5 @@
-"""Build the study route's SUMO network (`.net.xml`) from the plain-XML sources in `data/network/`.
+"""Build the study route's SUMO network (`.net.xml`) of a scenario (:mod:`pedas.scenario`) from the plain-XML
+sources in `data/network/`.
 
 The network is never committed: :func:`build_network` runs ``netconvert`` of the installed ``eclipse-sumo`` wheel on
 first use and caches the result under ``NETWORK_BUILD_DIR`` by a hash of the sources (and the netconvert version), so
@@ -15,14 +16,13 @@ import subprocess
 import tempfile
 from pathlib import Path
 
-from pedas.paths import NETWORK_BUILD_DIR, NETWORK_DIR
+from pedas.paths import NETWORK_BUILD_DIR
 
 CONFIG = "study.netccfg"
-SOURCES = ("study.nod.xml", "study.edg.xml", "study.con.xml", "study.tll.xml", CONFIG)
-# traffic inputs used at run time (not by netconvert)
+SOURCES = ("study.nod.xml", "study.edg.xml", "study.con.xml", "study.tll.xml", CONFIG)  # the single-lane layout
+# traffic inputs of the single-lane scenario used at run time (not by netconvert)
 ROUTES = "study.rou.xml"
 VTYPES = "vtypes.add.xml"
-DEMAND = "demand.json"
 
 
 def sumo_home() -> Path:
@@ -49,12 +49,25 @@ def binary(name: str) -> Path:
     return path
 
 
-def source_hash(source_dir: Path = NETWORK_DIR) -> str:
-    """SHA-256 over the netconvert inputs and the SUMO version (hex, first 16 characters)."""
+def _sources(source_dir: Path | None, scenario) -> tuple[Path, tuple[Path, ...]]:
+    """(netconvert configuration, every netconvert input): the study.* files of `source_dir` (a copy of the
+    single-lane sources), else those of the scenario."""
+    if source_dir is not None:
+        # in the scenario's order (configuration first, then its inputs), so that a copy hashes like the original
+        return Path(source_dir) / CONFIG, tuple(Path(source_dir) / name for name in (CONFIG, *SOURCES[:-1]))
+    from pedas.scenario import get_scenario
+
+    sc = get_scenario(scenario)
+    return sc.netccfg, sc.sources
+
+
+def source_hash(source_dir: Path | None = None, scenario=None) -> str:
+    """SHA-256 over the netconvert inputs (of `source_dir`'s study.* files, else of the scenario, default
+    :data:`pedas.scenario.DEFAULT_SCENARIO`) and the SUMO version (hex, first 16 characters)."""
     h = hashlib.sha256()
-    for name in SOURCES:
-        h.update(name.encode())
-        h.update((Path(source_dir) / name).read_bytes())
+    for path in _sources(source_dir, scenario)[1]:
+        h.update(path.name.encode())
+        h.update(path.read_bytes())
     try:
         from importlib.metadata import version
 
@@ -64,17 +77,23 @@ def source_hash(source_dir: Path = NETWORK_DIR) -> str:
     return h.hexdigest()[:16]
 
 
-def build_network(source_dir: Path | None = None, build_dir: Path | None = None, force: bool = False) -> Path:
+def build_network(source_dir: Path | None = None, build_dir: Path | None = None, force: bool = False,
+                  scenario=None) -> Path:
     """Path of the built `.net.xml`, running netconvert when no build for the current sources exists.
 
-    `source_dir` defaults to ``NETWORK_DIR``, `build_dir` to ``NETWORK_BUILD_DIR``. `force` rebuilds even if cached.
+    `scenario`: name or :class:`pedas.scenario.Scenario` (default :data:`pedas.scenario.DEFAULT_SCENARIO`);
+    `source_dir`: instead, a folder with the single-lane layout's study.* files. `build_dir` defaults to
+    ``NETWORK_BUILD_DIR``. `force` rebuilds even if cached. The file is named after the scenario and the hash.
     """
-    source_dir = Path(source_dir or NETWORK_DIR)
+    config, sources = _sources(source_dir, scenario)
     build_dir = Path(build_dir or NETWORK_BUILD_DIR)
-    for name in SOURCES:
-        if not (source_dir / name).exists():
-            raise FileNotFoundError(f"network source missing: {source_dir / name}")
-    target = build_dir / f"study-{source_hash(source_dir)}.net.xml"
+    for path in sources:
+        if not path.exists():
+            raise FileNotFoundError(f"network source missing: {path}")
+    from pedas.scenario import get_scenario
+
+    prefix = "study" if source_dir is not None else get_scenario(scenario).name
+    target = build_dir / f"{prefix}-{source_hash(source_dir, scenario)}.net.xml"
     if target.exists() and not force:
         return target
     build_dir.mkdir(parents=True, exist_ok=True)
@@ -86,7 +105,7 @@ def build_network(source_dir: Path | None = None, build_dir: Path | None = None,
         os.close(fd)
         try:
             proc = subprocess.run(
-                [str(binary("netconvert")), "-c", str(source_dir / CONFIG), "-o", tmp, "--no-warnings", "true"],
+                [str(binary("netconvert")), "-c", str(config), "-o", tmp, "--no-warnings", "true"],
                 capture_output=True, text=True, env={**os.environ, "SUMO_HOME": str(sumo_home())},
             )
             if proc.returncode != 0:

@@ -3,8 +3,9 @@
 The same `.net.xml` that SUMO simulates is the source of the pEDAS route description, so distances agree
 exactly with the ego vehicle's odometer in SUMO (`vehicle.getDistance`):
 
-* the ego path is the lane sequence of :data:`EGO_EDGES` joined by the internal junction lanes (the `via`
-  chain of each connection); `s` is the cumulative SUMO lane length along it;
+* the ego path is the lane sequence of the scenario's ego route (:func:`ego_edges`; :data:`EGO_EDGES` in the
+  single-lane scenario) joined by the internal junction lanes (the `via` chain of each connection, on the lanes
+  :func:`ego_connections` follows); `s` is the cumulative SUMO lane length along it;
 * curvature (1/m, signed, left positive) from the lane shapes, grade (rad) from the shapes' z (node elevations);
 * speed limits from the lanes (junction lanes keep the limit of the approach; the turn speed follows from
   the curvature); v_min = 80 km/h on the highway main carriageway (Sec. 4.3), 0 elsewhere;
@@ -26,10 +27,11 @@ from pedas.route import Route, StopSign, TrafficLight
 
 URBAN_EDGES = ("u01", "u02", "u03", "u04", "u05", "u06", "u07", "u08", "u09", "u10", "u11")
 HIGHWAY_EDGES = ("r01", "h01", "h02", "h03", "h04", "h05")  # r01 is the on-ramp from town onto the highway
-EGO_EDGES = URBAN_EDGES + HIGHWAY_EDGES
+EGO_EDGES = URBAN_EDGES + HIGHWAY_EDGES  # the single-lane scenario's; a scenario's own: ego_edges()
 V_MIN_FROM_EDGE = "h01"  # the 80 km/h minimum applies on the main carriageway, not on the on-ramp ...
 V_MIN_RAMP_UP = 250.0  # m ... and from this far into it (the acceleration lane after the ramp's curve)
 DS = 1.0  # m, grid of the route description
+JOIN_TOLERANCE = 0.5  # m, consecutive lane shapes further apart than this are a lane change, not a bend
 # m, moving-average windows over the heading derivative: the lane shapes are polylines whose (0.01 m rounded)
 # vertices put the curvature into spikes; town turns are short (~15 m arcs), highway curves hundreds of metres
 CURVATURE_WINDOW = 9.0
@@ -77,8 +79,44 @@ def _parse(net_file: str) -> dict:
     return dict(lanes=lanes, conns=conns, tls=tls, junctions=junctions, edges=edges)
 
 
-def ego_path(net_file: str | Path) -> list[PathLane]:
-    """The lanes the ego vehicle drives, in order, with their start offsets (m) along the route."""
+def ego_edges(scenario=None) -> tuple[str, ...]:
+    """The edges of the ego's route in `scenario` (its routes file's route "ego")."""
+    from pedas.scenario import get_scenario
+    from pedas.traffic import EGO_ROUTE, route_edges
+
+    return tuple(route_edges(get_scenario(scenario).routes)[EGO_ROUTE])
+
+
+def ego_connections(net_file: str | Path, edges: tuple[str, ...] = EGO_EDGES) -> list[tuple[int, dict]]:
+    """Per edge of `edges` but the last: (lane index the ego drives on, the connection it leaves the edge by).
+
+    The ego starts on lane 0 and follows each lane's connection to the next edge (its toLane; where a lane fans
+    out, the branch that goes on along `edges`). A lane without one is an acceleration lane that ends: the ego
+    leaves it by the nearest lane to its left that continues (the merge; the adjacent lane in the networks here).
+    """
+    conns = _parse(str(net_file))["conns"]
+    lane, out = 0, []
+    for i, (edge, nxt) in enumerate(zip(edges[:-1], edges[1:])):
+        cs = sorted(conns.get((edge, nxt), []), key=lambda c: (int(c["fromLane"]), int(c["toLane"])))
+        if not cs:
+            raise ValueError(f"network has no connection {edge} -> {nxt}")
+        if i + 2 < len(edges):  # a lane that fans out (a deceleration lane begins): the branch that goes on
+            onward = {int(c["fromLane"]) for c in conns.get((nxt, edges[i + 2]), [])}
+            cs = [c for c in cs if int(c["toLane"]) in onward] or cs
+        c = next((c for c in cs if int(c["fromLane"]) == lane), None) or \
+            next((c for c in cs if int(c["fromLane"]) > lane), None)
+        if c is None:
+            raise ValueError(f"network has no connection {edge} -> {nxt} from lane {lane} or a lane left of it")
+        out.append((lane, c))
+        lane = int(c["toLane"])
+    return out
+
+
+def ego_path(net_file: str | Path, edges: tuple[str, ...] = EGO_EDGES) -> list[PathLane]:
+    """The lanes the ego vehicle drives along `edges`, in order, with their start offsets (m) along the route.
+
+    On an edge the lane the ego enters on stands for the edge (every lane of a SUMO edge has the edge's length);
+    the junction lanes are those of the connection it leaves by (:func:`ego_connections`)."""
     net = _parse(str(net_file))
     lanes, conns = net["lanes"], net["conns"]
     out: list[PathLane] = []
@@ -90,18 +128,19 @@ def ego_path(net_file: str | Path) -> list[PathLane]:
         out.append(PathLane(lane_id, s, ln["length"], speed, edge, internal))
         s += ln["length"]
 
-    for i, edge in enumerate(EGO_EDGES):
-        lane = f"{edge}_0"
+    leave = ego_connections(net_file, edges)
+    entry = 0
+    for i, edge in enumerate(edges):
+        lane = f"{edge}_{entry}"
         if lane not in lanes:
             raise ValueError(f"network has no lane {lane}: not the study network?")
         add(lane, edge, False, lanes[lane]["speed"])
-        if i + 1 == len(EGO_EDGES):
+        if i + 1 == len(edges):
             break
-        nxt = EGO_EDGES[i + 1]
-        cs = [c for c in conns.get((edge, nxt), []) if c.get("fromLane") == "0"]
-        if not cs:
-            raise ValueError(f"network has no connection {edge} -> {nxt}")
-        via = cs[0].get("via")
+        nxt = edges[i + 1]
+        c = leave[i][1]
+        entry = int(c["toLane"])
+        via = c.get("via")
         while via:  # internal lanes (a left turn may be split in two at an internal junction)
             add(via, edge, True, lanes[lane]["speed"])
             via_edge = lanes[via]["edge"]
@@ -117,16 +156,25 @@ def _resample(path: list[PathLane], net: dict, s: np.ndarray) -> tuple[np.ndarra
     of a multi-point lane carry a height that belongs a few metres away (a spurious grade step). z is therefore
     interpolated from the interior shape points of such lanes (two-point lanes keep their ends) and not from
     junction lanes.
+
+    Where the ego changes lanes (off an acceleration lane) the next lane's shape starts a lane width to the side
+    of where the last one ended; x and y serve only the curvature, so the following shapes are shifted to join
+    (a sideways jump would be a curvature spike, not a curve).
     """
     xs, ys, ss, zs_s, zs = [], [], [], [], []
+    shift = np.zeros(2)
+    end = None
     for pl in path:
         shp = net["lanes"][pl.lane_id]["shape"]
+        if end is not None and np.hypot(*(shp[0, :2] + shift - end)) > JOIN_TOLERANCE:
+            shift = end - shp[0, :2]
         seg = np.hypot(np.diff(shp[:, 0]), np.diff(shp[:, 1]))
         cum = np.concatenate([[0.0], np.cumsum(seg)])
         scale = pl.length / cum[-1] if cum[-1] > 0 else 0.0
         s_pts = pl.s0 + cum * scale
         ss.append(s_pts)
-        xs.append(shp[:, 0]); ys.append(shp[:, 1])
+        xs.append(shp[:, 0] + shift[0]); ys.append(shp[:, 1] + shift[1])
+        end = shp[-1, :2] + shift
         if not pl.internal:
             sel = slice(1, -1) if len(shp) > 2 else slice(None)
             zs_s.append(s_pts[sel]); zs.append(shp[sel, 2])
@@ -148,19 +196,20 @@ def _moving_average(a: np.ndarray, n: int) -> np.ndarray:
     return np.lib.stride_tricks.sliding_window_view(ap, n).mean(axis=-1)
 
 
-def study_route(net_file: str | Path | None = None, ds: float = DS) -> Route:
-    """The 13.2 km study route as a :class:`Route` (grid `ds` m), built from the network (`build_network()`)."""
+def study_route(net_file: str | Path | None = None, ds: float = DS, scenario=None) -> Route:
+    """The 13.2 km study route of `scenario` (default :data:`pedas.scenario.DEFAULT_SCENARIO`) as a
+    :class:`Route` (grid `ds` m), built from its network (`build_network(scenario=...)` unless `net_file`)."""
     if net_file is None:
         from pedas.network import build_network
 
-        net_file = build_network()
-    return _study_route(str(net_file), float(ds))
+        net_file = build_network(scenario=scenario)
+    return _study_route(str(net_file), float(ds), ego_edges(scenario))
 
 
 @lru_cache(maxsize=4)
-def _study_route(net_file: str, ds: float) -> Route:
+def _study_route(net_file: str, ds: float, edges: tuple[str, ...]) -> Route:
     net = _parse(net_file)
-    path = ego_path(net_file)
+    path = ego_path(net_file, edges)
     length = path[-1].s0 + path[-1].length
     n = int(math.floor(length / ds)) + 1
     s = np.arange(n) * ds
@@ -187,8 +236,7 @@ def _study_route(net_file: str, ds: float) -> Route:
     v_min = np.where(s >= vmin_start, HIGHWAY_MIN_SPEED, 0.0)
 
     lights, stops = [], []
-    for i, edge in enumerate(EGO_EDGES[:-1]):
-        c = [c for c in net["conns"].get((edge, EGO_EDGES[i + 1]), []) if c.get("fromLane") == "0"][0]
+    for edge, (_, c) in zip(edges, ego_connections(net_file, edges)):
         stop_line = next(pl.s0 + pl.length for pl in path if pl.edge == edge and not pl.internal)
         junction = net["edges"][edge].get("to")
         if c.get("tl"):
@@ -227,16 +275,17 @@ odometer), limits in m/s as in the network;
 lights: stop line and fixed-time plan of the ego's signal; stops: stop lines of the priority_stop junctions."""
 
 
-def route_file_text(net_file: str | Path | None = None) -> str:
-    """The paper's route as the text of a route file (study.route_file format), built from the network."""
+def route_file_text(net_file: str | Path | None = None, scenario=None) -> str:
+    """The paper's route as the text of a route file (study.route_file format), built from the network of
+    `scenario` (default :data:`pedas.scenario.DEFAULT_SCENARIO`; `net_file`: its network, built if None)."""
     from study.route_file import Light, Stop, dump_route
 
     if net_file is None:
         from pedas.network import build_network
 
-        net_file = build_network()
-    path = ego_path(net_file)
-    route = study_route(net_file)
+        net_file = build_network(scenario=scenario)
+    path = ego_path(net_file, ego_edges(scenario))
+    route = study_route(net_file, scenario=scenario)
     hw_start = next(pl.s0 for pl in path if pl.edge == HIGHWAY_EDGES[0] and not pl.internal)
     sections: list[list] = []
     for pl in path:

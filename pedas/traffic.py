@@ -10,9 +10,14 @@ The ego vehicle follows the speed set every step with ``vehicle.setSpeed``; spee
 SUMO's own checks (safe speed, acceleration bounds, right of way, red lights) so that SUMO never silently
 corrects the driver model: safety is checked by the drive loop, not hidden by the simulator.
 
+The network, routes, vehicle types and demand are those of a traffic scenario (:mod:`pedas.scenario`). In the
+motorway scenario the ego enters the motorway on an acceleration lane and leaves it by SUMO's strategic lane change
+(lane-change mode EGO_LANE_MERGE); it changes lanes for nothing else.
+
 Every PRUNE_EVERY steps the simulation drops the vehicles the ego can no longer meet: those behind it on its route
-and those that would join the route where the ego has already passed. The route has one lane and nobody overtakes,
-so they could only ever follow the ego; leaving them out saves SUMO's time (~10 % of a pEDAS drive's wall time
+and those that would join the route where the ego has already passed, as long as their route has one lane from
+there on: nobody overtakes on one lane, so they could only ever follow the ego (a vehicle that reaches a part with
+two lanes stays: it may overtake the ego there). Leaving them out saves SUMO's time (~10 % of a pEDAS drive's wall time
 with the demand running until 1400 s). SUMO draws its random numbers (the drivers' dawdling) per lane, so the
 others on a lane see different draws once a vehicle is gone: a pruned drive is another realisation of the same
 seeded traffic, still the same for the same seed, not the unpruned run with fewer vehicles.
@@ -27,25 +32,29 @@ import numpy as np
 import pandas as pd
 
 from pedas.constants import DT
-from pedas.network import DEMAND, ROUTES, VTYPES, build_network
-from pedas.paths import NETWORK_DIR
+from pedas.network import build_network
+from pedas.scenario import get_scenario
 
 EGO_ID = "ego"
 EGO_ROUTE = "ego"
 EGO_TYPE = "ego"
 EGO_SPEED_MODE = 32  # all checks off: speed exactly as commanded (TraCI speed-mode bits 0-5)
+# lane-change modes of the ego (TraCI bits 0-1 strategic, 2-3 cooperative, 4-5 speed gain, 6-7 keep right):
+EGO_LANE_KEEP = 0  # no lane change at all (the single-lane scenario)
+EGO_LANE_MERGE = 1  # strategic changes only: leaving an acceleration lane, never overtaking or keeping right
 LEADER_LOOKAHEAD = 250.0  # m, how far getLeader searches along the ego's route
 PRUNE_EVERY = 25  # steps (5 s) between removals of the vehicles the ego can no longer meet
 _ACTIVE: "Traffic | None" = None  # the process's running simulation (libsumo allows one)
 
 
-def load_demand(path: Path | None = None) -> dict:
-    """The demand definition (``demand.json``): ego_depart (s), min_headway (s) and the flows."""
-    return json.loads(Path(path or NETWORK_DIR / DEMAND).read_text())
+def load_demand(path: Path | None = None, scenario=None) -> dict:
+    """The demand definition (the scenario's ``demand.json``): ego_depart (s), min_headway (s) and the flows."""
+    return json.loads(Path(path or get_scenario(scenario).demand).read_text())
 
 
 def departures(seed: int, demand: dict | None = None) -> pd.DataFrame:
-    """Seeded departures of the surrounding traffic: tidy frame veh_id, route, type, depart (s), depart_speed.
+    """Seeded departures of the surrounding traffic: tidy frame veh_id, route, type, depart (s), depart_speed,
+    depart_lane (SUMO's departLane, the flow's `depart_lane`, default "first").
 
     Per flow, headways are min_headway + Exp(mean 3600/rate - min_headway) so that the mean rate is `rate` veh/h
     and no two vehicles of a flow depart closer than min_headway; a flow with `period` (s) runs to a timetable
@@ -65,8 +74,9 @@ def departures(seed: int, demand: dict | None = None) -> pd.DataFrame:
             t += mean if period else h_min + rng.exponential(max(mean - h_min, 0.1))
         types = _vehicle_types(f, len(times), np.random.default_rng([int(seed), 0x7AFF1C, k]))
         for i, (t, vtype) in enumerate(zip(times, types)):
-            rows.append((f"f{k}.{i}", f["route"], vtype, round(t, 1), str(f.get("depart_speed", "max"))))
-    df = pd.DataFrame(rows, columns=["veh_id", "route", "type", "depart", "depart_speed"])
+            rows.append((f"f{k}.{i}", f["route"], vtype, round(t, 1), str(f.get("depart_speed", "max")),
+                         str(f.get("depart_lane", "first"))))
+    df = pd.DataFrame(rows, columns=["veh_id", "route", "type", "depart", "depart_speed", "depart_lane"])
     return df.sort_values(["depart", "veh_id"], kind="stable").reset_index(drop=True)
 
 
@@ -95,11 +105,11 @@ def _vehicle_types(flow: dict, n: int, rng: np.random.Generator) -> list[str]:
     return types
 
 
-def route_edges(path: Path | None = None) -> dict[str, list[str]]:
-    """{route id: edge ids} of the routes file (``study.rou.xml``)."""
+def route_edges(path: Path | None = None, scenario=None) -> dict[str, list[str]]:
+    """{route id: edge ids} of the routes file (default: the scenario's)."""
     import xml.etree.ElementTree as ET
 
-    root = ET.parse(path or NETWORK_DIR / ROUTES).getroot()
+    root = ET.parse(path or get_scenario(scenario).routes).getroot()
     return {r.get("id"): r.get("edges").split() for r in root.iter("route")}
 
 
@@ -108,6 +118,13 @@ def join_index(routes: dict[str, list[str]], ego_route: str = EGO_ROUTE) -> dict
     the ego's route (cross traffic) are left out."""
     position = {e: i for i, e in enumerate(routes[ego_route])}
     return {rid: next(position[e] for e in edges if e in position)
+            for rid, edges in routes.items() if any(e in position for e in edges)}
+
+
+def leave_index(routes: dict[str, list[str]], ego_route: str = EGO_ROUTE) -> dict[str, int]:
+    """{route id: index in the ego's route of the last ego-route edge it uses} (routes of :func:`join_index`)."""
+    position = {e: i for i, e in enumerate(routes[ego_route])}
+    return {rid: max(position[e] for e in edges if e in position)
             for rid, edges in routes.items() if any(e in position for e in edges)}
 
 
@@ -130,10 +147,11 @@ class Traffic:
     """
 
     def __init__(self, seed: int, net_file: Path | None = None, demand: dict | None = None,
-                 step_length: float = DT) -> None:
+                 step_length: float = DT, scenario=None) -> None:
         self.seed = int(seed)
-        self.net_file = Path(net_file or build_network())
-        self.demand = demand or load_demand()
+        self.scenario = get_scenario(scenario)
+        self.net_file = Path(net_file or build_network(scenario=self.scenario))
+        self.demand = demand or load_demand(scenario=self.scenario)
         self.step_length = float(step_length)
         self.ego_depart = float(self.demand["ego_depart"])
         self.ego_min_gap = 0.0
@@ -141,15 +159,19 @@ class Traffic:
         self._ls = None
         self._steps = 0
         self._ego_in = False
-        routes = route_edges()
+        routes = route_edges(self.scenario.routes)
         self._ego_edges = {e: i for i, e in enumerate(routes[EGO_ROUTE])}
         self._route_join = join_index(routes)
+        self._route_leave = leave_index(routes)
         self._join: dict[str, int] = {}  # veh_id -> ego-route index where it joins (only vehicles that do)
+        # first ego-route index with more than one lane (set at start): there, vehicles from behind can overtake
+        # the ego and come ahead of it, so a vehicle that reaches it is never pruned
+        self._overtaking_from = len(routes[EGO_ROUTE])
 
     # --- life cycle -------------------------------------------------------------------------------------------
     def sumo_args(self) -> list[str]:
         """Command line of the SUMO run (no GUI, ballistic position update as eq. (3b), no teleports)."""
-        return ["sumo", "-n", str(self.net_file), "-r", str(NETWORK_DIR / ROUTES), "-a", str(NETWORK_DIR / VTYPES),
+        return ["sumo", "-n", str(self.net_file), "-r", str(self.scenario.routes), "-a", str(self.scenario.vtypes),
                 "--step-length", f"{self.step_length}", "--seed", str(self.seed % 2**31),
                 "--step-method.ballistic", "true", "--time-to-teleport", "-1", "--no-step-log", "true",
                 "--no-warnings", "true", "--xml-validation", "never", "--collision.action", "warn",
@@ -165,11 +187,13 @@ class Traffic:
         libsumo.start(self.sumo_args())
         _ACTIVE = self
         self._ls = libsumo
+        multi = [i for e, i in self._ego_edges.items() if libsumo.edge.getLaneNumber(e) > 1]
+        self._overtaking_from = min(multi, default=len(self._ego_edges))
         for row in departures(self.seed, self.demand).itertuples(index=False):
-            if row.route in self._route_join:
+            if row.route in self._route_join and self._route_leave[row.route] < self._overtaking_from:
                 self._join[row.veh_id] = self._route_join[row.route]
             libsumo.vehicle.add(row.veh_id, row.route, typeID=row.type, depart=f"{row.depart:.1f}",
-                                departLane="first", departPos="base", departSpeed=row.depart_speed)
+                                departLane=row.depart_lane, departPos="base", departSpeed=row.depart_speed)
         libsumo.vehicle.add(EGO_ID, EGO_ROUTE, typeID=EGO_TYPE, depart=f"{self.ego_depart:.1f}", departLane="first",
                             departPos="0", departSpeed="0")
         self.ego_min_gap = float(libsumo.vehicletype.getMinGap(EGO_TYPE))
@@ -210,7 +234,9 @@ class Traffic:
         A vehicle goes when it is on the ego's route behind the ego (an earlier edge, or the same edge further
         back), or is waiting to depart, or still on its way to the route, and joins it at an edge the ego has
         reached. Internal junction lanes are left for the next call. Cross traffic that never uses the ego's route
-        stays: it shares the junctions with vehicles that may still come ahead of the ego.
+        stays: it shares the junctions with vehicles that may still come ahead of the ego. So does every vehicle
+        whose route reaches a part of the ego's route with more than one lane (the motorway scenario): there it
+        may overtake the ego and come ahead of it.
         """
         ls = self._ls
         v = ls.vehicle
@@ -253,7 +279,8 @@ class Traffic:
                 raise RuntimeError(f"ego vehicle could not be inserted before t={t_end} s")
             self.step()
         ls.vehicle.setSpeedMode(EGO_ID, EGO_SPEED_MODE)
-        ls.vehicle.setLaneChangeMode(EGO_ID, 0)  # no overtaking, no lane changes (Sec. 4.3)
+        # no overtaking (Sec. 4.3): no lane change at all, or (motorway) only the merge off an acceleration lane
+        ls.vehicle.setLaneChangeMode(EGO_ID, EGO_LANE_MERGE if self.scenario.ego_merges else EGO_LANE_KEEP)
         # SUMO places the front bumper one vehicle length into the first lane; the route position s counts
         # from the lane start, the odometer from the insertion point
         self._s_offset = float(ls.vehicle.getLanePosition(EGO_ID)) - float(ls.vehicle.getDistance(EGO_ID))

@@ -10,6 +10,8 @@ from analysis.savings import BAND_HIGHWAY, BAND_OVERALL, BAND_RED, BAND_VIOLATIO
 DIAG = pd.DataFrame([
     (BAND_HIGHWAY, "v_highway", "mean speed on the highway", "km/h", 80.4, 79.9),
     (BAND_HIGHWAY, "lead_highway", "highway time with a leader within 100 m", "%", 91.6, 30.0),
+    (BAND_HIGHWAY, "lead_slow_highway", "highway time with a leader within 100 m at <= 90 km/h (a lorry)", "%",
+     85.2, 20.0),
     (BAND_VIOLATION, "drives_speeding", "drives above the limit at all (of 10)", "drives", 4, 1),
     (BAND_VIOLATION, "share_speeding", "distance above the limit, mean of drives", "%", 1.5, 0.02),
     (BAND_RED, "red_stops", "red stops, all drives", "stops", 50, 30),
@@ -29,7 +31,7 @@ def test_each_miss_in_the_expected_direction_is_explained_from_the_numbers():
     out = why_missed(bands(overall=7, highway=-3, violation=98, red=35), DIAG)
     assert len(out) == 3                                             # the overall band holds: nothing said
     hw, vio, red = out
-    assert hw.startswith(f"*{BAND_HIGHWAY}*") and "80.4 km/h" in hw and "92 %" in hw
+    assert hw.startswith(f"*{BAND_HIGHWAY}*") and "80.4 km/h" in hw and "92 %" in hw and "85 % behind one" in hw
     assert vio.startswith(f"*{BAND_VIOLATION}*") and "4 baseline drives" in vio and "1 pEDAS drives (0.02 %)" in vio
     assert red.startswith(f"*{BAND_RED}*") and "stop at red 30 times (baseline 50)" in red and "70 %" in red
 

@@ -21,7 +21,8 @@ def test_task_keys_and_seeds_are_stable():
     assert task_key(t) == task_key(DriveTask("P009", 5, "normal", "pedas"))  # the person, not the label
     assert len({task_key(t), task_key(DriveTask("P001", 6, "normal", "pedas")),
                 task_key(DriveTask("P001", 5, "sporty", "pedas")),
-                task_key(DriveTask("P001", 5, "normal", "baseline"))}) == 4
+                task_key(DriveTask("P001", 5, "normal", "baseline")),
+                task_key(DriveTask("P001", 5, "normal", "pedas", scenario="single-lane"))}) == 5
     assert participant_seed("P001", 0) == participant_seed("P001", 0) != participant_seed("P001", 1)
     tasks = cohort_tasks(pd.DataFrame({"participant_id": ["P001", "P002"], "style": ["sporty", None]}))
     assert [(x.participant_id, x.condition, x.style) for x in tasks] == [
@@ -115,6 +116,8 @@ def test_cli_bad_input_leaves_the_store_unchanged(cli, tmp_db, cache):
     assert r.code == 2 and "--workers" in r.err
     r = cli("drive", "simulate", "P001", "sideways")
     assert r.code == 2
+    r = cli("simulate", "cohort", "--scenario", "autobahn", "--cache-dir", str(cache))
+    assert r.code == 2 and r.err.count("\n") == 1 and "autobahn" in r.err and "motorway" in r.err
     from study.store import Store
 
     with Store.open(tmp_db, read_only=True) as st:

@@ -455,10 +455,10 @@ def test_paper_route_file_is_generated_from_the_network(tmp_path):
 def run_sumo_fcd(tmp_path, seconds: int = 60):
     """A short SUMO run of the study network: the ego and one other car from the start of the route (FCD XML)."""
     from pedas.network import binary, build_network
-    from pedas.route_study import EGO_EDGES
+    from pedas.route_study import ego_edges
 
     routes = tmp_path / "r.rou.xml"
-    routes.write_text(f'<routes><vType id="car" length="4.45"/><route id="r" edges="{" ".join(EGO_EDGES)}"/>'
+    routes.write_text(f'<routes><vType id="car" length="4.45"/><route id="r" edges="{" ".join(ego_edges())}"/>'
                       '<vehicle id="ego" type="car" route="r" depart="0" departSpeed="0"/>'
                       '<vehicle id="other" type="car" route="r" depart="8" departSpeed="0"/></routes>')
     fcd = tmp_path / "fcd.xml"

@@ -1,4 +1,5 @@
-"""The study network: built from the plain-XML sources by netconvert, and the route description read from it."""
+"""The study network: built from the plain-XML sources by netconvert, and the route description read from it (the
+single-lane scenario's sources in data/network/; the motorway scenario's: tests/test_motorway.py)."""
 from __future__ import annotations
 
 import os
@@ -11,25 +12,26 @@ import pytest
 from pedas.constants import HIGHWAY_MIN_SPEED, KMH, ROUTE_LENGTH
 from pedas.network import SOURCES, build_network, source_hash
 from pedas.route_study import EGO_EDGES, ego_path, study_route
+from pedas.scenario import SINGLE_LANE
 
 
 @pytest.fixture(scope="module")
 def fresh_net(tmp_path_factory):
     """The network built from scratch into an empty build directory (as on a fresh clone)."""
     build = tmp_path_factory.mktemp("netbuild")
-    return build_network(build_dir=build)
+    return build_network(build_dir=build, scenario=SINGLE_LANE)
 
 
 @pytest.fixture(scope="module")
 def route(fresh_net):
-    return study_route(fresh_net)
+    return study_route(fresh_net, scenario=SINGLE_LANE)
 
 
 def test_build_from_scratch_is_cached_by_source_hash(fresh_net):
     assert fresh_net.exists() and fresh_net.stat().st_size > 10_000
-    assert source_hash() in fresh_net.name
+    assert source_hash(scenario=SINGLE_LANE) in fresh_net.name
     mtime = fresh_net.stat().st_mtime_ns
-    again = build_network(build_dir=fresh_net.parent)
+    again = build_network(build_dir=fresh_net.parent, scenario=SINGLE_LANE)
     assert again == fresh_net and again.stat().st_mtime_ns == mtime  # reused, not rebuilt
     assert not [p for p in fresh_net.parent.iterdir() if p.name.startswith(".netconvert-")]  # no temp left
 
@@ -41,15 +43,15 @@ def test_changed_source_rebuilds_elsewhere(tmp_path, fresh_net):
 
     for name in SOURCES:
         (src / name).write_bytes((NETWORK_DIR / name).read_bytes())
-    assert source_hash(src) == source_hash()
+    assert source_hash(src) == source_hash(scenario=SINGLE_LANE)
     edg = src / "study.edg.xml"
     edg.write_text(edg.read_text().replace('id="h05" from="HOFF2" to="H_END" priority="10" numLanes="1" '
                                            'speed="33.3333"', 'id="h05" from="HOFF2" to="H_END" priority="10" '
                                            'numLanes="1" speed="27.7778"'))
-    assert source_hash(src) != source_hash()
+    assert source_hash(src) != source_hash(scenario=SINGLE_LANE)
     net = build_network(source_dir=src, build_dir=tmp_path / "b")
     assert net.name != fresh_net.name
-    assert study_route(net).speed_limit[-1] == pytest.approx(27.78, abs=0.01)
+    assert study_route(net, scenario=SINGLE_LANE).speed_limit[-1] == pytest.approx(27.78, abs=0.01)
 
 
 def test_missing_source_is_a_clear_error(tmp_path):

@@ -145,6 +145,14 @@ def test_report_on_reduced_reference_cohort(tmp_path):
     assert "Mean energy savings were larger in " in html  # a figure's reading from the numbers
     # the replay of the participant of Figs. 11-12 (P006 is among the first four) is linked from the report
     assert 'href="drives/replay_P006.html"' in html and (out / "drives" / "replay_P006.html").exists()
+    # the same cohort in the previous scenario: its own drive analysis and both scenarios' bands side by side
+    sides = pd.read_csv(out / "scenarios" / "bands.csv")
+    assert list(dict.fromkeys(sides["scenario"])) == ["motorway", "single-lane"] and len(sides) == 8
+    assert sides.set_index(["scenario", "band"]).loc["motorway", "our_value"].tolist() == \
+        pytest.approx(pd.read_csv(out / "drives" / "bands.csv")["our_value"].tolist(), rel=1e-10)
+    assert (out / "scenarios" / "single-lane" / "per_participant.csv").exists()
+    assert "Reproduction bands by traffic scenario" in html
+    assert "## The same cohort in the single-lane scenario" in (out / "reproduction.md").read_text()
 
     # warm: nothing changed -> every step but the always-run collection is cached
     res = run_report(cfg)

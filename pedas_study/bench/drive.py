@@ -16,29 +16,32 @@ import time
 from pedas.vocabulary import CONDITIONS, STYLES
 
 
-def bench_drive(repeats: int = 1, cohort: int = 3, seed: int = 1, style: str = "normal") -> dict:
-    """{'setup_s', 'baseline': {...}, 'pedas': {...}, 'pedas_<backend>': {...}, 'pedas_over_baseline',
+def bench_drive(repeats: int = 1, cohort: int = 3, seed: int = 1, style: str = "normal",
+                scenario: str | None = None) -> dict:
+    """{'setup_s', 'scenario', 'baseline': {...}, 'pedas': {...}, 'pedas_<backend>': {...}, 'pedas_over_baseline',
     'cohort': {...}|None}. 'pedas' runs the default QP backend (CONTROLLER.qp_backend), 'pedas_<backend>' the other
-    one on the same drive."""
+    one on the same drive; every drive in the traffic `scenario` (default pedas.scenario.DEFAULT_SCENARIO)."""
     import dataclasses
 
     from pedas.drive import _setup, drive
     from pedas.network import build_network
     from pedas.params import CONTROLLER
     from pedas.qp import BACKENDS
+    from pedas.scenario import get_scenario
 
+    sc = get_scenario(scenario).name
     t0 = time.perf_counter()
-    net = str(build_network())
-    _setup(net)
+    net = str(build_network(scenario=sc))
+    _setup(net, sc)
     setup = time.perf_counter() - t0
-    out: dict = {"setup_s": setup}
+    out: dict = {"setup_s": setup, "scenario": sc}
     other = [b for b in BACKENDS if b != CONTROLLER.qp_backend]
     runs = [(cond, cond, None) for cond in CONDITIONS] + [
         (f"pedas_{b}", "pedas", dataclasses.replace(CONTROLLER, qp_backend=b)) for b in other]
     for key, cond, settings in runs:
         walls, info = [], None
         for _ in range(repeats):
-            df = drive(seed, style, cond, net_file=net, settings=settings)
+            df = drive(seed, style, cond, net_file=net, settings=settings, scenario=sc)
             info = df.attrs["drive"]
             walls.append(info["wall_s"])
         wall = statistics.median(walls)
@@ -47,18 +50,18 @@ def bench_drive(repeats: int = 1, cohort: int = 3, seed: int = 1, style: str = "
                     "max_vehicles": info["max_vehicles"],
                     "backend": (settings or CONTROLLER).qp_backend if cond == "pedas" else None}
     out["pedas_over_baseline"] = out["pedas"]["wall_s_median"] / out["baseline"]["wall_s_median"]
-    out["cohort"] = _cohort_speedup(cohort, seed) if cohort > 0 else None
+    out["cohort"] = _cohort_speedup(cohort, seed, sc) if cohort > 0 else None
     return out
 
 
-def _cohort_speedup(n: int, seed: int) -> dict:
+def _cohort_speedup(n: int, seed: int, scenario: str) -> dict:
     import pandas as pd
 
     from pedas.cohort import cohort_tasks, simulate_cohort
 
     people = pd.DataFrame({"participant_id": [f"B{i:03d}" for i in range(n)],
                            "style": [STYLES[i % len(STYLES)] for i in range(n)]})
-    tasks = cohort_tasks(people, base_seed=seed)
+    tasks = cohort_tasks(people, base_seed=seed, scenario=scenario)
     walls, drive_wall = {}, 0.0
     for workers in (1, 2):
         with tempfile.TemporaryDirectory(prefix="bench-cohort-") as cache:

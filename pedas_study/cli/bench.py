@@ -1,6 +1,8 @@
 """`pedas-study bench ...`: the benchmarks of `pedas_study.bench`, each printed as text or one JSON object."""
 from __future__ import annotations
 
+from pedas_study.cli.common import add_scenario_option, scenario_of
+
 
 # ---------------------------------------------------------------------------------------------- bench import
 def _import(args) -> None:
@@ -63,11 +65,11 @@ def _drive(args) -> int:
 
     if args.repeats < 1 or args.cohort < 0:
         raise ValueError("--repeats must be >= 1 and --cohort >= 0")
-    res = bench_drive(repeats=args.repeats, cohort=args.cohort, seed=args.seed)
+    res = bench_drive(repeats=args.repeats, cohort=args.cohort, seed=args.seed, scenario=scenario_of(args))
     if args.json:
         print(json.dumps(res, sort_keys=True))
         return 0
-    print(f"setup (network, route, DP reference)   {res['setup_s']:8.2f} s")
+    print(f"scenario {res['scenario']}; setup (network, route, DP reference) {res['setup_s']:.2f} s")
     other = sorted(k for k, r in res.items() if k.startswith("pedas_") and isinstance(r, dict))
     for cond in list(CONDITIONS) + other:
         r = res[cond]
@@ -219,6 +221,7 @@ def register(cli) -> None:
     p.add_argument("--cohort", type=int, default=3, metavar="N",
                    help="participants of the speed-up cohort (2 drives each; 0 skips it)")
     p.add_argument("--seed", type=int, default=1, help="participant seed of the timed drives")
+    add_scenario_option(p)
 
     p = g.command("robustness", "robustness sweep: person seeds x styles x conditions x traffic seeds drives in "
                   "SUMO, failures counted by kind; exit code 1 when any drive failed", _robustness)

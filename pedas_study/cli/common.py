@@ -74,3 +74,23 @@ def simulate_and_store(args, tasks, **simulate_kw) -> list:
     for task, df, r in stored:
         print(summary_line(task, df, r))
     return stored
+
+
+def add_scenario_option(p) -> None:
+    """`--scenario NAME`: the traffic scenario of the simulated drives (pedas.scenario)."""
+    from pedas.scenario import DEFAULT_SCENARIO, SCENARIOS
+
+    known = "; ".join(sc.description for sc in SCENARIOS.values())
+    p.add_argument("--scenario", default=DEFAULT_SCENARIO, metavar="NAME",
+                   help=f"traffic scenario of the simulated drives (default {DEFAULT_SCENARIO}; {known}; "
+                        "docs/route_and_traffic.md)")
+
+
+def scenario_of(args, option: str = "scenario") -> str:
+    """The scenario name given by `--scenario` (or another option); UserError (one line, exit 2) if unknown."""
+    from pedas.scenario import get_scenario
+
+    try:
+        return get_scenario(getattr(args, option)).name
+    except ValueError as exc:
+        raise UserError(f"--{option.replace('_', '-')}: {exc}") from None

@@ -3,7 +3,8 @@ from __future__ import annotations
 
 import sys
 
-from pedas_study.cli.common import DRIVE_CACHE_HELP, add_format_option, format_frame, open_store, simulate_and_store
+from pedas_study.cli.common import (DRIVE_CACHE_HELP, add_format_option, add_scenario_option, format_frame, open_store,
+                                    scenario_of, simulate_and_store)
 
 
 def _import(args) -> None:
@@ -46,11 +47,13 @@ def _simulate(args) -> None:
     from pedas.cohort import cohort_tasks
     from study.simulated import participants_to_simulate
 
+    scenario = scenario_of(args)
     with open_store(args, read_only=True) as st:
         people = participants_to_simulate(st, [args.id])
     if not isinstance(people.loc[0, "style"], str):
         print(f"note: {args.id} has no driving style; simulated as 'normal'", file=sys.stderr)
-    tasks = [t for t in cohort_tasks(people, base_seed=args.seed) if t.condition == args.condition]
+    tasks = [t for t in cohort_tasks(people, base_seed=args.seed, scenario=scenario)
+             if t.condition == args.condition]
     simulate_and_store(args, tasks, workers=1, progress=False)
 
 
@@ -107,3 +110,4 @@ def register(cli) -> None:
     p.add_argument("--seed", type=int, default=0, help="cohort seed: the virtual person is derived from (seed, ID)")
     p.add_argument("--replace", action="store_true", help="replace a different drive stored for this condition")
     p.add_argument("--cache-dir", dest="cache_dir", default=None, help=DRIVE_CACHE_HELP)
+    add_scenario_option(p)

@@ -7,7 +7,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from pedas_study.cli.common import db_path, is_user_error
+from pedas.scenario import SCENARIOS, SINGLE_LANE
+from pedas_study.cli.common import add_scenario_option, db_path, is_user_error, scenario_of
 from study.errors import UserError
 
 
@@ -25,7 +26,10 @@ def _report(args) -> int:
     cfg = ReportConfig(out=Path(args.out), db=db_path(args), reference=reference,
                        compare_paper=reference or args.compare_paper, participants=args.participants,
                        workers=args.workers, scheduler=args.scheduler, seed=args.seed, n_boot=args.bootstrap,
-                       force=args.force, **({"cache_dir": Path(args.cache_dir)} if args.cache_dir else {}))
+                       force=args.force, scenario=scenario_of(args),
+                       compare_scenario=(None if args.compare_scenario == "none"
+                                         else scenario_of(args, "compare_scenario")),
+                       **({"cache_dir": Path(args.cache_dir)} if args.cache_dir else {}))
     try:
         res = run_report(cfg)
     except StepFailed as exc:  # a step refused its input: bad input, not a bug
@@ -76,6 +80,10 @@ def register(cli) -> None:
     p.add_argument("--seed", type=int, default=0, help="base seed of the simulated cohort and the bootstrap")
     p.add_argument("--bootstrap", type=int, default=2000, help="bootstrap resamples of the regressions")
     p.add_argument("--force", action="store_true", help="rerun every step")
+    add_scenario_option(p)
+    p.add_argument("--compare-scenario", default=SINGLE_LANE, metavar="NAME",
+                   help=f"reference mode: also drive the cohort in this traffic scenario ({'|'.join(SCENARIOS)}) and "
+                        f"show its bands beside the default's (default {SINGLE_LANE}; none: only --scenario)")
     p.add_argument("--cache-dir", default=None, help="step and drive cache (default .report-cache in the checkout)")
     p.add_argument("--bundle", nargs="?", const="", default=None, metavar="ZIP",
                    help="also write the submission bundle (tables as CSV/Markdown/LaTeX/DOCX, the study's model "

@@ -4,7 +4,7 @@ The store's study must declare the conditions the simulator drives; each partici
 the virtual driver (study.simulated)."""
 from __future__ import annotations
 
-from pedas_study.cli.common import DRIVE_CACHE_HELP, open_store, simulate_and_store
+from pedas_study.cli.common import DRIVE_CACHE_HELP, add_scenario_option, open_store, scenario_of, simulate_and_store
 from study.errors import UserError
 
 
@@ -17,6 +17,7 @@ def _cohort(args) -> None:
 
     if args.workers is not None and args.workers < 1:
         raise UserError("--workers must be >= 1")
+    scenario = scenario_of(args)
     if args.scheduler is not None:
         require("distributed", "dask", "--scheduler")
     with open_store(args, read_only=True) as st:
@@ -25,7 +26,7 @@ def _cohort(args) -> None:
         if not ids:
             raise UserError("no participants to simulate (none registered or all excluded from objective analyses)")
         people = participants_to_simulate(st, ids)
-    tasks = cohort_tasks(people, base_seed=args.seed)
+    tasks = cohort_tasks(people, base_seed=args.seed, scenario=scenario)
     stored = simulate_and_store(args, tasks, workers=args.workers, scheduler=args.scheduler,
                                 progress=not args.no_progress)
     changed = sum(1 for _, _, r in stored if r.status != "unchanged")
@@ -46,3 +47,4 @@ def register(cli) -> None:
     p.add_argument("--replace", action="store_true", help="replace different drives already stored")
     p.add_argument("--no-progress", dest="no_progress", action="store_true", help="no progress bar")
     p.add_argument("--cache-dir", dest="cache_dir", default=None, help=DRIVE_CACHE_HELP)
+    add_scenario_option(p)
