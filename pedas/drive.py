@@ -174,6 +174,13 @@ def _setup(net_file: str, scenario: str):
     return route, dp_reference(route)
 
 
+def study_route_and_reference(scenario: str | None = None):
+    """(route, DP reference) of the study network in a traffic scenario (default
+    :data:`pedas.scenario.DEFAULT_SCENARIO`), the network built when needed; cached per process."""
+    sc = get_scenario(scenario)
+    return _setup(str(build_network(scenario=sc)), sc.name)
+
+
 def drive(participant_seed: int, style: str, condition: str, *, traffic_seed: int | None = None,
           driver: DriverParams | None = None, net_file: str | Path | None = None,
           max_duration: float = MAX_DURATION, settings=None, controller=None,

@@ -40,11 +40,9 @@ class LiveRoute:
         from pedas.dp import dp_reference
 
         if name == "study":
-            from pedas.drive import _setup
-            from pedas.network import build_network
+            from pedas.drive import study_route_and_reference
 
-            route, v_dp = _setup(str(build_network()))
-            return cls(name, route, v_dp)
+            return cls(name, *study_route_and_reference())
         if name == "synthetic-mixed":
             from pedas.route import Route
 

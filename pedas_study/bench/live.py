@@ -49,9 +49,8 @@ def bench_live(messages: int = 10_000, rate: float = 50.0, seed: int = 1) -> dic
     from websockets.sync.client import connect
 
     from pedas.controller import PedasController
-    from pedas.drive import _setup
+    from pedas.drive import study_route_and_reference
     from pedas.live_protocol import ADVICE_FIELDS
-    from pedas.network import build_network
     from study.participants import add_participant
     from study.store import Store
     from study.studies import register
@@ -59,7 +58,7 @@ def bench_live(messages: int = 10_000, rate: float = 50.0, seed: int = 1) -> dic
     from analysis.paper.published import PAPER_STUDY_DIR
 
     states = drive_states(seed)
-    route, v_dp = _setup(str(build_network()))
+    route, v_dp = study_route_and_reference()
     lat, mismatches, sessions = [], 0, 0
     with tempfile.TemporaryDirectory() as tmp:
         db = Path(tmp) / "live.duckdb"
