@@ -75,10 +75,11 @@ class LiveSession:
         self._t0 = None
         self._prev = None   # (t, v) of the last state, for the logged acceleration
 
-    def handle(self, text: str | bytes) -> str:
+    def handle(self, text: str | bytes | dict) -> str:
+        """The reply to one message (text, or the object :func:`decode` made of it)."""
         seq = None
         try:
-            msg = decode(text)
+            msg = text if isinstance(text, dict) else decode(text)
             seq = msg.get("seq")
             kind = msg["type"]
             if kind == "state":
@@ -178,13 +179,14 @@ class _Udp(asyncio.DatagramProtocol):
 
     def datagram_received(self, data: bytes, addr) -> None:
         session = self.server.session_for(("udp",) + tuple(addr))
-        if self.server.touches_store(data):
-            asyncio.ensure_future(self._reply_later(session, data, addr))
+        msg, store = self.server.triage(data)
+        if store:
+            asyncio.ensure_future(self._reply_later(session, msg, addr))
             return
-        self._send(session.handle(data), addr)
+        self._send(session.handle(msg), addr)
 
-    async def _reply_later(self, session: LiveSession, data: bytes, addr) -> None:
-        self._send(await self.server.in_store_thread(session.handle, data), addr)
+    async def _reply_later(self, session: LiveSession, msg: dict, addr) -> None:
+        self._send(await self.server.in_store_thread(session.handle, msg), addr)
 
     def _send(self, reply: str, addr) -> None:
         self.transport.sendto(reply.encode(), addr)
@@ -203,14 +205,15 @@ class LiveServer:
         self.displays: set = set()
         self.pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="drive-log")   # the store's one writer
 
-    def touches_store(self, text: str | bytes) -> bool:
-        """A hello or bye while drives are logged: it opens or completes a drive log in the store."""
-        if self.logger_factory is None:
-            return False
+    def triage(self, text: str | bytes) -> tuple[dict | str | bytes, bool]:
+        """(the message decoded once, or the text itself when it does not decode: the session answers with the
+        error; whether it touches the store: a hello or bye while drives are logged opens or completes a drive
+        log)."""
         try:
-            return decode(text)["type"] in ("hello", "bye")
+            msg = decode(text)
         except ProtocolError:
-            return False
+            return text, False
+        return msg, self.logger_factory is not None and msg["type"] in ("hello", "bye")
 
     async def in_store_thread(self, fn, *args):
         """Run fn in the one thread that uses the store (DuckDB's connection is not shared between threads)."""
@@ -251,10 +254,8 @@ class LiveServer:
         session = self.session_for(key)
         try:
             async for text in connection:
-                if self.touches_store(text):
-                    reply = await self.in_store_thread(session.handle, text)
-                else:
-                    reply = session.handle(text)
+                msg, store = self.triage(text)
+                reply = await self.in_store_thread(session.handle, msg) if store else session.handle(msg)
                 await connection.send(reply)
                 self.broadcast(reply)
         finally:   # a simulator that went away without bye: keep what it sent, the drive stays incomplete

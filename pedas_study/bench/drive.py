@@ -23,16 +23,14 @@ def bench_drive(repeats: int = 1, cohort: int = 3, seed: int = 1, style: str = "
     one on the same drive; every drive in the traffic `scenario` (default pedas.scenario.DEFAULT_SCENARIO)."""
     import dataclasses
 
-    from pedas.drive import _setup, drive
-    from pedas.network import build_network
+    from pedas.drive import drive, study_route_and_reference
     from pedas.params import CONTROLLER
     from pedas.qp import BACKENDS
     from pedas.scenario import get_scenario
 
     sc = get_scenario(scenario).name
     t0 = time.perf_counter()
-    net = str(build_network(scenario=sc))
-    _setup(net, sc)
+    study_route_and_reference(sc)
     setup = time.perf_counter() - t0
     out: dict = {"setup_s": setup, "scenario": sc}
     other = [b for b in BACKENDS if b != CONTROLLER.qp_backend]
@@ -41,7 +39,7 @@ def bench_drive(repeats: int = 1, cohort: int = 3, seed: int = 1, style: str = "
     for key, cond, settings in runs:
         walls, info = [], None
         for _ in range(repeats):
-            df = drive(seed, style, cond, net_file=net, settings=settings, scenario=sc)
+            df = drive(seed, style, cond, settings=settings, scenario=sc)
             info = df.attrs["drive"]
             walls.append(info["wall_s"])
         wall = statistics.median(walls)

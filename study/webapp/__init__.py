@@ -77,7 +77,7 @@ def create_app(st, researcher_password: str, instrument: str | None = None,
     app = Flask(__name__, template_folder=str(HERE / "templates"), static_folder=str(HERE / "static"))
     app.config.update(SECRET_KEY=secret_key or secrets.token_hex(32), SESSION_COOKIE_SAMESITE="Strict",
                       SESSION_COOKIE_HTTPONLY=True, MAX_CONTENT_LENGTH=256 * 1024)
-    app.extensions["survey"] = new_state(st, ins, researcher_password)
+    app.extensions["survey"] = new_state(st, ins)
     install(app)
     app.extensions["signin"] = SignIn(researcher_password, signin)
     app.session_interface = _SessionInterface()

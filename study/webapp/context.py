@@ -14,13 +14,14 @@ BUSY = "The study store is busy (a command is using it). Please try again in a m
 
 
 def state() -> dict:
-    """The app's survey state: {"lock" (the :class:`StoreHolder`), "instrument", "password"}."""
+    """The app's survey state: {"lock" (the :class:`StoreHolder`), "instrument"}; the researcher password lives
+    (hashed) in the sign-in extension (:mod:`study.webapp.signin`)."""
     return current_app.extensions["survey"]
 
 
-def new_state(st, instrument, password: str) -> dict:
+def new_state(st, instrument) -> dict:
     # the server keeps no connection between requests: each request opens the store under the holder's lock
-    return {"lock": StoreHolder(st.path, st.actor), "instrument": instrument, "password": password}
+    return {"lock": StoreHolder(st.path, st.actor), "instrument": instrument}
 
 
 def install(app) -> None:
