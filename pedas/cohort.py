@@ -24,13 +24,15 @@ import pandas as pd
 
 from pedas.paths import NETWORK_DIR, REPO_ROOT
 from pedas.scenario import DEFAULT_SCENARIO
+from pedas.whatif import WhatIf
 
 _SUMO_LOCK = threading.Lock()  # one libsumo simulation per process
 
 
 @dataclass(frozen=True)
 class DriveTask:
-    """One drive to simulate: who (participant id, person seed, style), which condition, which traffic."""
+    """One drive to simulate: who (participant id, person seed, style), which condition, which traffic, and the
+    what-if settings that differ from the scenario's (:meth:`pedas.whatif.WhatIf.items`)."""
 
     participant_id: str
     seed: int
@@ -38,6 +40,7 @@ class DriveTask:
     condition: str
     traffic_seed: int | None = None
     scenario: str = DEFAULT_SCENARIO
+    whatif: tuple[tuple[str, float], ...] = ()
 
 
 def default_cache_dir() -> Path:
@@ -125,7 +128,7 @@ def run_task(task: DriveTask, cache_dir: str | None = None, key: str | None = No
     with _SUMO_LOCK:
         try:
             df = drive(task.seed, task.style, task.condition, traffic_seed=task.traffic_seed,
-                       scenario=task.scenario)
+                       scenario=task.scenario, whatif=WhatIf.from_items(task.whatif))
         except DriveError as exc:  # the message names the drive; add whose it is
             raise exc.named(task.participant_id) from None
     _store_cached(key, df, cdir)
@@ -190,13 +193,15 @@ def simulate_cohort(tasks: list[DriveTask], workers: int | None = None, schedule
 
 def cohort_tasks(participants: pd.DataFrame, base_seed: int = 0,
                  conditions: tuple[str, ...] = ("baseline", "pedas"),
-                 scenario: str = DEFAULT_SCENARIO) -> list[DriveTask]:
+                 scenario: str = DEFAULT_SCENARIO, whatif: WhatIf | None = None) -> list[DriveTask]:
     """Tasks for a participants frame (participant_id, style): both conditions per person, same person seed and
-    traffic in both, in the traffic `scenario`. A missing style is simulated as 'normal'."""
+    traffic in both, in the traffic `scenario` with the `whatif` settings. A missing style is simulated as
+    'normal'."""
+    items = (whatif or WhatIf()).items()
     tasks = []
     for row in participants.itertuples(index=False):
         style = row.style if isinstance(row.style, str) and row.style else "normal"
         seed = participant_seed(row.participant_id, base_seed)
         for cond in conditions:
-            tasks.append(DriveTask(row.participant_id, seed, style, cond, scenario=scenario))
+            tasks.append(DriveTask(row.participant_id, seed, style, cond, scenario=scenario, whatif=items))
     return tasks

@@ -151,7 +151,7 @@ class PedasController:
         self.h_s, self.d_min = settings.cf_weights.h_s, settings.cf_weights.d_min
         self._hud_kw = dict(arrow_full_scale=settings.arrow_full_scale, icon_range=settings.icon_range,
                             warn_delay=settings.warn_delay, standstill=settings.standstill,
-                            start_min=settings.start_min)
+                            start_min=settings.start_min, band=settings.hud_band)
         if v_dp is None:
             from pedas.dp import dp_reference
             v_dp = dp_reference(route, params)

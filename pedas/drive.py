@@ -34,8 +34,9 @@ from pedas.drivers import DriverParams, HumanDriver, Perception, sample_driver
 from pedas.network import build_network
 from pedas.route_study import study_route
 from pedas.scenario import get_scenario
-from pedas.traffic import Traffic
+from pedas.traffic import Traffic, load_demand
 from pedas.vocabulary import CONDITIONS
+from pedas.whatif import WhatIf
 
 LOG_COLUMNS = ("t", "s", "v", "segment", "speed_limit", "a", "grade", "ft", "fb", "p_batt", "tl_id", "tl_state",
                "d_tl", "leader_gap", "leader_v", "v_advice", "controller", "hud_arrow", "hud_in_band", "warning")
@@ -165,13 +166,16 @@ def drive_name(participant_seed: int, style: str, condition: str, traffic_seed: 
             f"({style}, traffic seed {traffic_seed})")
 
 
-@lru_cache(maxsize=2)
-def _setup(net_file: str, scenario: str):
-    """Route and DP reference of a scenario's network, once per process (the DP takes ~1 s)."""
-    from pedas.dp import dp_reference
+@lru_cache(maxsize=8)
+def _setup(net_file: str, scenario: str, dp_time_weight: float = 1.0):
+    """Route and DP reference of a scenario's network (the DP's time weight x `dp_time_weight`), once per process
+    (the DP takes ~1 s)."""
+    from pedas.dp import W_TIME_DEFAULT, dp_reference
 
     route = study_route(net_file, scenario=scenario)
-    return route, dp_reference(route)
+    if dp_time_weight == 1.0:
+        return route, dp_reference(route)
+    return route, dp_reference(route, w_time=W_TIME_DEFAULT * dp_time_weight)
 
 
 def study_route_and_reference(scenario: str | None = None):
@@ -184,7 +188,7 @@ def study_route_and_reference(scenario: str | None = None):
 def drive(participant_seed: int, style: str, condition: str, *, traffic_seed: int | None = None,
           driver: DriverParams | None = None, net_file: str | Path | None = None,
           max_duration: float = MAX_DURATION, settings=None, controller=None,
-          scenario: str | None = None) -> pd.DataFrame:
+          scenario: str | None = None, whatif: WhatIf | None = None) -> pd.DataFrame:
     """Drive the study route once; the drive log (docs/contracts.md columns, every DT s) as a DataFrame.
 
     participant_seed: the virtual person (driver parameters, :func:`pedas.drivers.sample_driver`); style:
@@ -194,25 +198,29 @@ def drive(participant_seed: int, style: str, condition: str, *, traffic_seed: in
     :data:`pedas.params.CONTROLLER`). controller: the advice of the pedas condition from this object's
     ``step(t, s, v, leader)`` instead of a new PedasController (the live reference client,
     :class:`pedas.live_client.RemoteController`). scenario: the traffic scenario (:mod:`pedas.scenario`, default
-    :data:`pedas.scenario.DEFAULT_SCENARIO`). Raises SafetyViolation when an invariant fails.
-    ``df.attrs['drive']`` holds a :class:`DriveInfo` as dict.
+    :data:`pedas.scenario.DEFAULT_SCENARIO`). whatif: unpublished settings moved away from the scenario's
+    (:class:`pedas.whatif.WhatIf`: traffic volumes, lorry share, the person's compliance and speeding, the HUD
+    band, the DP's time weight; default none). Raises SafetyViolation when an invariant fails.
+    ``df.attrs['drive']`` holds a :class:`DriveInfo` as dict (with the non-default what-if settings under
+    ``whatif``).
     """
     if condition not in CONDITIONS:
         raise ValueError(f"unknown condition {condition!r} (expected baseline|pedas)")
     sc = get_scenario(scenario)
     net_file = str(net_file or build_network(scenario=sc))
-    route, v_dp = _setup(net_file, sc.name)
-    drv = driver or sample_driver(participant_seed, style)
+    wi = whatif or WhatIf()
+    route, v_dp = _setup(net_file, sc.name, wi.dp_time_weight)
+    drv = wi.driver(driver or sample_driver(participant_seed, style))
     tseed = int(participant_seed if traffic_seed is None else traffic_seed)
     assisted = condition == "pedas"
-    human = HumanDriver(route, drv, assisted=assisted)
+    human = HumanDriver(route, drv, assisted=assisted, band=wi.hud_band)
     ctrl = controller if assisted else None
     if assisted and ctrl is None:
         from pedas.controller import PedasController
 
         from pedas.params import CONTROLLER
 
-        ctrl = PedasController(route, v_dp=v_dp, settings=settings or CONTROLLER)
+        ctrl = PedasController(route, v_dp=v_dp, settings=wi.controller(settings or CONTROLLER))
     guard = SafetyGuard(route)
     alive = LivenessGuard()
     lights = tuple(route.lights)
@@ -221,7 +229,8 @@ def drive(participant_seed: int, style: str, condition: str, *, traffic_seed: in
                                              "warning")}
     wall0 = time.perf_counter()
     try:
-        with Traffic(tseed, net_file, scenario=sc) as tr:
+        demand = None if wi.is_default() else wi.demand(load_demand(scenario=sc))
+        with Traffic(tseed, net_file, demand=demand, scenario=sc) as tr:
             steps, max_veh, t_ins = _loop(tr, lights, human, ctrl, guard, alive, cols, max_duration)
     except DriveError as exc:
         raise exc.named(drive_name(participant_seed, style, condition, tseed)) from None
@@ -233,6 +242,8 @@ def drive(participant_seed: int, style: str, condition: str, *, traffic_seed: in
     info = DriveInfo(int(participant_seed), style, condition, tseed, sc.name, drv.as_dict(), float(t_ins),
                      float(df["t"].iloc[-1]), wall, steps, max_veh, dict(ctrl.stats) if ctrl is not None else None)
     df.attrs["drive"] = info.__dict__
+    if not wi.is_default():
+        df.attrs["drive"]["whatif"] = dict(wi.items())
     return df
 
 

@@ -196,8 +196,9 @@ class HumanDriver:
     """
 
     def __init__(self, route, params: DriverParams, assisted: bool = False, vehicle: VehicleParams = LEAF,
-                 dt: float = DT) -> None:
+                 dt: float = DT, band: float = HUD_BAND) -> None:
         self.route, self.p, self.assisted, self.vehicle, self.dt = route, params, assisted, vehicle, dt
+        self.band = band  # m/s, the HUD's coast band (the same the HUD uses: ControllerParams.hud_band)
         self._s = np.asarray(route.s, float)
         self._v0 = desired_speed_profile(route, params)
         self._v_curve = curve_speed_profile(route, params)
@@ -354,7 +355,7 @@ class HumanDriver:
     def _track(self, v: float, s: float, v_own: float, adv: float, warn: bool) -> float:
         """Assisted longitudinal command towards target = advice + (1 - compliance) (own wish - advice).
 
-        Inside the +-2 km/h band the driver coasts (the paper's instruction for a short arrow), unless the car
+        Inside the band (+-2 km/h in the paper) the driver coasts (the paper's instruction for a short arrow), unless the car
         stands and the target lies above it (:func:`pedas.hud.wants_start`): then the driver drives off. Below the band
         the driver accelerates and keeps the pedal until the target is reached (hysteresis instead of pedal
         chatter at the band edge); above it the driver first lifts off (coasts) and brakes only when the
@@ -369,16 +370,16 @@ class HumanDriver:
         c = 1.0 if self._t < self._warned_until else self.compliance
         target = adv + (1.0 - c) * (v_own - adv)
         if self._v_min[self._idx(s)] > 0.0:  # the instructed highway minimum holds whatever the advice
-            target = max(target, self._v_min[self._idx(s)] + HUD_BAND + 0.5 * KMH)
+            target = max(target, self._v_min[self._idx(s)] + self.band + 0.5 * KMH)
         err = target - v
         # standing, the band's "coast" means "stay": a person advised to drive off does (pedas.hud.wants_start)
-        if err > HUD_BAND or (self._tracking and err > TRACK_DONE) or wants_start(v, target):
+        if err > self.band or (self._tracking and err > TRACK_DONE) or wants_start(v, target):
             self._tracking = True
             a = min(err / TRACK_TIME, p.a_max)
         else:
             self._tracking = False
             warned = self._t < self._warned_until
-            if err < -COAST_EXCESS or (warned and err < -HUD_BAND):
+            if err < -COAST_EXCESS or (warned and err < -self.band):
                 a = max(err / TRACK_TIME, -(WARN_BRAKE if warned else p.b_comf))
                 a = min(a, self.coast_accel(v, s))
             else:

@@ -3,8 +3,9 @@
 Labs can drive a real head-up display from :func:`advisory`; the controller calls it once per step.
 
 - optimal speed v_opt = the first planned speed of the MPC plan;
-- arrow up (green) when v < v_opt - HUD_BAND, down (red) when v > v_opt + HUD_BAND, none inside the +-2 km/h band,
-  where the digits turn black and the driver is advised to coast (no pedal);
+- arrow up (green) when v < v_opt - band, down (red) when v > v_opt + band, none inside the band (the paper's
+  +-2 km/h, HUD_BAND, the default of ``ControllerParams.hud_band``), where the digits turn black and the driver is
+  advised to coast (no pedal);
 - at standstill (v < standstill) the band does not apply: a standing car cannot coast, so an optimal speed more
   than start_min above v shows the arrow up ("drive off"). Without this, a plan that leaves standstill gently
   (v_opt = v_1, one sample ahead, rises by F_t,max/m_eq x 0.2 s, which can be < 2 km/h) would show black digits,
@@ -25,7 +26,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Sequence
 
-from pedas.constants import HUD_BAND, HUD_TL_COUNTDOWN
+from pedas.constants import HUD_TL_COUNTDOWN
 from pedas.params import CONTROLLER
 
 
@@ -93,15 +94,16 @@ def update_unfollowed(prev: float, arrow: int, a: float, dt: float, *,
 def advisory(state: HudState, plan: Sequence[float], context: HudContext, *,
              arrow_full_scale: float = CONTROLLER.arrow_full_scale, icon_range: float = CONTROLLER.icon_range,
              warn_delay: float = CONTROLLER.warn_delay, standstill: float = CONTROLLER.standstill,
-             start_min: float = CONTROLLER.start_min) -> HudAdvice:
+             start_min: float = CONTROLLER.start_min, band: float = CONTROLLER.hud_band) -> HudAdvice:
     """The HUD record for a measured state, a plan of predicted speeds v_1..v_N (m/s) and the route context.
 
-    Keyword arguments: the HUD fields of :class:`pedas.params.ControllerParams` (m/s, m, s, m/s, m/s)."""
+    Keyword arguments: the HUD fields of :class:`pedas.params.ControllerParams` (m/s, m, s, m/s, m/s, and
+    ``band`` = ``hud_band``, m/s)."""
     v_opt = float(plan[0])
     dv = v_opt - state.v
-    if dv > HUD_BAND or wants_start(state.v, v_opt, standstill=standstill, start_min=start_min):
+    if dv > band or wants_start(state.v, v_opt, standstill=standstill, start_min=start_min):
         arrow, color = 1, "green"
-    elif dv < -HUD_BAND:
+    elif dv < -band:
         arrow, color = -1, "red"
     else:
         arrow, color = 0, "black"

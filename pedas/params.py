@@ -15,7 +15,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
-from pedas.constants import KMH
+from pedas.constants import HUD_BAND, KMH
 
 
 @dataclass(frozen=True)
@@ -240,6 +240,8 @@ class ControllerParams:
     blend_max_step: float = 0.4
 
     # ---- HUD (pedas.hud, Sec. 3.8) -------------------------------------------------------------------------------
+    # m/s, half-width of the band around v_opt with no arrow (the paper's +-2 km/h; varied by the what-if sweep)
+    hud_band: float = HUD_BAND
     # m/s, |v - v_opt| at which the arrow has full length (design choice)
     arrow_full_scale: float = 10.0 * KMH
     # m, look-ahead for TL countdown / stop-sign / curve icons (design choice)
