@@ -91,6 +91,11 @@ def _cache_paths(cache_dir: Path, key: str) -> tuple[Path, Path]:
     return cache_dir / f"{key}.parquet", cache_dir / f"{key}.json"
 
 
+def is_cached(task: DriveTask, cache_dir: Path | None = None) -> bool:
+    """Whether the drive of `task` is in the cache (both of its files), without reading it."""
+    return all(p.exists() for p in _cache_paths(Path(cache_dir or default_cache_dir()), task_key(task)))
+
+
 def load_cached(task: DriveTask, cache_dir: Path | None = None, key: str | None = None) -> pd.DataFrame | None:
     """The cached drive log of `task`, or None."""
     data, meta = _cache_paths(Path(cache_dir or default_cache_dir()), key or task_key(task))

@@ -34,6 +34,29 @@ def _cohort(args) -> None:
     print(f"{len(stored)} drives of {len(ids)} {people_word} ({changed} stored, {len(stored) - changed} unchanged)")
 
 
+def _sweep(args) -> None:
+    """Thin layer over analysis.sweep.run_sweep (docs/sweep.md)."""
+    from pathlib import Path
+
+    from analysis.sweep import run_sweep
+    from analysis.sweep_design import SweepSpec, parse_factors
+    from pedas_study.extras import require
+
+    if args.workers is not None and args.workers < 1:
+        raise UserError("--workers must be >= 1")
+    if args.scheduler is not None:
+        require("distributed", "dask", "--scheduler")
+    styles = tuple(s.strip() for s in args.styles.split(",")) if args.styles else None
+    factors = parse_factors(args.factors)
+    spec = SweepSpec(factors=factors, trajectories=args.trajectories, sobol_n=args.sobol_n,
+                     top=args.top if args.top is not None else min(3, len(factors)), participants=args.participants, scenario=scenario_of(args), seed=args.seed,
+                     **({"styles": styles} if styles else {}))
+    meta = run_sweep(spec, Path(args.out), workers=args.workers, scheduler=args.scheduler,
+                     cache_dir=args.cache_dir, progress=not args.no_progress)
+    print(f"{meta['points']} design points, {meta['drives']} drives in {meta['wall_s']:.0f} s; "
+          f"Sobol factors: {', '.join(meta['sobol_factors']) or 'none'}; outputs in {args.out}")
+
+
 def register(cli) -> None:
     """Declare the `simulate` group."""
     g = cli.group("simulate", "simulate the study with virtual participants")
@@ -45,6 +68,32 @@ def register(cli) -> None:
                        help="run on a Dask distributed cluster (e.g. tcp://host:8786)")
     p.add_argument("--seed", type=int, default=0, help="cohort seed: the virtual persons derive from (seed, ID)")
     p.add_argument("--replace", action="store_true", help="replace different drives already stored")
+    p.add_argument("--no-progress", dest="no_progress", action="store_true", help="no progress bar")
+    p.add_argument("--cache-dir", dest="cache_dir", default=None, help=DRIVE_CACHE_HELP)
+    add_scenario_option(p)
+
+    p = g.command("sweep", "what-if sweep: the reduced reference cohort over a Morris then Sobol design of "
+                  "unpublished settings; which settings move each KPI and where the paper's bands hold "
+                  "(docs/sweep.md)", _sweep)
+    p.add_argument("--factors", nargs="+", default=None, metavar="NAME[=LO:HI]",
+                   help="factors to vary, optionally with their range (default: all of pedas.whatif.FACTORS)")
+    p.add_argument("--trajectories", type=int, default=4, metavar="R",
+                   help="Morris trajectories r (points: r x (factors + 1); default 4)")
+    p.add_argument("--sobol-n", dest="sobol_n", type=int, default=4, metavar="N",
+                   help="Sobol base size N, a power of 2 (points: N x (top + 2); 0: no Sobol phase; default 4)")
+    p.add_argument("--top", type=int, default=None, metavar="K",
+                   help="factors with the largest Morris mu* that the Sobol phase varies (default 3, at most all)")
+    p.add_argument("--participants", type=int, default=2, metavar="K",
+                   help="people per driving style from data/reference/participants.csv, in id order (default 2)")
+    p.add_argument("--styles", default=None, metavar="S[,S...]",
+                   help="only these driving styles (default: cautious,normal,sporty)")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, default=None, help="local worker processes (default: CPU count)")
+    where.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                       help="run on a Dask distributed cluster (e.g. tcp://host:8786)")
+    p.add_argument("--seed", type=int, default=0,
+                   help="seed of the designs, the index bootstraps and the cohort's persons (default 0)")
+    p.add_argument("--out", default="sweep-out", metavar="DIR", help="output folder (default sweep-out)")
     p.add_argument("--no-progress", dest="no_progress", action="store_true", help="no progress bar")
     p.add_argument("--cache-dir", dest="cache_dir", default=None, help=DRIVE_CACHE_HELP)
     add_scenario_option(p)
