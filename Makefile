@@ -15,7 +15,7 @@ UV_VERSION ?= 0.13.9
 LOCK_ARGS ?=
 
 .DEFAULT_GOAL := report
-.PHONY: report test bench serve clean venv lock refit
+.PHONY: report test bench serve clean venv lock refit sweep
 
 $(STAMP): pyproject.toml $(LOCK)
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -41,6 +41,16 @@ refit: $(STAMP)
 # loads data/reference/ and simulates the drives; reports/index.html is the report as one document (docs/report.md)
 report: $(STAMP)
 	$(BIN)/pedas-study report --out $(OUT)
+
+# the what-if sweep (docs/sweep.md): the default design, ~30 min on 2 cores, resumable (every drive is cached); its
+# data (design.csv, points.csv, sweep.json) go to data/sweep/, which `make report` re-analyses without simulating.
+# SWEEP_ARGS adds options, e.g. SWEEP_ARGS='--scheduler tcp://host:8786'
+SWEEP_OUT ?= .report-cache/sweep-out
+SWEEP_ARGS ?=
+sweep: $(STAMP)
+	$(BIN)/pedas-study simulate sweep --out $(SWEEP_OUT) $(SWEEP_ARGS)
+	mkdir -p data/sweep
+	cp $(SWEEP_OUT)/design.csv $(SWEEP_OUT)/points.csv $(SWEEP_OUT)/sweep.json data/sweep/
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -n 2 --dist loadgroup $(PYTEST_ARGS)

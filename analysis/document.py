@@ -309,6 +309,8 @@ FIGURES: dict[str, tuple[str, Callable[[Path, object], str | None] | None]] = {
     "fig10_tl_green": ("Traffic lights passed in green without a stop, per participant (Fig. 10).", _reading_green),
     "fig11_driving_behaviour": ("Speed, advice and controller of one participant's drives (Fig. 11).", None),
     "fig12_controller_switching": ("Switching between the controllers along the route (Fig. 12).", None),
+    "sweep_indices": ("What moves each KPI across the what-if sweep: Morris mu* and sigma of every factor, Sobol "
+                      "total indices of the top factors (docs/sweep.md).", None),
     "aero_linearisation": ("Linearisation of the aerodynamic drag in the vehicle model (Fig. 2a).", None),
     "speed_correction": ("Speed correction of the linearised model (Fig. 2b).", None),
     "power_map_fit": ("Fit of the battery power map of the vehicle model.", None),
@@ -324,7 +326,8 @@ SURVEY_TABLES = ("survey_table3", "survey_table4", "survey_table5", "survey_hypo
                  "survey_fornell_larcker", "survey_regressions", "survey_descriptives")
 DRIVE_TABLES = ("drives_style_table", "drives_summary", "drives_bands", "drives_band_diagnostics",
                 "scenarios_bands", "scenarios_band_diagnostics",
-                "drives_participant_table", "drives_per_participant", "drives_kpis")
+                "drives_participant_table", "drives_per_participant", "drives_kpis",
+                "sweep_bands", "sweep_indices", "sweep_region")
 
 
 def _figure(out: Path, stem: str, study) -> str:
@@ -546,7 +549,7 @@ def _drives_section(out: Path, study, skipped: dict, used_figs: set, used_tabs: 
         parts.append(f"<p>Replay of {esc(who)}'s drives (time slider, the HUD as the driver saw it): "
                      f"<a href=\"drives/{esc(replay.name)}\">{esc(replay.name)}</a></p>")
     parts += [t for t in (_md_table(out, s, used_tabs) for s in stems[3:]) if t]
-    return parts
+    return parts + _figures(out, ("sweep_indices",), study, used_figs)
 
 
 def _core_section(out: Path, study, skipped: dict, used_figs: set) -> list[str]:

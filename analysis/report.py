@@ -57,6 +57,8 @@ class ReportConfig:
     scenario: str = DEFAULT_SCENARIO  # the traffic scenario of the reference cohort's drives (pedas.scenario)
     # reference mode: the same cohort also driven in this scenario, its bands beside the default's (None: not)
     compare_scenario: str | None = SINGLE_LANE
+    # the committed what-if sweep the report re-analyses (`make sweep`, docs/sweep.md)
+    sweep_dir: Path = field(default_factory=lambda: REPO_ROOT / "data" / "sweep")
 
     def comparison_db(self) -> Path:
         """The store of the comparison scenario's drives, beside `db`."""
@@ -245,6 +247,40 @@ def scenarios_step(cfg: ReportConfig) -> None:
                                            cfg.compare_scenario: f"{cfg.compare_scenario} (previous)"})
 
 
+def sweep_step(cfg: ReportConfig) -> None:
+    """sweep/: the committed what-if sweep (cfg.sweep_dir) re-analysed from its points: indices, region (tidy,
+    .md, .tex), figures/sweep_indices, sweep.md (its paragraph), and bands.* (the bands of the default and the
+    comparison scenario beside the share of sweep points where each holds); skipped.txt without a sweep."""
+    from analysis.render import latex_table, markdown_table
+    from analysis.sweep import CSV, read_run
+    from analysis.sweep_analysis import bands_beside, region, summary_lines, write_analysis
+    from pedas.cohort import code_version
+
+    with _fresh_dir(cfg.out / "sweep") as out:
+        if not (cfg.sweep_dir / "points.csv").exists():
+            (out / SKIPPED).write_text(f"no committed what-if sweep in {cfg.sweep_dir} (make sweep)\n",
+                                       encoding="utf-8")
+            return
+        _, points, meta = read_run(cfg.sweep_dir)
+        write_analysis(out, points, meta)
+        (out / "sweep.md").write_text("\n".join(summary_lines(points, meta, code_version())) + "\n",
+                                      encoding="utf-8")
+        folder = cfg.out / "scenarios" if (cfg.out / "scenarios" / "bands.csv").exists() else cfg.out / "drives"
+        if not (folder / "bands.csv").exists():
+            return
+        bands = pd.read_csv(folder / "bands.csv")
+        if "scenario" not in bands:
+            bands = bands.assign(scenario=cfg.scenario)
+        labels = {cfg.scenario: f"{cfg.scenario} (default)"}
+        if cfg.compares():
+            labels[cfg.compare_scenario] = f"{cfg.compare_scenario} (previous)"
+        tidy, header, rows = bands_beside(bands, region(points, meta), labels)
+        title = "Reproduction bands by traffic scenario and across the what-if sweep"
+        tidy.to_csv(out / "bands.csv", **CSV)
+        (out / "bands.md").write_text(markdown_table(header, rows, title), encoding="utf-8")
+        (out / "bands.tex").write_text(latex_table(header, rows, title, label="tab:sweep_bands"), encoding="utf-8")
+
+
 def audit_step(cfg: ReportConfig) -> None:
     from analysis.paper.audit import write_audit
 
@@ -287,6 +323,7 @@ def reproduction_step(cfg: ReportConfig) -> None:
                diagnostics_markdown(diag).rstrip(), ""]
         md += [line for w in why_missed(bands_df, diag) for line in (f"- {w}", "")]
         md += _scenarios_markdown(cfg)
+        md += _sweep_markdown(cfg)
     else:
         md += ["No drives in the store.", ""]
     md += ["# Audit findings", "", "Published values that contradict other published values "
@@ -314,6 +351,19 @@ def _scenarios_markdown(cfg: ReportConfig) -> list[str]:
         md += [f"In the {cfg.compare_scenario} scenario:", ""]
         md += [line for w in missed for line in (f"- {w}", "")]
     return md
+
+
+def _sweep_markdown(cfg: ReportConfig) -> list[str]:
+    """The reproduction document's lines on the what-if sweep: the bands beside the sweep, its paragraph."""
+    folder = cfg.out / "sweep"
+    if not (folder / "sweep.md").exists():
+        return []
+    md = ["## What would have to be true: the what-if sweep", ""]
+    if (folder / "bands.md").exists():
+        md += [(folder / "bands.md").read_text(encoding="utf-8").rstrip(), ""]
+    return md + [(folder / "sweep.md").read_text(encoding="utf-8").rstrip(), "",
+                 "Table and figure: [sweep/indices.md](sweep/indices.md), [sweep/region.md](sweep/region.md), "
+                 "figures/sweep_indices.png.", ""]
 
 
 def core_figures_step(cfg: ReportConfig) -> None:
@@ -346,7 +396,7 @@ def collect_step(cfg: ReportConfig) -> None:
     tables, figs = cfg.out / "tables", cfg.out / "figures"
     tables.mkdir(parents=True, exist_ok=True)
     figs.mkdir(parents=True, exist_ok=True)
-    for sub in ("survey", "survey/pca", "survey/extended", "drives", "scenarios", "paper"):
+    for sub in ("survey", "survey/pca", "survey/extended", "drives", "scenarios", "sweep", "paper"):
         d = cfg.out / sub
         if not d.exists():
             continue
@@ -481,12 +531,18 @@ def build_pipeline(cfg: ReportConfig, study=None) -> Pipeline:
     if cfg.compares():
         pipe.add(Step("scenarios", lambda: scenarios_step(cfg), outputs=[cfg.out / "scenarios"],
                       after=["drives", "comparison store"], inputs=[CODE["analysis"], params]))
+    if cfg.reference:
+        # the committed sweep, re-analysed; the simulation code's version says whether it is stale
+        pipe.add(Step("sweep", lambda: sweep_step(cfg), outputs=[cfg.out / "sweep"],
+                      after=["drives", *(["scenarios"] if cfg.compares() else [])],
+                      inputs=[cfg.sweep_dir, CODE["analysis"], CODE["pedas"], *sources, params]))
     if "audit" not in skips:
         # the audit's bootstrap check of finding #8 runs on the shipped reconstruction
         pipe.add(Step("audit", lambda: audit_step(cfg), outputs=[cfg.out / "paper"],
                       inputs=[PAPER_STUDY_DIR, REFERENCE_DIR / "survey.csv", CODE["analysis"], params]))
         pipe.add(Step("reproduction", lambda: reproduction_step(cfg),
-                      after=["survey", "drives", "audit", *(["scenarios"] if cfg.compares() else [])],
+                      after=["survey", "drives", "audit", *(["scenarios"] if cfg.compares() else []),
+                             *(["sweep"] if cfg.reference else [])],
                       outputs=[cfg.out / "reproduction.md", cfg.out / "reproduction.csv"],
                       inputs=[CODE["analysis"], params]))
     if "core figures" not in skips:

@@ -114,11 +114,12 @@ def point_kpis(design: pd.DataFrame, people: pd.DataFrame, tasks: list, logs: di
 
 
 def simulate_points(design, people, spec, workers=None, scheduler=None, client=None, cache_dir=None,
-                    progress=True, echo=print) -> pd.DataFrame:
+                    progress=True, echo=None) -> pd.DataFrame:
     """Drive every point of `design` (one simulate_cohort call) and return its points frame."""
     from pedas.cohort import default_cache_dir, simulate_cohort
 
     cdir = Path(cache_dir or default_cache_dir())
+    echo = echo or (lambda text: print(text, flush=True))  # flushed: the line comes before the progress bar
     tasks = point_tasks(design, people, spec)
     phase = design["phase"].iloc[0]
     echo(f"{phase}: {len(design)} points x {len(people)} people x 2 conditions = {len(tasks)} drives, "
@@ -129,7 +130,7 @@ def simulate_points(design, people, spec, workers=None, scheduler=None, client=N
 
 
 def run_sweep(spec: SweepSpec, out: Path, workers=None, scheduler=None, client=None, cache_dir=None,
-              progress=True, echo=print) -> dict:
+              progress=True, echo=None) -> dict:
     """Design, drive and analyse a sweep; write design.csv, points.csv, sweep.json and the analysis
     (:func:`analysis.sweep_analysis.write_analysis`) into `out`; return sweep.json's content."""
     from analysis.sweep_analysis import morris_indices, top_factors, write_analysis

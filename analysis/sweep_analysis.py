@@ -60,7 +60,9 @@ def sobol_indices(points: pd.DataFrame, factors, seed: int = 0) -> pd.DataFrame:
     for kpi in KPIS:
         y = pts[kpi].to_numpy(float)
         # a KPI that never changes has no variance to split: its indices are undefined, not 0
-        res = sobol.analyze(prob, y, calc_second_order=False, num_resamples=RESAMPLES, seed=seed) \
+        # a Generator, not the int: SALib's sobol.analyze leaves the bootstrap unseeded for seed 0 ("if seed:")
+        res = sobol.analyze(prob, y, calc_second_order=False, num_resamples=RESAMPLES,
+                            seed=np.random.default_rng(seed)) \
             if np.isfinite(y).all() and np.ptp(y) > 0 else None
         for j, name in enumerate(prob["names"]):
             rows.append({"kpi": kpi, "phase": "sobol", "factor": name,
@@ -233,3 +235,63 @@ def write_analysis(out: Path, points: pd.DataFrame, meta: dict) -> list[Path]:
                                              encoding="utf-8")
         files += [out / f"{stem}.{ext}" for ext in ("csv", "md", "tex")]
     return files + plot_indices(ind, out)
+
+
+# ------------------------------------------------------------------------------------------ in the report
+def ranking_lines(ind: pd.DataFrame) -> list[str]:
+    """Per KPI, the factors by Morris mu* (largest first) and, where the Sobol phase ran, its total indices."""
+    out = []
+    for kpi in KPIS:
+        m = ind[(ind["kpi"] == kpi) & (ind["phase"] == "morris")].sort_values("mu_star", ascending=False,
+                                                                              kind="stable")
+        if m["mu_star"].isna().all():
+            out.append(f"- {LABELS[kpi]}: undefined at some design point (no baseline events), no indices")
+            continue
+        text = ", ".join(f"{r.factor} {r.mu_star:.2f}" for r in m.itertuples())
+        s = ind[(ind["kpi"] == kpi) & (ind["phase"] == "sobol")].sort_values("ST", ascending=False, kind="stable")
+        if s["ST"].notna().any():
+            text += "; Sobol ST " + ", ".join(f"{r.factor} {r.ST:.2f} ± {r.ST_conf:.2f}" for r in s.itertuples())
+        out.append(f"- {LABELS[kpi]}: Morris mu* {text}")
+    return out
+
+
+def summary_lines(points: pd.DataFrame, meta: dict, current_code: str) -> list[str]:
+    """The sweep's paragraph of the report (Markdown lines): design, code version (and whether it is the current
+    one), what moves each KPI, what would have to be true."""
+    ind, reg = indices(points, meta), region(points, meta)
+    same = meta["code_version"] == current_code
+    lines = [f"The what-if sweep (docs/sweep.md) drove {len(meta['cohort'])} reference participants "
+             f"({meta['participants_per_style']} per style: {', '.join(meta['styles'])}) in the {meta['scenario']} "
+             f"scenario at {meta['points']} design points ({meta['drives']} drives): Morris screening with "
+             f"{meta['trajectories']} trajectories over {', '.join(f['name'] for f in meta['factors'])}, then "
+             + (f"Sobol with N = {meta['sobol_n']} over {', '.join(meta['sobol_factors'])}."
+                if meta["sobol_factors"] else "no Sobol phase."),
+             "",
+             f"Simulation code of the sweep: {meta['code_version']}; "
+             + ("the same as the current code." if same else
+                f"**the current code is {current_code}: the sweep was run with other simulation code, so its "
+                f"numbers may be stale (rerun `make sweep`).**"),
+             "", "What moves each KPI (mean absolute elementary effect in the KPI's unit over the factor's range):",
+             "", *ranking_lines(ind), "", "What would have to be true for the paper's four bands:", "",
+             *region_lines(reg)]
+    return lines
+
+
+def bands_beside(bands: pd.DataFrame, reg: pd.DataFrame, labels: dict[str, str]) -> tuple[pd.DataFrame, list[str],
+                                                                                       list[list[str]]]:
+    """The bands of each scenario (``bands``: band, scenario, our_value, holds) beside the share of sweep points
+    where each holds: (tidy frame band, source, value, holds; header; rows)."""
+    shares = reg[reg["item"] == "band"].set_index("note")["value"]
+    tidy = pd.concat([bands[["band", "scenario", "our_value", "holds"]].rename(
+                          columns={"scenario": "source", "our_value": "value"}),
+                      pd.DataFrame({"band": shares.index, "source": "sweep: share of points",
+                                    "value": shares.to_numpy(), "holds": np.nan})], ignore_index=True)
+    names = list(dict.fromkeys(bands["scenario"]))
+    rows = []
+    for band in dict.fromkeys(bands["band"]):
+        by = bands[bands["band"] == band].set_index("scenario")
+        cells = [f"{_num(by.loc[n, 'our_value'])} ({'holds' if bool(by.loc[n, 'holds']) else 'misses'})"
+                 if n in by.index else "–" for n in names]
+        share = shares.get(band, np.nan)
+        rows.append([band, *cells, "–" if pd.isna(share) else f"{100 * share:.0f} %"])
+    return tidy, ["Band", *(labels.get(n, n) for n in names), "Sweep: points where it holds"], rows

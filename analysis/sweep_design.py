@@ -31,8 +31,8 @@ class SweepSpec:
     base size N (points = N (top + 2); 0 = no Sobol phase); top: factors carried from Morris to Sobol;
     participants: people per driving style of the reference cohort (first in id order); styles: which styles."""
     factors: tuple[tuple[str, float, float], ...]
-    trajectories: int = 4
-    sobol_n: int = 4
+    trajectories: int = 6
+    sobol_n: int = 8
     top: int = 3
     participants: int = 2
     styles: tuple[str, ...] = STYLES

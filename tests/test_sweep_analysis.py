@@ -129,3 +129,13 @@ def test_region_none_hold_names_the_closest():
 
 def test_bands_keys_match_the_points_columns():
     assert set(BANDS) == set(EDGES)
+
+
+def test_indices_are_reproducible_with_seed_0():
+    """Seed 0 is a seed too (SALib's sobol.analyze would leave an int 0 unseeded)."""
+    x = sobol_sample.sample(PROBLEM, 16, calc_second_order=False, seed=0)
+    pts = _points(x, "sobol")
+    pts["saving_urban_pct"] = pts["a"] + 2 * pts["b"] * pts["c"]
+    a, b = sobol_indices(pts, FACTORS, seed=0), sobol_indices(pts, FACTORS, seed=0)
+    pd.testing.assert_frame_equal(a, b)
+    assert a["ST_conf"].notna().any()

@@ -46,11 +46,12 @@ def _sweep(args) -> None:
         raise UserError("--workers must be >= 1")
     if args.scheduler is not None:
         require("distributed", "dask", "--scheduler")
-    styles = tuple(s.strip() for s in args.styles.split(",")) if args.styles else None
     factors = parse_factors(args.factors)
-    spec = SweepSpec(factors=factors, trajectories=args.trajectories, sobol_n=args.sobol_n,
-                     top=args.top if args.top is not None else min(3, len(factors)), participants=args.participants, scenario=scenario_of(args), seed=args.seed,
-                     **({"styles": styles} if styles else {}))
+    given = {"trajectories": args.trajectories, "sobol_n": args.sobol_n, "participants": args.participants,
+             "styles": tuple(s.strip() for s in args.styles.split(",")) if args.styles else None}
+    spec = SweepSpec(factors=factors, top=args.top if args.top is not None else min(3, len(factors)),
+                     scenario=scenario_of(args), seed=args.seed,
+                     **{k: v for k, v in given.items() if v is not None})  # the others: SweepSpec's defaults
     meta = run_sweep(spec, Path(args.out), workers=args.workers, scheduler=args.scheduler,
                      cache_dir=args.cache_dir, progress=not args.no_progress)
     print(f"{meta['points']} design points, {meta['drives']} drives in {meta['wall_s']:.0f} s; "
@@ -77,13 +78,13 @@ def register(cli) -> None:
                   "(docs/sweep.md)", _sweep)
     p.add_argument("--factors", nargs="+", default=None, metavar="NAME[=LO:HI]",
                    help="factors to vary, optionally with their range (default: all of pedas.whatif.FACTORS)")
-    p.add_argument("--trajectories", type=int, default=4, metavar="R",
-                   help="Morris trajectories r (points: r x (factors + 1); default 4)")
-    p.add_argument("--sobol-n", dest="sobol_n", type=int, default=4, metavar="N",
-                   help="Sobol base size N, a power of 2 (points: N x (top + 2); 0: no Sobol phase; default 4)")
+    p.add_argument("--trajectories", type=int, default=None, metavar="R",
+                   help="Morris trajectories r (points: r x (factors + 1); default 6)")
+    p.add_argument("--sobol-n", dest="sobol_n", type=int, default=None, metavar="N",
+                   help="Sobol base size N, a power of 2 (points: N x (top + 2); 0: no Sobol phase; default 8)")
     p.add_argument("--top", type=int, default=None, metavar="K",
                    help="factors with the largest Morris mu* that the Sobol phase varies (default 3, at most all)")
-    p.add_argument("--participants", type=int, default=2, metavar="K",
+    p.add_argument("--participants", type=int, default=None, metavar="K",
                    help="people per driving style from data/reference/participants.csv, in id order (default 2)")
     p.add_argument("--styles", default=None, metavar="S[,S...]",
                    help="only these driving styles (default: cautious,normal,sporty)")
