@@ -45,11 +45,11 @@ def point_tasks(design: pd.DataFrame, people: pd.DataFrame, spec: SweepSpec) -> 
     seed from the reference id and the sweep seed, the point's what-if), renamed to :func:`point_id`."""
     from pedas.cohort import cohort_tasks
 
+    slot = {pid: i for i, pid in enumerate(people["participant_id"])}
     tasks = []
     for row in design.to_dict("records"):
         base = cohort_tasks(people[["participant_id", "style"]], base_seed=spec.seed, scenario=spec.scenario,
                             whatif=whatif_of(row))
-        slot = {pid: i for i, pid in enumerate(people["participant_id"])}
         tasks += [replace(t, participant_id=point_id(int(row["point"]), slot[t.participant_id])) for t in base]
     return tasks
 

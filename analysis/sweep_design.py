@@ -104,8 +104,8 @@ def check_spec(spec: SweepSpec) -> None:
     if spec.participants < 1:
         raise UserError("--participants must be >= 1")
     bad = [s for s in spec.styles if s not in STYLES]
-    if bad or not spec.styles:
-        raise UserError(f"--styles: choose from {', '.join(STYLES)}")
+    if bad or not spec.styles or len(set(spec.styles)) < len(spec.styles):
+        raise UserError(f"--styles: choose each at most once from {', '.join(STYLES)}")
 
 
 def problem(factors: tuple[tuple[str, float, float], ...]) -> dict:

@@ -89,6 +89,7 @@ def test_bad_factors(texts, message):
     ({"top": 0}, "--top must be between 1"),
     ({"participants": 0}, "--participants must be >= 1"),
     ({"styles": ("wild",)}, "--styles"),
+    ({"styles": ("normal", "normal")}, "--styles"),
 ])
 def test_bad_sizes(kw, message):
     with pytest.raises(UserError, match=re.escape(message)):
@@ -144,7 +145,7 @@ def pooled(tmp_path_factory):
     root = tmp_path_factory.mktemp("sweep")
     p = _sweep(*TINY, "--sobol-n", "0", "--workers", "2", "--cache-dir", root / "cache", "--out", root / "out")
     assert p.returncode == 0, p.stderr
-    print(p.stdout)
+    print("local pool:", p.stdout)
     return root / "cache", root / "out"
 
 
@@ -181,6 +182,7 @@ def test_local_cluster_gives_the_local_pool_points(pooled, tmp_path):
         p = _sweep(*TINY, "--sobol-n", "0", "--scheduler", lc.scheduler_address, "--cache-dir",
                    tmp_path / "cache", "--out", tmp_path / "out")
     assert p.returncode == 0, p.stderr
+    print("LocalCluster:", p.stdout)
     assert _cached(p.stdout) == [0]
     _same_outputs(plain, tmp_path / "out")
 
@@ -209,6 +211,7 @@ def test_kill_9_then_resume(pooled, tmp_path):
     assert not out.exists()
     rerun = _sweep(*TINY, "--sobol-n", "0", "--workers", "2", "--cache-dir", cache, "--out", out)
     assert rerun.returncode == 0, rerun.stderr
+    print(f"killed with {len(before) // 2} drives in the cache; rerun:", rerun.stdout)
     assert _cached(rerun.stdout)[0] >= len(before) // 2
     for p, stamp in before.items():
         assert (p.stat().st_ino, p.stat().st_mtime_ns) == stamp, f"{p.name} was rewritten"
