@@ -184,13 +184,13 @@ def plot_indices(ind: pd.DataFrame, out: Path) -> list[Path]:
     from analysis.render import save_figure
 
     factors = list(dict.fromkeys(ind["factor"]))
-    fig, axes = plt.subplots(2, 3, figsize=(13, 7), sharey=True)
+    fig, axes = plt.subplots(2, 3, figsize=(13, 8.5), sharey=True, layout="constrained")
     y = np.arange(len(factors))
     for ax, kpi in zip(axes.flat, KPIS):
         m = ind[(ind["kpi"] == kpi) & (ind["phase"] == "morris")].set_index("factor").reindex(factors)
         ax.barh(y + 0.2, m["mu_star"], height=0.4, color="#4c72b0", label="Morris mu*")
         ax.plot(m["sigma"], y + 0.2, "o", color="#222222", ms=4, label="Morris sigma")
-        ax.set_title(LABELS[kpi], fontsize=10)
+        ax.set_title(LABELS[kpi], fontsize=10, pad=30)  # above the Sobol axis on top
         ax.set_xlabel("mu*, sigma (KPI units)")
         s = ind[(ind["kpi"] == kpi) & (ind["phase"] == "sobol")].set_index("factor").reindex(factors)
         if s["ST"].notna().any():
@@ -199,7 +199,11 @@ def plot_indices(ind: pd.DataFrame, out: Path) -> list[Path]:
             ax2.set_xlim(0, max(1.0, float(np.nanmax(s["ST"] + s["ST_conf"].fillna(0)))))
             ax2.set_xlabel("Sobol ST", fontsize=8)
         ax.set_yticks(y, factors, fontsize=8)
-    axes.flat[0].legend(fontsize=7, loc="lower right")
+    from matplotlib.patches import Patch
+
+    handles, _ = axes.flat[0].get_legend_handles_labels()
+    axes.flat[0].legend(handles=[*handles, Patch(color="#dd8452", label="Sobol ST (top axis)")], fontsize=7,
+                        loc="lower right")
     fig.suptitle("What moves each KPI: Morris screening (all factors) and Sobol total indices (top factors)")
     return save_figure(fig, out / "figures", "sweep_indices")
 
