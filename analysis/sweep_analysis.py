@@ -11,6 +11,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.sweep import BANDS, CSV, KPIS
+from analysis.sweep_design import problem
 
 INDEX_COLUMNS = ["kpi", "phase", "factor", "mu_star", "mu_star_conf", "sigma", "S1", "S1_conf", "ST", "ST_conf"]
 REGION_COLUMNS = ["item", "name", "value", "n", "lo", "hi", "point", "missed", "distance", "note"]
@@ -20,19 +21,13 @@ LABELS = {"saving_overall_pct": "Overall saving (%)", "saving_urban_pct": "Urban
 RESAMPLES = 100  # bootstrap resamples of the confidence intervals (SALib's default)
 
 
-def _problem(factors) -> dict:
-    from analysis.sweep_design import problem
-
-    return problem(tuple((f, lo, hi) for f, lo, hi in factors))
-
-
 def morris_indices(points: pd.DataFrame, factors, seed: int = 0, levels: int = 4) -> pd.DataFrame:
     """Morris mu*, its 95 % bootstrap half-width and sigma of every KPI and factor (SALib.analyze.morris) from the
     Morris points in design order; NaN for a KPI with an undefined value at some point. `factors`: (name, lo, hi)."""
     from SALib.analyze import morris
 
     pts = points[points["phase"] == "morris"].sort_values("point")
-    prob = _problem(factors)
+    prob = problem(tuple(factors))
     x = pts[prob["names"]].to_numpy(float)
     rows = []
     for kpi in KPIS:
@@ -55,7 +50,7 @@ def sobol_indices(points: pd.DataFrame, factors, seed: int = 0) -> pd.DataFrame:
     pts = points[points["phase"] == "sobol"].sort_values("point")
     if pts.empty or not factors:
         return pd.DataFrame(columns=INDEX_COLUMNS)
-    prob = _problem(factors)
+    prob = problem(tuple(factors))
     rows = []
     for kpi in KPIS:
         y = pts[kpi].to_numpy(float)
@@ -180,6 +175,7 @@ def plot_indices(ind: pd.DataFrame, out: Path) -> list[Path]:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.patches import Patch
 
     from analysis.render import save_figure
 
@@ -199,8 +195,6 @@ def plot_indices(ind: pd.DataFrame, out: Path) -> list[Path]:
             ax2.set_xlim(0, max(1.0, float(np.nanmax(s["ST"] + s["ST_conf"].fillna(0)))))
             ax2.set_xlabel("Sobol ST", fontsize=8)
         ax.set_yticks(y, factors, fontsize=8)
-    from matplotlib.patches import Patch
-
     handles, _ = axes.flat[0].get_legend_handles_labels()
     axes.flat[0].legend(handles=[*handles, Patch(color="#dd8452", label="Sobol ST (top axis)")], fontsize=7,
                         loc="lower right")
@@ -214,30 +208,25 @@ def write_analysis(out: Path, points: pd.DataFrame, meta: dict) -> list[Path]:
 
     out.mkdir(parents=True, exist_ok=True)
     ind, reg = indices(points, meta), region(points, meta)
+    ind.to_csv(out / "indices.csv", **CSV)
+    reg.to_csv(out / "region.csv", **CSV)
     notes = [f"Design: {meta['points']} points ({meta['trajectories']} Morris trajectories over "
              f"{len(meta['factors'])} factors; Sobol N = {meta['sobol_n']} over "
              f"{', '.join(meta['sobol_factors']) or 'no factors'}), {meta['drives']} drives, scenario "
              f"{meta['scenario']}, simulation code {meta['code_version']}.",
              "Cells: Morris mu* (mean absolute elementary effect, in the KPI's unit) / Sobol total index ST."]
+    title = "What-if sweep: what moves each KPI"
     header, rows = indices_table(ind)
-    files = []
-    for stem, df, title, md_rows in (
-            ("indices", ind, "What-if sweep: what moves each KPI", (header, rows)),
-            ("region", reg, "What would have to be true for the paper's bands", None)):
-        df.to_csv(out / f"{stem}.csv", **CSV)
-        if md_rows is None:
-            (out / f"{stem}.md").write_text(f"### {title}\n\n" + "\n".join(region_lines(reg)) + "\n",
-                                            encoding="utf-8")
-            h = ["Item", "Name", "Value", "n", "lo", "hi", "Note"]
-            md_rows = (h, [[r.item, r.name, _num(r.value), "" if pd.isna(r.n) else str(int(r.n)), _num(r.lo),
-                            _num(r.hi), str(r.note) if pd.notna(r.note) else ""] for r in reg.itertuples()])
-            (out / f"{stem}.tex").write_text(latex_table(*md_rows, title, label="tab:sweep_region"),
-                                             encoding="utf-8")
-        else:
-            (out / f"{stem}.md").write_text(markdown_table(*md_rows, title, notes=notes), encoding="utf-8")
-            (out / f"{stem}.tex").write_text(latex_table(*md_rows, title, notes=notes, label="tab:sweep_indices"),
-                                             encoding="utf-8")
-        files += [out / f"{stem}.{ext}" for ext in ("csv", "md", "tex")]
+    (out / "indices.md").write_text(markdown_table(header, rows, title, notes=notes), encoding="utf-8")
+    (out / "indices.tex").write_text(latex_table(header, rows, title, notes=notes, label="tab:sweep_indices"),
+                                     encoding="utf-8")
+    title = "What would have to be true for the paper's bands"
+    (out / "region.md").write_text(f"### {title}\n\n" + "\n".join(region_lines(reg)) + "\n", encoding="utf-8")
+    rows = [[r.item, r.name, _num(r.value), "" if pd.isna(r.n) else str(int(r.n)), _num(r.lo), _num(r.hi),
+             "" if pd.isna(r.note) else str(r.note)] for r in reg.itertuples()]
+    (out / "region.tex").write_text(latex_table(["Item", "Name", "Value", "n", "lo", "hi", "Note"], rows, title,
+                                                label="tab:sweep_region"), encoding="utf-8")
+    files = [out / f"{stem}.{ext}" for stem in ("indices", "region") for ext in ("csv", "md", "tex")]
     return files + plot_indices(ind, out)
 
 
@@ -283,8 +272,8 @@ def summary_lines(points: pd.DataFrame, meta: dict, current_code: str) -> list[s
 
 def bands_beside(bands: pd.DataFrame, reg: pd.DataFrame, labels: dict[str, str]) -> tuple[pd.DataFrame, list[str],
                                                                                        list[list[str]]]:
-    """The bands of each scenario (``bands``: band, scenario, our_value, holds) beside the share of sweep points
-    where each holds: (tidy frame band, source, value, holds; header; rows)."""
+    """The bands of each scenario (``bands``: band, scenario, paper_value, our_value, holds) beside the share of
+    sweep points where each holds: (tidy frame band, source, value, holds; header; rows)."""
     shares = reg[reg["item"] == "band"].set_index("note")["value"]
     tidy = pd.concat([bands[["band", "scenario", "our_value", "holds"]].rename(
                           columns={"scenario": "source", "our_value": "value"}),
@@ -297,5 +286,6 @@ def bands_beside(bands: pd.DataFrame, reg: pd.DataFrame, labels: dict[str, str])
         cells = [f"{_num(by.loc[n, 'our_value'])} ({'holds' if bool(by.loc[n, 'holds']) else 'misses'})"
                  if n in by.index else "–" for n in names]
         share = shares.get(band, np.nan)
-        rows.append([band, *cells, "–" if pd.isna(share) else f"{100 * share:.0f} %"])
-    return tidy, ["Band", *(labels.get(n, n) for n in names), "Sweep: points where it holds"], rows
+        paper = by["paper_value"].iloc[0] if "paper_value" in by else np.nan
+        rows.append([band, _num(paper), *cells, "–" if pd.isna(share) else f"{100 * share:.0f} %"])
+    return tidy, ["Band", "Paper", *(labels.get(n, n) for n in names), "Sweep: points where it holds"], rows

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
@@ -17,6 +18,9 @@ from pedas.paths import REFERENCE_DIR
 from pedas.scenario import DEFAULT_SCENARIO
 from pedas.vocabulary import STYLES
 from study.errors import UserError
+
+if TYPE_CHECKING:
+    from pedas.whatif import WhatIf
 
 #: Morris grid levels (SALib's default; the step is levels / (2 (levels - 1)) of the range)
 MORRIS_LEVELS = 4
@@ -87,6 +91,11 @@ def parse_factors(texts: list[str] | None) -> tuple[tuple[str, float, float], ..
                 raise UserError(f"--factors {text}: the range must be finite")
         if lo >= hi:
             raise UserError(f"--factors {text}: lo must be below hi")
+        for v in (lo, hi):  # the design reaches both ends of the range
+            try:
+                _whatif(**{name: v})
+            except ValueError as exc:
+                raise UserError(f"--factors {text}: {exc}") from None
         out.append((name, lo, hi))
     return tuple(out)
 
@@ -144,12 +153,15 @@ def sobol_design(spec: SweepSpec, top: list[str], start: int) -> pd.DataFrame:
     return _frame(x, list(top), "sobol", start)
 
 
-def whatif_of(row) -> "object":
-    """The :class:`pedas.whatif.WhatIf` of a design row (NaN = the field's default)."""
+def _whatif(**values) -> "WhatIf":
     from pedas.whatif import WhatIf
 
-    values = {f: float(row[f]) for f in all_factors() if f in row and pd.notna(row[f])}
     return WhatIf(**values)
+
+
+def whatif_of(row) -> "WhatIf":
+    """The :class:`pedas.whatif.WhatIf` of a design row (NaN = the field's default)."""
+    return _whatif(**{f: float(row[f]) for f in all_factors() if f in row and pd.notna(row[f])})
 
 
 def cohort(spec: SweepSpec) -> pd.DataFrame:

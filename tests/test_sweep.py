@@ -102,6 +102,7 @@ def test_bad_sizes(kw, message):
 @pytest.mark.parametrize("args, message", [
     (["--factors", "nope"], "unknown factor 'nope'"),
     (["--factors", "lorry_share=0.3:0.1", "hud_band_kmh"], "lo must be below hi"),
+    (["--factors", "lorry_share=0.5:1.5", "hud_band_kmh"], "lorry_share must be within [0, 1]"),
     (["--trajectories", "1"], "--trajectories must be >= 2"),
     (["--sobol-n", "3"], "power of 2"),
     (["--top", "9"], "--top must be between 1"),

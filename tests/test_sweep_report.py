@@ -42,7 +42,7 @@ def test_sweep_step_recomputes_from_the_points_and_sets_the_bands_beside(tmp_pat
     md = (out / "bands.md").read_text()
     assert "motorway (default)" in md and "single-lane (previous)" in md and "Sweep: points where it holds" in md
     share = region(points, meta).set_index("name").loc["red", "value"]
-    assert f"| {BAND_RED} | 50.00 (holds) | 39.00 (misses) | {100 * share:.0f} % |" in md
+    assert f"| {BAND_RED} | 1.00 | 50.00 (holds) | 39.00 (misses) | {100 * share:.0f} % |" in md
     text = (out / "sweep.md").read_text()
     assert meta["code_version"] in text and "What would have to be true" in text
 
