@@ -133,6 +133,10 @@ def _num(x: float, digits: int = 2) -> str:
     return "–" if pd.isna(x) else f"{x:.{digits}f}"
 
 
+def _int(x) -> str:
+    return "" if pd.isna(x) else str(int(x))
+
+
 def indices_table(ind: pd.DataFrame) -> tuple[list[str], list[list[str]]]:
     """(header, rows): Factor | per KPI "mu* / ST" (ST only for the Sobol factors)."""
     rows = []
@@ -221,11 +225,12 @@ def write_analysis(out: Path, points: pd.DataFrame, meta: dict) -> list[Path]:
     (out / "indices.tex").write_text(latex_table(header, rows, title, notes=notes, label="tab:sweep_indices"),
                                      encoding="utf-8")
     title = "What would have to be true for the paper's bands"
-    (out / "region.md").write_text(f"### {title}\n\n" + "\n".join(region_lines(reg)) + "\n", encoding="utf-8")
-    rows = [[r.item, r.name, _num(r.value), "" if pd.isna(r.n) else str(int(r.n)), _num(r.lo), _num(r.hi),
+    header = ["Item", "Name", "Value", "n", "lo", "hi", "Missed", "Distance", "Note"]
+    rows = [[r.item, r.name, _num(r.value), _int(r.n), _num(r.lo), _num(r.hi), _int(r.missed), _num(r.distance),
              "" if pd.isna(r.note) else str(r.note)] for r in reg.itertuples()]
-    (out / "region.tex").write_text(latex_table(["Item", "Name", "Value", "n", "lo", "hi", "Note"], rows, title,
-                                                label="tab:sweep_region"), encoding="utf-8")
+    (out / "region.md").write_text(markdown_table(header, rows, title, notes=region_lines(reg), notes_style="plain"),
+                                   encoding="utf-8")
+    (out / "region.tex").write_text(latex_table(header, rows, title, label="tab:sweep_region"), encoding="utf-8")
     files = [out / f"{stem}.{ext}" for stem in ("indices", "region") for ext in ("csv", "md", "tex")]
     return files + plot_indices(ind, out)
 

@@ -153,6 +153,13 @@ def test_report_on_reduced_reference_cohort(tmp_path):
     assert (out / "scenarios" / "single-lane" / "per_participant.csv").exists()
     assert "Reproduction bands by traffic scenario" in html
     assert "## The same cohort in the single-lane scenario" in (out / "reproduction.md").read_text()
+    # the committed what-if sweep, re-analysed, beside both scenarios' bands
+    for stem in ("sweep_bands", "sweep_indices", "sweep_region"):
+        assert (out / "tables" / f"{stem}.tex").exists(), stem
+    beside = pd.read_csv(out / "sweep" / "bands.csv")
+    assert list(dict.fromkeys(beside["source"])) == ["motorway", "single-lane", "sweep: share of points"]
+    assert "figures/sweep_indices.png" in html
+    assert "## What would have to be true: the what-if sweep" in (out / "reproduction.md").read_text()
 
     # warm: nothing changed -> every step but the always-run collection is cached
     res = run_report(cfg)
