@@ -12,6 +12,7 @@ as the report's reference store) and go through :func:`analysis.savings.particip
 from __future__ import annotations
 
 import json
+import os
 import tempfile
 import time
 from dataclasses import replace
@@ -158,8 +159,9 @@ def run_sweep(spec: SweepSpec, out: Path, workers=None, scheduler=None, client=N
         "drives": 2 * len(design) * len(people), "bands": edges,
         "code_version": code_version(),
         "wall_s": round(time.perf_counter() - t0, 1),
-        "workers": None if (scheduler or client) else workers, "scheduler": scheduler or (
-            "distributed client" if client is not None else None),
+        # the local pool's size as simulate_cohort chooses it (None on a Dask cluster)
+        "workers": None if (scheduler or client) else int(workers or os.cpu_count() or 1),
+        "scheduler": scheduler or ("distributed client" if client is not None else None),
     }
     write_run(out, design, points, meta)
     write_analysis(out, points, meta)
