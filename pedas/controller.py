@@ -506,5 +506,4 @@ class PedasController:
             v = np.r_[v0, np.minimum(np.full(N, v0), v_hi)]
             ft = np.zeros(N)
             fb = np.zeros(N)
-        return MpcPlan("fallback", False, v, ft, fb, np.zeros(N + 1), None, np.zeros(N), np.zeros(N), None,
-                       float("nan"), 0, None)
+        return MpcPlan("fallback", False, v, ft, fb, np.zeros(N + 1), None, np.zeros(N), np.zeros(N), None, 0, None)
