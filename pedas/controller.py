@@ -35,7 +35,7 @@ import numpy as np
 from pedas.constants import DT, N_HORIZON, SENSOR_RANGE, STOP_DWELL
 from pedas.greenwave import green_wave_band
 from pedas.hud import HudAdvice, HudContext, HudState, advisory, update_unfollowed
-from pedas.mpc import INF, MpcPlan, vehicle_model
+from pedas.mpc import INF, MpcPlan, Scalars, vehicle_model
 from pedas.mpc_cf import CarFollowingMpc
 from pedas.mpc_rt import ReferenceTrackingMpc
 from pedas.params import CONTROLLER, LEAF, ControllerParams, VehicleParams
@@ -194,6 +194,8 @@ class PedasController:
         self._vref, self._vhi, self._vlo, self._reachv = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
         self._vhicf, self._margin = np.empty(n), np.empty(n)
         self._dp_list = self._dp_s.tolist()
+        # constant operands of the step's elementwise operations, as 0-d arrays (pedas.mpc.Scalars)
+        self._k0 = Scalars(zero=0.0, dt=dt, two_a_stop=2 * settings.a_stop, safe_backoff=settings.safe_backoff)
         self._curve_list = self._curve_s.tolist()
         self.reset()
 
@@ -255,19 +257,20 @@ class PedasController:
         if prev is not None:
             v_lin = self._vlin
             v_lin[0] = v                                            # v_k ~ previous v_{k+1}, v_0 measured
-            np.copyto(self._vlin_tail, prev.v[2:])
+            self._vlin_tail[...] = prev.v[2:]
             ft_lin = self._ftlin
-            np.copyto(self._ftlin_head, prev.ft[1:])
+            self._ftlin_head[...] = prev.ft[1:]
             ft_lin[-1] = prev.ft[-1]
         else:
             v_lin = np.full(N, v)
             ft_lin = np.zeros(N)
         s_pred = self._spred                                        # positions at k = 1..N: s + dt cumsum(max(v, 0))
-        np.add.accumulate(np.maximum(v_lin, 0.0, out=s_pred), out=s_pred)
-        np.add(np.multiply(s_pred, dt, out=s_pred), s, out=s_pred)
+        k = self._k0
+        np.add.accumulate(np.maximum(v_lin, k.zero, out=s_pred), out=s_pred)
+        np.add(np.multiply(s_pred, k.dt, s_pred), s, s_pred)
         s_grade = self._sgrade                                      # positions at k = 0..N-1
         s_grade[0] = s
-        np.copyto(self._sgrade_tail, self._spred_head)
+        self._sgrade_tail[...] = self._spred_head
         xs = self._s
         grade = _interp(s_grade, xs, self._grade, None, None)
         vmax = _interp(s_pred, xs, self._vmax, None, None)
@@ -366,20 +369,20 @@ class PedasController:
             j0 = bisect_left(self._dp_list, s)
             j1 = bisect_left(self._dp_list, s + cfg.cruise_look)
             cruise = float(_max(self._dp_v[j0:max(j1, j0 + 1)])) if j0 < self._dp_v.size else float(self._dp_v[-1])
-            np.minimum(np.add(self._depart, v, out=v_ref), cruise, out=v_ref)
+            np.minimum(np.add(self._depart, v, v_ref), cruise, out=v_ref)
             np.maximum(pred.vdp, v_ref, out=v_ref)
             np.minimum(v_ref, pred.venv, out=v_ref)
             mode = "dp"
         if envelope_d is not None:
             # aim inside the stop-line band: d_target = envelope_d - stop_aim d_s,ITS - (s_pred - s)
-            stop_env = np.subtract(pred.s_pred, s, out=self._wn)
-            np.subtract(envelope_d - cfg.stop_aim * self._d_sits, stop_env, out=stop_env)
-            np.sqrt(np.multiply(np.maximum(stop_env, 0.0, out=stop_env), 2 * cfg.a_stop, out=stop_env),
-                    out=stop_env)
+            k = self._k0
+            stop_env = np.subtract(pred.s_pred, s, self._wn)
+            np.subtract(envelope_d - cfg.stop_aim * self._d_sits, stop_env, stop_env)
+            np.sqrt(np.multiply(np.maximum(stop_env, k.zero, out=stop_env), k.two_a_stop, stop_env), stop_env)
             if stop_env[-1] < v_ref[-1] or (obj.stop_kind == "tl" and tl_stop_expected):
                 mode = "stop"
             np.minimum(v_ref, stop_env, out=v_ref)
-        reach = np.subtract(v, self._reach, out=self._reachv)
+        reach = np.subtract(v, self._reach, self._reachv)
         v_hi = np.maximum(pred.vmax, reach, out=self._vhi)
         v_lo = self._vlo
         if mode in ("green_wave", "dp") and leader is None:
@@ -389,7 +392,7 @@ class PedasController:
         np.minimum(v_lo, v_hi, out=v_lo)
         d_sits = self._d_sits if mode == "stop" else INF
         d_hard, stop_d = obj.d_hard, obj.stop_d
-        if d_hard is None or stop_d > float(_max(v_hi)) * N * dt + 5.0:
+        if d_hard is None or stop_d > float(v_hi[v_hi.argmax()]) * N * dt + 5.0:   # (argmax: cheaper than max)
             # no stop object within reach of the horizon: the d_ITS rows cannot bind; unbounding them and keeping the
             # state at 0 also keeps OSQP's relative tolerance from scaling with a distance of several hundred m
             d_hard, d_its0, d_sits = None, 0.0, INF
@@ -417,13 +420,13 @@ class PedasController:
             psi = d_rel - (self.d_min + self.h_s * v)
             mode = "follow"
             # min(v_hi, max(v_DP, min(v + departure ramp, v_max), reach))
-            v_hi_cf = np.minimum(np.add(self._depart, v, out=self._vhicf), pred.vmax, out=self._vhicf)
+            v_hi_cf = np.minimum(np.add(self._depart, v, self._vhicf), pred.vmax, out=self._vhicf)
             np.maximum(pred.vdp, v_hi_cf, out=v_hi_cf)
             np.maximum(v_hi_cf, ref.reach, out=v_hi_cf)
             np.minimum(ref.v_hi, v_hi_cf, out=v_hi_cf)
             # back-off safe_backoff above d_s, approached from the current margin psi at psi_recovery m per sample
             # (with psi < 0 eq. (7a) cannot hold at k=1; eq. (11) then sets the advice)
-            margin = np.minimum(cfg.safe_backoff, np.add(self._recover, psi, out=self._margin), out=self._margin)
+            margin = np.minimum(self._k0.safe_backoff, np.add(self._recover, psi, self._margin), out=self._margin)
             plan = self.cf.plan(v, d_rel, v_p, ref.v_lo, v_hi_cf, pred.grade, d_its0=ref.d_its0,
                                 d_hard_lo=ref.d_hard, d_s_its=ref.d_sits, ft_prev=self._prev_ft, v_lin=pred.v_lin,
                                 ft_lin=pred.ft_lin, safe_margin=margin)

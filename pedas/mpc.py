@@ -45,6 +45,15 @@ INF = np.inf
 _sum = np.add.reduce   # the reduction behind ndarray.sum (pairwise), without the method's dispatch
 BIG = 1e30  # OSQP's infinity: the bound vectors hold +-BIG for unbounded rows (DAQP gets them as +-DaqpSettings.bound)
 
+class Scalars:
+    """Named constants held as 0-d float64 arrays: as a ufunc operand a Python float costs ~0.2 us of conversion
+    per call, a 0-d float64 array none (the same float64 operation, the same bits)."""
+
+    def __init__(self, **values: float) -> None:
+        for name, value in values.items():
+            setattr(self, name, np.array(float(value)))
+
+
 @dataclass(frozen=True)
 class MpcModel:
     """The numbers of the vehicle/power model the QP needs (SI units).
@@ -274,9 +283,11 @@ class SparseMpc:
         if follow:
             self._i_r0 = rs["init_r"].start
             self._l_dynr, self._u_dynr, self._l_safe = l_[rs["dyn_r"]], u_[rs["dyn_r"]], l_[rs["safe"]]
-        self._c_r = model.c_r
-        self._two_pa20, self._two_pa02 = 2.0 * self.pa20, 2.0 * self.pa02
-        self._two_z1, self._two_zv = 2.0 * w.zeta1, 2.0 * w.zeta_v
+        self._two_zv = 2.0 * w.zeta_v
+        # the constant operands of set_step's elementwise operations (Scalars: 0-d arrays)
+        self._k0 = Scalars(c_r=model.c_r, c_grade=self._c_grade, c_const=self.c_const, neg_big=-BIG, big=BIG,
+                            d_min=w.d_min, lu=LU, kn=KN, pa10=self.pa10, pa01=self.pa01, pa11=self.pa11,
+                            two_pa20=2.0 * self.pa20, two_pa02=2.0 * self.pa02, two_z1=2.0 * w.zeta1)
         self._w1, self._w2 = np.empty(N), np.empty(N)
         # this step's linearisation point and reference, kept for the objective constant (:attr:`const`)
         self._v_lin, self._fb_lin, self._v_ref = np.empty(N), np.empty(N), np.empty(N)
@@ -326,14 +337,15 @@ class SparseMpc:
         l[self._i_d0] = u[self._i_d0] = d_its0 / LU
         # eq. (3a) right-hand side with grade theta_k (rolling + gradient resistance):
         # c = c_const - c_grade (c_r cos(theta) + sin(theta)), elementwise into the dyn_v rows
-        np.cos(grade, out=w1)
-        np.multiply(w1, self._c_r, out=w1)
-        np.add(w1, np.sin(grade, out=w2), out=w1)
-        np.multiply(w1, self._c_grade, out=w1)
-        np.subtract(self.c_const, w1, out=self._l_dynv)
-        np.copyto(self._u_dynv, self._l_dynv)
-        np.maximum(v_lo, -BIG, out=self._l_vlim)
-        np.minimum(v_hi, BIG, out=self._u_vlim)
+        k = self._k0
+        np.cos(grade, w1)
+        np.multiply(w1, k.c_r, w1)
+        np.add(w1, np.sin(grade, w2), w1)
+        np.multiply(w1, k.c_grade, w1)
+        np.subtract(k.c_const, w1, self._l_dynv)
+        self._u_dynv[...] = self._l_dynv
+        np.maximum(v_lo, k.neg_big, out=self._l_vlim)
+        np.minimum(v_hi, k.big, out=self._u_vlim)
         if ft_prev is None:
             u[self._j_up] = BIG
             l[self._j_dn] = -BIG
@@ -343,13 +355,13 @@ class SparseMpc:
         if d_hard_lo is None:
             self._l_dhard.fill(-BIG)
         else:
-            np.maximum(d_hard_lo, -BIG, out=self._l_dhard)
+            np.maximum(d_hard_lo, k.neg_big, out=self._l_dhard)
         self._u_dsoft.fill(min(d_s_its / LU, BIG))
         if self.follow:
             l[self._i_r0] = u[self._i_r0] = d_rel0 / LU
             self._l_dynr.fill(self.dt * v_p / LU)
             self._u_dynr.fill(self.dt * v_p / LU)
-            np.divide(np.add(safe_margin, self.w.d_min, out=self._l_safe), LU, out=self._l_safe)
+            np.divide(np.add(safe_margin, k.d_min, self._l_safe), k.lu, self._l_safe)
         # linear cost: power (eq. 5) on k=0..N-1 and tracking on v_1..v_N; other entries of q stay 0. The constant
         # terms are not needed for the solve: :attr:`const` computes them on demand from the kept vb, Fbar, v_ref.
         q_v0, q_ft = self._q_v0, self._q_ft
@@ -361,23 +373,23 @@ class SparseMpc:
             if v_lin is None:
                 vb.fill(v0)
             else:
-                np.copyto(vb, v_lin)
+                vb[...] = v_lin
             if ft_lin is None:
                 fb_.fill(0.0)
             else:
-                np.divide(ft_lin, KN, out=fb_)
+                np.divide(ft_lin, k.kn, fb_)
             # a11 v F ~ a11 (vbar F + Fbar v - vbar Fbar): first-order Taylor at the previous trajectory
-            np.add(np.multiply(fb_, self.pa11, out=w1), self.pa10, out=q_v0)
-            np.add(np.multiply(vb, self.pa11, out=w1), self.pa01, out=q_ft)
+            np.add(np.multiply(fb_, k.pa11, w1), k.pa10, q_v0)
+            np.add(np.multiply(vb, k.pa11, w1), k.pa01, q_ft)
             if self.lin_v2:
-                np.add(q_v0, np.multiply(vb, self._two_pa20, out=w1), out=q_v0)
+                np.add(q_v0, np.multiply(vb, k.two_pa20, w1), q_v0)
             if self.lin_f2:
-                np.add(q_ft, np.multiply(fb_, self._two_pa02, out=w1), out=q_ft)
+                np.add(q_ft, np.multiply(fb_, k.two_pa02, w1), q_ft)
         self.q[self._ivN] = 0.0
         if not self.follow:
             q_v1 = self._q_v1                                          # zeta1 (v_{k+1} - v_ref,k)^2, eq. (9a)
-            np.subtract(q_v1, np.multiply(v_ref, self._two_z1, out=w1), out=q_v1)
-            np.copyto(self._v_ref, v_ref)
+            np.subtract(q_v1, np.multiply(v_ref, k.two_z1, w1), q_v1)
+            self._v_ref[...] = v_ref
         elif self.w.zeta_v > 0:
             np.subtract(self._q_v1, self._two_zv * v_p, out=self._q_v1)   # zeta_v (v_{k+1} - v_p)^2
         self._v_p = v_p
