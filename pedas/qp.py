@@ -58,9 +58,6 @@ def residual(A: sp.csc_matrix, l: np.ndarray, u: np.ndarray, x: np.ndarray) -> f
     return float(max(np.max(l - Ax, initial=0.0), np.max(Ax - u, initial=0.0)))
 
 
-_max = np.maximum.reduce
-
-
 def _postcondition(status: str, x: np.ndarray | None, violation: float, tol: float) -> str:
     """The status of a solution the solver calls optimal, after the checks: unchanged if x is finite and its
     ``violation`` of l <= A x <= u (from :class:`_Residual`) is at most ``tol``, else 'rejected:<status>:non-finite'
@@ -105,7 +102,7 @@ class CsrProduct:
 
 class _Residual:
     """:func:`residual` for one constant A, without the floor at 0: ``max(max(l - Ax), max(Ax - u))`` in one
-    reduction over a preallocated ``[l - Ax | Ax - u]`` (np.maximum propagates NaN). A non-finite entry of x makes
+    reduction over a preallocated ``[l - Ax | Ax - u]`` (which keeps a NaN). A non-finite entry of x makes
     the result NaN or +inf, because every column of A has a nonzero (checked here): the residual check is the
     finiteness check as well."""
 
@@ -121,7 +118,8 @@ class _Residual:
         ax = self._Ax.product(x)
         np.subtract(l, ax, self._lo)
         np.subtract(ax, u, self._hi)
-        return float(_max(self._t))
+        t = self._t
+        return float(t[t.argmax()])   # the maximum (argmax returns the first NaN if there is one), cheaper than max
 
 
 class OsqpBackend:
@@ -208,6 +206,7 @@ class _DaqpBase:
         of the general rows."""
         m = A.shape[0]
         self.bound = float(self.settings.bound)
+        self._bound_lo, self._bound_hi = np.array(-self.bound), np.array(self.bound)   # 0-d: cheap ufunc operands
         nnz = np.diff(A.indptr)
         single = (nnz == 1) & (A.data[np.minimum(A.indptr[:-1], A.data.size - 1)] == 1.0)
         # simple bound of variable j: the (only) single-variable row on it, else the sentinel row m (unbounded)
@@ -236,8 +235,8 @@ class _DaqpBase:
         return general
 
     def _gather_bounds(self) -> None:
-        self._lu.take(self._gather, out=self._lohi)
-        _clip(self._lohi, -self.bound, self.bound, out=self._lohi)
+        self._lu.take(self._gather, None, self._lohi)
+        _clip(self._lohi, self._bound_lo, self._bound_hi, self._lohi)
 
     def solve(self, q: np.ndarray, l: np.ndarray, u: np.ndarray) -> QpResult:
         self._fill(q, l, u)
@@ -260,7 +259,7 @@ class _DaqpBase:
             self.model.update(f=self._f, bupper=self._hi, blower=self._lo)
         z, _, flag, info = self.model.solve()
         iters, run_time = int(info["iterations"]), float(info["solve_time"])
-        status = _DAQP_STATUS.get(int(flag), f"daqp exit {int(flag)}")
+        status = _DAQP_STATUS.get(flag) or f"daqp exit {flag}"
         x = None
         if status == "solved":
             x = self._primal(z)   # a non-finite z gives a non-finite x (each y is one entry of x)
@@ -307,8 +306,8 @@ class DaqpBackend(_DaqpBase):
         np.copyto(self._lu_l, l)
         np.copyto(self._lu_u, u)
         self._gather_bounds()
-        l.take(self._eq_rows, out=self._beq)
-        np.subtract(q, self._AeqT.product(self._beq), out=self._f)
+        l.take(self._eq_rows, None, self._beq)
+        np.subtract(q, self._AeqT.product(self._beq), self._f)
 
     def _primal(self, z: np.ndarray) -> np.ndarray:
         return z
@@ -364,11 +363,11 @@ class DaqpCondensedBackend(_DaqpBase):
 
     def _fill(self, q: np.ndarray, l: np.ndarray, u: np.ndarray) -> None:
         """f = Z'q + Z'PE b_eq and the shifted inequality bounds (simple first, then general), clipped to +-bound."""
-        beq = l.take(self._eq_rows, out=self._beq)
-        np.add(self._ZT.product(q), self._G.product(beq), out=self._f)
+        beq = l.take(self._eq_rows, None, self._beq)
+        np.add(self._ZT.product(q), self._G.product(beq), self._f)
         shift = self._K.product(beq)
-        np.subtract(l.take(self._ineq, out=self._lin), shift, out=self._lu_l)
-        np.subtract(u.take(self._ineq, out=self._uin), shift, out=self._lu_u)
+        np.subtract(l.take(self._ineq, None, self._lin), shift, self._lu_l)
+        np.subtract(u.take(self._ineq, None, self._uin), shift, self._lu_u)
         self._gather_bounds()
 
     def _primal(self, z: np.ndarray) -> np.ndarray:
