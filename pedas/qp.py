@@ -350,29 +350,59 @@ class DaqpCondensedBackend(_DaqpBase):
         A_in = sp.csr_matrix(Acsr[ineq] @ Z)
         A_in.eliminate_zeros()
         A_in.sort_indices()
-        self._ZT, self._Z, self._E = CsrProduct(ZT), CsrProduct(Z), CsrProduct(E)
-        self._G = CsrProduct(ZT @ self.P @ E)
-        self._K = CsrProduct(Acsr[ineq] @ E)
+        # the per-step products, each set in one block-diagonal product (one kernel call; every row is the row of its
+        # block, summed in the same order: the same bits as separate products):
+        # [Z'q | Z'PE b_eq | K b_eq] from [q | b_eq], and [E b_eq | Z y] from [b_eq | y]
+        nf, neq = free.size, eq_rows.size
+        self._vec = CsrProduct(_block_diag_csr(ZT, sp.vstack([ZT @ self.P @ E, Acsr[ineq] @ E], format="csr")))
+        self._map = CsrProduct(_block_diag_csr(E, Z))
+        self._in_vec, self._in_map = np.empty(nx + neq), np.empty(neq + nf)
+        self._q_in, self._beq = self._in_vec[:nx], self._in_vec[nx:]
+        self._beq_map, self._y_in = self._in_map[:neq], self._in_map[neq:]
+        self._nf, self._nx = nf, nx
         self._eq_rows, self._ineq = eq_rows, ineq
-        general = self._bounds(A_in, np.zeros(0, dtype=int), free.size)
-        self._beq = np.empty(eq_rows.size)
+        general = self._bounds(A_in, np.zeros(0, dtype=int), nf)
         self._lin, self._uin = np.empty(ineq.size), np.empty(ineq.size)
-        self._f = np.empty(free.size)
+        self._f = np.empty(nf)
         self._fill(np.zeros(nx), l, u)
         self._setup(self.H, A_in[general].toarray())
 
     def _fill(self, q: np.ndarray, l: np.ndarray, u: np.ndarray) -> None:
         """f = Z'q + Z'PE b_eq and the shifted inequality bounds (simple first, then general), clipped to +-bound."""
+        self._q_in[...] = q
         beq = l.take(self._eq_rows, None, self._beq)
-        np.add(self._ZT.product(q), self._G.product(beq), self._f)
-        shift = self._K.product(beq)
+        self._beq_map[...] = beq
+        nf = self._nf
+        prod = self._vec.product(self._in_vec)
+        np.add(prod[:nf], prod[nf:2 * nf], self._f)
+        shift = prod[2 * nf:]
         np.subtract(l.take(self._ineq, None, self._lin), shift, self._lu_l)
         np.subtract(u.take(self._ineq, None, self._uin), shift, self._lu_u)
         self._gather_bounds()
 
     def _primal(self, z: np.ndarray) -> np.ndarray:
         """x = E b_eq + Z y, a new array (the plan keeps it)."""
-        return np.add(self._E.product(self._beq), self._Z.product(z))
+        self._y_in[...] = z
+        prod = self._map.product(self._in_map)
+        return np.add(prod[:self._nx], prod[self._nx:])
+
+
+def _block_diag_csr(*blocks: sp.spmatrix) -> sp.csr_matrix:
+    """The block-diagonal CSR matrix of ``blocks``, built from their sorted CSR arrays (every stored entry kept, each
+    row's entries in the order of its block's row)."""
+    mats = [sp.csr_matrix(b) for b in blocks]
+    for b in mats:
+        b.sort_indices()
+    indptr, indices, data = [np.zeros(1, dtype=np.int64)], [], []
+    r0 = c0 = nnz = 0
+    for b in mats:
+        indptr.append(b.indptr[1:].astype(np.int64) + nnz)
+        indices.append(b.indices.astype(np.int64) + c0)
+        data.append(b.data)
+        nnz += b.nnz
+        r0 += b.shape[0]
+        c0 += b.shape[1]
+    return sp.csr_matrix((np.concatenate(data), np.concatenate(indices), np.concatenate(indptr)), shape=(r0, c0))
 
 
 def _substitute(AB: sp.csr_matrix, AN: sp.csr_matrix) -> tuple[np.ndarray, np.ndarray]:
