@@ -7,7 +7,7 @@ these stages in order:
 1. ``_measure``: measured acceleration and real sample time for the HUD and the stop-sign dwell;
 2. ``_predict``: the horizon is laid out along the route with the previous plan (shifted one step) as prediction
    of the positions s_k, which also serves as linearisation point of the power term (see :mod:`pedas.mpc`);
-   route profiles (grade, v_max, v_min, v_DP, curve envelope) are looked up there;
+   route profiles (grade, v_max, v_DP, curve envelope; the speed limit at s) are looked up there;
 3. ``_objects_ahead``: the next light and stop sign; the stop-sign state machine (released after the vehicle has
    stood STOP_DWELL s inside the stop-line band [0, d_s,ITS] before the line, counted as missed when passed
    without it); a red (or non-passable yellow) light and every stop sign constrain d_ITS >= 0 (eq. 8c) at the
@@ -46,7 +46,7 @@ try:   # np.interp's compiled kernel: np.interp calls it after dtype checks (the
     from numpy._core.multiarray import interp as _interp
 except ImportError:   # pragma: no cover - numpy < 2
     from numpy.core.multiarray import interp as _interp
-_min, _max = np.minimum.reduce, np.maximum.reduce
+_max = np.maximum.reduce
 
 
 @dataclass(frozen=True)
@@ -85,7 +85,7 @@ class _Prediction(NamedTuple):
     s_pred: np.ndarray   # m, predicted positions at k = 1..N
     grade: np.ndarray    # rad, at k = 0..N-1
     vmax: np.ndarray     # m/s, v_max at k = 1..N
-    vmin: np.ndarray     # m/s, v_min at k = 1..N
+    limit: float         # m/s, the speed limit at the vehicle (k = 0)
     vdp: np.ndarray      # m/s, v_DP at k = 1..N
     venv: np.ndarray     # m/s, curve envelope at k = 1..N
 
@@ -98,6 +98,7 @@ class _Objects(NamedTuple):
     ss: StopSign | None       # the next unserved stop sign (or None)
     d_ss: float | None        # m to its stop line
     tl_near: bool             # the light is within spat_range (green wave and red-light logic apply)
+    tl_remaining: float | None  # s left in the light's phase (SPaT), None beyond spat_range
     go: bool                  # the light will be passed (green long enough, or yellow too close to stop)
     stop_d: float | None      # m to the stop line that constrains d_ITS (None: no stop required)
     d_hard: np.ndarray | None  # k = 1..N: 0 where d_ITS >= 0 is enforced, -inf elsewhere
@@ -232,7 +233,7 @@ class PedasController:
         v_adv, status = self._advise(v, sol)
         plan = sol.plan
         plan_v = (v_adv,) + tuple(plan.v[2:].tolist())
-        hud = self._hud(t, s, v, a_meas, dt_real, obj, sol, plan_v)
+        hud = self._hud(t, s, v, a_meas, dt_real, pred, obj, sol, plan_v)
         # forces within solver tolerance of 0 are reported as 0 (the QP bounds are F >= 0)
         return Advisory(v_advice=v_adv, controller=sol.ctrl, mode=sol.mode, ft=max(float(plan.ft[0]), 0.0),
                         fb=max(float(plan.fb[0]), 0.0),
@@ -274,10 +275,10 @@ class PedasController:
         xs = self._s
         grade = _interp(s_grade, xs, self._grade, None, None)
         vmax = _interp(s_pred, xs, self._vmax, None, None)
-        vmin = _interp(s_pred, xs, self._vmin, None, None)
         vdp = _interp(s_pred, self._dp_s, self._dp_v, None, None)
         venv = _interp(s_pred, xs, self._venv, None, None)
-        return _Prediction(v_lin, ft_lin, s_pred, grade, vmax, vmin, vdp, venv)
+        limit = float(_interp(s, xs, self._limit, None, None))
+        return _Prediction(v_lin, ft_lin, s_pred, grade, vmax, limit, vdp, venv)
 
     def _objects_ahead(self, t: float, s: float, v: float, dt_real: float, s_pred: np.ndarray) -> _Objects:
         """The next light and stop sign, the stop-sign dwell state machine, and which stop line constrains d_ITS
@@ -311,9 +312,10 @@ class PedasController:
         d_hard = None
         go = False
         tl_near = tl is not None and d_tl <= cfg.spat_range
+        tl_remaining = None
         if tl_near:
-            mask = self._nongreen(tl, t)
-            state = tl.state_at(t)
+            state, tl_remaining, changes = tl.spat(t, N * self.dt)
+            mask = self._nongreen(state, changes, t)
             if state == "green":
                 if mask.any():
                     k_r = int(np.argmax(mask))          # index of the first non-green step (time k_r + 1)
@@ -329,18 +331,18 @@ class PedasController:
             stop_kind = "ss"
         else:
             stop_kind = "tl" if stop_d is not None else None
-        return _Objects(tl, d_tl, ss, d_ss, tl_near, go, stop_d, d_hard, stop_kind)
+        return _Objects(tl, d_tl, ss, d_ss, tl_near, tl_remaining, go, stop_d, d_hard, stop_kind)
 
-    def _green_wave(self, t: float, s: float, obj: _Objects) -> tuple[float | None, bool]:
+    def _green_wave(self, t: float, s: float, pred: _Prediction, obj: _Objects) -> tuple[float | None, bool]:
         """(v_ref,min of eq. (1) or None, stop at the light expected) for the light within spat_range."""
         if not obj.tl_near:
             return None, False
         cfg, tl, d_tl, ss = self.settings, obj.tl, obj.d_tl, obj.ss
         # eq. (1) with v_max the lowest limit up to the line and v_min >= gw_min_fraction x speed limit
         xs = self._s
-        v_hi_gw = float(_min(_interp(s + max(d_tl, 0.0) * self._frac8, xs, self._vmax, None, None)))
-        v_lo_gw = max(float(_interp(s, xs, self._vmin, None, None)),
-                      cfg.gw_min_fraction * float(_interp(s, xs, self._limit, None, None)))
+        v_line = _interp(s + max(d_tl, 0.0) * self._frac8, xs, self._vmax, None, None)
+        v_hi_gw = float(v_line[v_line.argmin()])                   # (argmin: cheaper than min)
+        v_lo_gw = max(float(_interp(s, xs, self._vmin, None, None)), cfg.gw_min_fraction * pred.limit)
         gw_ok = d_tl > 0 and (ss is None or ss.s > tl.s)            # a stop sign before the light goes first
         band = green_wave_band(d_tl, t, tl, min(v_lo_gw, v_hi_gw), v_hi_gw, cfg.gw_horizon, cfg.gw_margin,
                                v_floor=cfg.gw_v_floor) if gw_ok else None
@@ -351,7 +353,7 @@ class PedasController:
         """v_ref (green wave, else v_DP with a departure ramp; curve and stop envelopes), the speed bounds and the
         d_ITS rows."""
         cfg, N, dt = self.settings, self.n, self.dt
-        v_gw, tl_stop_expected = self._green_wave(t, s, obj)
+        v_gw, tl_stop_expected = self._green_wave(t, s, pred, obj)
         # the stop envelope of v_ref: at a stop sign, and at a light when eq. (1) has no band (stop unavoidable);
         # with a green-wave band the hard d_ITS rows alone keep the plan out of the red phases
         envelope_d = None
@@ -386,7 +388,8 @@ class PedasController:
         v_hi = np.maximum(pred.vmax, reach, out=self._vhi)
         v_lo = self._vlo
         if mode in ("green_wave", "dp") and leader is None:
-            np.minimum(pred.vmin, v, out=v_lo)
+            # v_min at the predicted positions (looked up only here: the one stage that uses it)
+            np.minimum(_interp(pred.s_pred, self._s, self._vmin, None, None), v, out=v_lo)
         else:
             v_lo.fill(0.0)
         np.minimum(v_lo, v_hi, out=v_lo)
@@ -466,8 +469,8 @@ class PedasController:
         self._prev_advice = v_adv
         return v_adv, status
 
-    def _hud(self, t: float, s: float, v: float, a_meas: float, dt_real: float, obj: _Objects, sol: _Solution,
-             plan_v: tuple) -> HudAdvice:
+    def _hud(self, t: float, s: float, v: float, a_meas: float, dt_real: float, pred: _Prediction, obj: _Objects,
+             sol: _Solution, plan_v: tuple) -> HudAdvice:
         """The HUD record (pedas.hud.advisory) and the unfollowed-advice timer behind its warning tone."""
         cfg = self.settings
         self._unfollowed = update_unfollowed(self._unfollowed, self._last_arrow, a_meas, dt_real,
@@ -477,21 +480,20 @@ class PedasController:
             j = bisect_left(self._curve_list, s)
             if j < self._curve_s.size and self._curve_v[j] < v:
                 curve_d = float(self._curve_s[j] - s)
-        tl = obj.tl
-        ctx = HudContext(mode=sol.mode, tl_distance=obj.d_tl, tl_remaining=tl.remaining(t) if tl is not None else None,
-                         stop_distance=obj.d_ss, curve_distance=curve_d, psi=sol.psi,
-                         speed_limit=float(_interp(s, self._s, self._limit, None, None)))
+        ctx = HudContext(mode=sol.mode, tl_distance=obj.d_tl, tl_remaining=obj.tl_remaining, stop_distance=obj.d_ss,
+                         curve_distance=curve_d, psi=sol.psi,
+                         speed_limit=pred.limit)
         hud = advisory(HudState(v=v, a=a_meas, slow_unfollowed=self._unfollowed), plan_v, ctx, **self._hud_kw)
         self._last_arrow = hud.hud_arrow
         return hud
 
     # ------------------------------------------------------------------------------------------------------
-    def _nongreen(self, tl, t: float) -> np.ndarray:
-        """Mask over k=1..N: the light is not green at t + k dt."""
+    def _nongreen(self, state: str, changes: list[tuple[float, str]], t: float) -> np.ndarray:
+        """Mask over k=1..N: the light (in `state` at t, then the phase `changes` (time, state)) is not green at
+        t + k dt."""
         tk = t + self.dt * self._k
-        state = tl.state_at(t)
         mask = np.full(self.n, state != "green")
-        for tc, st in tl.next_phase_starts(t, self.n * self.dt):
+        for tc, st in changes:
             mask[tk >= tc] = st != "green"
         return mask
 
