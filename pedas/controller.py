@@ -232,7 +232,7 @@ class PedasController:
         sol = self._solve(v, leader, pred, ref)
         v_adv, status = self._advise(v, sol)
         plan = sol.plan
-        plan_v = (v_adv,) + tuple(plan.v[2:].tolist())
+        plan_v = (v_adv, *plan.v[2:].tolist())
         hud = self._hud(t, s, v, a_meas, dt_real, pred, obj, sol, plan_v)
         # forces within solver tolerance of 0 are reported as 0 (the QP bounds are F >= 0)
         return Advisory(v_advice=v_adv, controller=sol.ctrl, mode=sol.mode, ft=max(float(plan.ft[0]), 0.0),

@@ -80,7 +80,7 @@ def power_hessian_eigs(m: MpcModel) -> np.ndarray:
     return np.linalg.eigvalsh(m.power.hessian)
 
 
-@dataclass
+@dataclass(slots=True)
 class MpcPlan:
     """A solved (or fallback) plan over the horizon, SI units. ``v`` and the distances have N+1 entries (k=0..N).
     ``x``: the QP solution (QP units); its cost is :meth:`SparseMpc.objective`."""

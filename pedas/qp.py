@@ -40,7 +40,7 @@ _DAQP_STATUS = {1: "solved", 2: "solved", -1: "primal infeasible", -2: "cycling"
                 -4: "maximum iterations reached", -5: "nonconvex", -6: "overdetermined initial active set"}
 
 
-@dataclass
+@dataclass(slots=True)
 class QpResult:
     """One checked solve: status text, ok (status, finiteness and primal feasibility all passed), x (QP units;
     None when not ok), iterations, solver time (s)."""
