@@ -233,7 +233,7 @@ class PedasController:
         v_adv, status = self._advise(v, sol)
         plan = sol.plan
         plan_v = (v_adv, *plan.v[2:].tolist())
-        hud = self._hud(t, s, v, a_meas, dt_real, pred, obj, sol, plan_v)
+        hud = self._hud(s, v, a_meas, dt_real, pred, obj, sol, plan_v)
         # forces within solver tolerance of 0 are reported as 0 (the QP bounds are F >= 0)
         return Advisory(v_advice=v_adv, controller=sol.ctrl, mode=sol.mode, ft=max(float(plan.ft[0]), 0.0),
                         fb=max(float(plan.fb[0]), 0.0),
@@ -253,7 +253,7 @@ class PedasController:
     def _predict(self, s: float, v: float) -> _Prediction:
         """Linearisation / prediction trajectory (the previous plan shifted by one sample) and the route profiles
         at the predicted positions."""
-        N, dt = self.n, self.dt
+        N = self.n
         prev = self._prev
         if prev is not None:
             v_lin = self._vlin
@@ -405,7 +405,7 @@ class PedasController:
 
     def _solve(self, v: float, leader, pred: _Prediction, ref: _Reference) -> _Solution:
         """Controller choice, warm start at a hand-over, the MPC solve and the fallback plan on failure."""
-        cfg, dt, st = self.settings, self.dt, self.stats
+        cfg, st = self.settings, self.stats
         use_cf = leader is not None and leader[0] <= SENSOR_RANGE
         ctrl = "cf" if use_cf else "rt"
         st[ctrl] += 1
@@ -469,7 +469,7 @@ class PedasController:
         self._prev_advice = v_adv
         return v_adv, status
 
-    def _hud(self, t: float, s: float, v: float, a_meas: float, dt_real: float, pred: _Prediction, obj: _Objects,
+    def _hud(self, s: float, v: float, a_meas: float, dt_real: float, pred: _Prediction, obj: _Objects,
              sol: _Solution, plan_v: tuple) -> HudAdvice:
         """The HUD record (pedas.hud.advisory) and the unfollowed-advice timer behind its warning tone."""
         cfg = self.settings
@@ -481,8 +481,7 @@ class PedasController:
             if j < self._curve_s.size and self._curve_v[j] < v:
                 curve_d = float(self._curve_s[j] - s)
         ctx = HudContext(mode=sol.mode, tl_distance=obj.d_tl, tl_remaining=obj.tl_remaining, stop_distance=obj.d_ss,
-                         curve_distance=curve_d, psi=sol.psi,
-                         speed_limit=pred.limit)
+                         curve_distance=curve_d, psi=sol.psi, speed_limit=pred.limit)
         hud = advisory(HudState(v=v, a=a_meas, slow_unfollowed=self._unfollowed), plan_v, ctx, **self._hud_kw)
         self._last_arrow = hud.hud_arrow
         return hud

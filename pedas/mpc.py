@@ -36,7 +36,7 @@ import scipy.sparse as sp
 from pedas.constants import DT, N_HORIZON
 from pedas.params import CONTROLLER, LEAF, DaqpSettings, MpcWeights, OsqpSettings
 from pedas.power import PowerMap
-from pedas.qp import BACKENDS, DaqpBackend, DaqpCondensedBackend, OsqpBackend, CsrProduct, residual
+from pedas.qp import BACKENDS, CsrProduct, DaqpBackend, DaqpCondensedBackend, OsqpBackend, residual
 
 KN = 1000.0  # N per kN: forces inside the QP are in kN
 LU = 1.0  # m per length unit of distances inside the QP (10 m and 0.1 m were tried: more iterations)
@@ -331,7 +331,7 @@ class SparseMpc:
         ``safe_margin`` (m, scalar or N values for k=1..N, car following) shifts the hard safe-distance row to
         d_rel - h_s v >= d_min + margin: a positive back-off keeps solver-tolerance violations outside d_s, a
         negative value (psi < 0) relaxes it while the speed correction eq. (11) acts."""
-        N, l, u = self.n, self.l, self.u
+        l, u = self.l, self.u
         w1, w2 = self._w1, self._w2
         l[self._i_v0] = u[self._i_v0] = v0
         l[self._i_d0] = u[self._i_d0] = d_its0 / LU
