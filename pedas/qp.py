@@ -200,10 +200,10 @@ class _DaqpBase:
         self.model.settings = s
         self._cold = False
 
-    def _bounds(self, A: sp.csr_matrix, eq_rows: np.ndarray, nx: int) -> np.ndarray:
+    def _bounds(self, A: sp.csr_matrix, eq_rows: np.ndarray, nx: int) -> tuple[np.ndarray, np.ndarray]:
         """Split the rows of A into DAQP simple bounds (a single coefficient 1: one row per variable) and general
-        rows; set up the gather of [l; -bound; u; +bound] into DAQP's [simple | general] order. Returns the indices
-        of the general rows."""
+        rows. Returns the indices of the general rows and DAQP's order of the rows, ``perm`` (constraint i is row
+        perm[i]; the sentinel A.shape[0] for a variable without a simple bound)."""
         m = A.shape[0]
         self.bound = float(self.settings.bound)
         self._bound_lo, self._bound_hi = np.array(-self.bound), np.array(self.bound)   # 0-d: cheap ufunc operands
@@ -222,21 +222,18 @@ class _DaqpBase:
         is_eq = np.zeros(m + 1, dtype=bool)
         is_eq[eq_rows] = True
         self._sense0 = np.where(is_eq[perm], 5, 0).astype(np.int32)
-        # work vectors, updated in place each solve. [l; -bound; u; +bound] in one buffer: one gather (np.take)
-        # builds DAQP's [lower | upper] bounds, one clip bounds them to +-bound
-        self._lu = np.empty(2 * (m + 1))
-        self._lu_l, self._lu_u = self._lu[:m], self._lu[m + 1:2 * m + 1]
-        self._lu[m] = -self.bound
-        self._lu[2 * m + 1] = self.bound
         nb = perm.size
-        self._gather = np.concatenate([perm, perm + m + 1])
-        self._lohi = np.empty(2 * nb)
+        self._lohi = np.empty(2 * nb)     # DAQP's [lower | upper] bounds, updated in place each solve
         self._lo, self._hi = self._lohi[:nb], self._lohi[nb:]
-        return general
+        return general, perm
 
-    def _gather_bounds(self) -> None:
-        self._lu.take(self._gather, None, self._lohi)
-        _clip(self._lohi, self._bound_lo, self._bound_hi, self._lohi)
+    def _gather_setup(self, rows: np.ndarray, m: int) -> None:
+        """DAQP's bounds by one gather (np.take) from a work buffer ``[l (m rows) | -inf | u | +inf]``: constraint i
+        takes row rows[i] (m: unbounded; the clip to +-bound makes the infinities +-bound)."""
+        self._src = np.empty(2 * (m + 1))
+        self._src_l, self._src_u = self._src[:m], self._src[m + 1:2 * m + 1]
+        self._src[m], self._src[2 * m + 1] = -np.inf, np.inf
+        self._gather = np.concatenate([rows, rows + m + 1])
 
     def solve(self, q: np.ndarray, l: np.ndarray, u: np.ndarray) -> QpResult:
         self._fill(q, l, u)
@@ -290,7 +287,8 @@ class DaqpBackend(_DaqpBase):
         nx = A.shape[1]
         rho = float(settings.rho)
         Acsr = sp.csr_matrix(A)
-        general = self._bounds(Acsr, eq_rows, nx)
+        general, perm = self._bounds(Acsr, eq_rows, nx)
+        self._gather_setup(perm, Acsr.shape[0])
         Aeq = sp.csr_matrix(Acsr[eq_rows])
         self._eq_rows = np.asarray(eq_rows)
         self._AeqT = CsrProduct(sp.csr_matrix(Aeq.T) * rho)   # its product kernel computes rho A_eq' b_eq
@@ -303,9 +301,10 @@ class DaqpBackend(_DaqpBase):
 
     def _fill(self, q: np.ndarray, l: np.ndarray, u: np.ndarray) -> None:
         """f = q - rho A_eq' b_eq and the DAQP bounds (simple bounds first, then general rows), clipped to +-bound."""
-        np.copyto(self._lu_l, l)
-        np.copyto(self._lu_u, u)
-        self._gather_bounds()
+        self._src_l[...] = l
+        self._src_u[...] = u
+        self._src.take(self._gather, None, self._lohi)
+        _clip(self._lohi, self._bound_lo, self._bound_hi, self._lohi)
         l.take(self._eq_rows, None, self._beq)
         np.subtract(q, self._AeqT.product(self._beq), self._f)
 
@@ -350,19 +349,23 @@ class DaqpCondensedBackend(_DaqpBase):
         A_in = sp.csr_matrix(Acsr[ineq] @ Z)
         A_in.eliminate_zeros()
         A_in.sort_indices()
+        nf, neq = free.size, eq_rows.size
+        general, perm = self._bounds(A_in, np.zeros(0, dtype=int), nf)
+        # DAQP constraint i is inequality row perm[i] (ineq.size: none), i.e. row rows[i] of l, u (m: none)
+        self._gather_setup(np.append(ineq, m)[perm], m)
+        # K's rows in DAQP's order (an empty row for none), so that the shift of the gathered bounds needs no gather
+        K = sp.vstack([Acsr[ineq] @ E, sp.csr_matrix((1, neq))], format="csr")[perm]
         # the per-step products, each set in one block-diagonal product (one kernel call; every row is the row of its
         # block, summed in the same order: the same bits as separate products):
         # [Z'q | Z'PE b_eq | K b_eq] from [q | b_eq], and [E b_eq | Z y] from [b_eq | y]
-        nf, neq = free.size, eq_rows.size
-        self._vec = CsrProduct(_block_diag_csr(ZT, sp.vstack([ZT @ self.P @ E, Acsr[ineq] @ E], format="csr")))
+        self._vec = CsrProduct(_block_diag_csr(ZT, sp.vstack([ZT @ self.P @ E, K], format="csr")))
         self._map = CsrProduct(_block_diag_csr(E, Z))
         self._in_vec, self._in_map = np.empty(nx + neq), np.empty(neq + nf)
         self._q_in, self._beq = self._in_vec[:nx], self._in_vec[nx:]
         self._beq_map, self._y_in = self._in_map[:neq], self._in_map[neq:]
         self._nf, self._nx = nf, nx
-        self._eq_rows, self._ineq = eq_rows, ineq
-        general = self._bounds(A_in, np.zeros(0, dtype=int), nf)
-        self._lin, self._uin = np.empty(ineq.size), np.empty(ineq.size)
+        self._eq_rows = eq_rows
+        self._lohi2 = self._lohi.reshape(2, -1)     # [lower; upper] as two rows: one broadcast subtraction
         self._f = np.empty(nf)
         self._fill(np.zeros(nx), l, u)
         self._setup(self.H, A_in[general].toarray())
@@ -375,10 +378,11 @@ class DaqpCondensedBackend(_DaqpBase):
         nf = self._nf
         prod = self._vec.product(self._in_vec)
         np.add(prod[:nf], prod[nf:2 * nf], self._f)
-        shift = prod[2 * nf:]
-        np.subtract(l.take(self._ineq, None, self._lin), shift, self._lu_l)
-        np.subtract(u.take(self._ineq, None, self._uin), shift, self._lu_u)
-        self._gather_bounds()
+        self._src_l[...] = l
+        self._src_u[...] = u
+        self._src.take(self._gather, None, self._lohi)
+        np.subtract(self._lohi2, prod[2 * nf:], self._lohi2)      # l - K b_eq, u - K b_eq in DAQP's order
+        _clip(self._lohi, self._bound_lo, self._bound_hi, self._lohi)
 
     def _primal(self, z: np.ndarray) -> np.ndarray:
         """x = E b_eq + Z y, a new array (the plan keeps it)."""
