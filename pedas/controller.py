@@ -7,7 +7,7 @@ these stages in order:
 1. ``_measure``: measured acceleration and real sample time for the HUD and the stop-sign dwell;
 2. ``_predict``: the horizon is laid out along the route with the previous plan (shifted one step) as prediction
    of the positions s_k, which also serves as linearisation point of the power term (see :mod:`pedas.mpc`);
-   route profiles (grade, v_max, v_min, v_DP, curve envelope) are looked up there;
+   route profiles (grade, v_max, v_DP, curve envelope; the speed limit at s) are looked up there;
 3. ``_objects_ahead``: the next light and stop sign; the stop-sign state machine (released after the vehicle has
    stood STOP_DWELL s inside the stop-line band [0, d_s,ITS] before the line, counted as missed when passed
    without it); a red (or non-passable yellow) light and every stop sign constrain d_ITS >= 0 (eq. 8c) at the
@@ -35,7 +35,7 @@ import numpy as np
 from pedas.constants import DT, N_HORIZON, SENSOR_RANGE, STOP_DWELL
 from pedas.greenwave import green_wave_band
 from pedas.hud import HudAdvice, HudContext, HudState, advisory, update_unfollowed
-from pedas.mpc import INF, MpcPlan, vehicle_model
+from pedas.mpc import INF, MpcPlan, Scalars, vehicle_model
 from pedas.mpc_cf import CarFollowingMpc
 from pedas.mpc_rt import ReferenceTrackingMpc
 from pedas.params import CONTROLLER, LEAF, ControllerParams, VehicleParams
@@ -46,7 +46,7 @@ try:   # np.interp's compiled kernel: np.interp calls it after dtype checks (the
     from numpy._core.multiarray import interp as _interp
 except ImportError:   # pragma: no cover - numpy < 2
     from numpy.core.multiarray import interp as _interp
-_min, _max = np.minimum.reduce, np.maximum.reduce
+_max = np.maximum.reduce
 
 
 @dataclass(frozen=True)
@@ -85,7 +85,7 @@ class _Prediction(NamedTuple):
     s_pred: np.ndarray   # m, predicted positions at k = 1..N
     grade: np.ndarray    # rad, at k = 0..N-1
     vmax: np.ndarray     # m/s, v_max at k = 1..N
-    vmin: np.ndarray     # m/s, v_min at k = 1..N
+    limit: float         # m/s, the speed limit at the vehicle (k = 0)
     vdp: np.ndarray      # m/s, v_DP at k = 1..N
     venv: np.ndarray     # m/s, curve envelope at k = 1..N
 
@@ -98,6 +98,7 @@ class _Objects(NamedTuple):
     ss: StopSign | None       # the next unserved stop sign (or None)
     d_ss: float | None        # m to its stop line
     tl_near: bool             # the light is within spat_range (green wave and red-light logic apply)
+    tl_remaining: float | None  # s left in the light's phase (SPaT), None beyond spat_range
     go: bool                  # the light will be passed (green long enough, or yellow too close to stop)
     stop_d: float | None      # m to the stop line that constrains d_ITS (None: no stop required)
     d_hard: np.ndarray | None  # k = 1..N: 0 where d_ITS >= 0 is enforced, -inf elsewhere
@@ -194,6 +195,8 @@ class PedasController:
         self._vref, self._vhi, self._vlo, self._reachv = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
         self._vhicf, self._margin = np.empty(n), np.empty(n)
         self._dp_list = self._dp_s.tolist()
+        # constant operands of the step's elementwise operations, as 0-d arrays (pedas.mpc.Scalars)
+        self._k0 = Scalars(zero=0.0, dt=dt, two_a_stop=2 * settings.a_stop, safe_backoff=settings.safe_backoff)
         self._curve_list = self._curve_s.tolist()
         self.reset()
 
@@ -229,8 +232,8 @@ class PedasController:
         sol = self._solve(v, leader, pred, ref)
         v_adv, status = self._advise(v, sol)
         plan = sol.plan
-        plan_v = (v_adv,) + tuple(plan.v[2:].tolist())
-        hud = self._hud(t, s, v, a_meas, dt_real, obj, sol, plan_v)
+        plan_v = (v_adv, *plan.v[2:].tolist())
+        hud = self._hud(s, v, a_meas, dt_real, pred, obj, sol, plan_v)
         # forces within solver tolerance of 0 are reported as 0 (the QP bounds are F >= 0)
         return Advisory(v_advice=v_adv, controller=sol.ctrl, mode=sol.mode, ft=max(float(plan.ft[0]), 0.0),
                         fb=max(float(plan.fb[0]), 0.0),
@@ -250,31 +253,32 @@ class PedasController:
     def _predict(self, s: float, v: float) -> _Prediction:
         """Linearisation / prediction trajectory (the previous plan shifted by one sample) and the route profiles
         at the predicted positions."""
-        N, dt = self.n, self.dt
+        N = self.n
         prev = self._prev
         if prev is not None:
             v_lin = self._vlin
             v_lin[0] = v                                            # v_k ~ previous v_{k+1}, v_0 measured
-            np.copyto(self._vlin_tail, prev.v[2:])
+            self._vlin_tail[...] = prev.v[2:]
             ft_lin = self._ftlin
-            np.copyto(self._ftlin_head, prev.ft[1:])
+            self._ftlin_head[...] = prev.ft[1:]
             ft_lin[-1] = prev.ft[-1]
         else:
             v_lin = np.full(N, v)
             ft_lin = np.zeros(N)
         s_pred = self._spred                                        # positions at k = 1..N: s + dt cumsum(max(v, 0))
-        np.add.accumulate(np.maximum(v_lin, 0.0, out=s_pred), out=s_pred)
-        np.add(np.multiply(s_pred, dt, out=s_pred), s, out=s_pred)
+        k = self._k0
+        np.add.accumulate(np.maximum(v_lin, k.zero, out=s_pred), out=s_pred)
+        np.add(np.multiply(s_pred, k.dt, s_pred), s, s_pred)
         s_grade = self._sgrade                                      # positions at k = 0..N-1
         s_grade[0] = s
-        np.copyto(self._sgrade_tail, self._spred_head)
+        self._sgrade_tail[...] = self._spred_head
         xs = self._s
         grade = _interp(s_grade, xs, self._grade, None, None)
         vmax = _interp(s_pred, xs, self._vmax, None, None)
-        vmin = _interp(s_pred, xs, self._vmin, None, None)
         vdp = _interp(s_pred, self._dp_s, self._dp_v, None, None)
         venv = _interp(s_pred, xs, self._venv, None, None)
-        return _Prediction(v_lin, ft_lin, s_pred, grade, vmax, vmin, vdp, venv)
+        limit = float(_interp(s, xs, self._limit, None, None))
+        return _Prediction(v_lin, ft_lin, s_pred, grade, vmax, limit, vdp, venv)
 
     def _objects_ahead(self, t: float, s: float, v: float, dt_real: float, s_pred: np.ndarray) -> _Objects:
         """The next light and stop sign, the stop-sign dwell state machine, and which stop line constrains d_ITS
@@ -308,9 +312,10 @@ class PedasController:
         d_hard = None
         go = False
         tl_near = tl is not None and d_tl <= cfg.spat_range
+        tl_remaining = None
         if tl_near:
-            mask = self._nongreen(tl, t)
-            state = tl.state_at(t)
+            state, tl_remaining, changes = tl.spat(t, N * self.dt)
+            mask = self._nongreen(state, changes, t)
             if state == "green":
                 if mask.any():
                     k_r = int(np.argmax(mask))          # index of the first non-green step (time k_r + 1)
@@ -326,18 +331,18 @@ class PedasController:
             stop_kind = "ss"
         else:
             stop_kind = "tl" if stop_d is not None else None
-        return _Objects(tl, d_tl, ss, d_ss, tl_near, go, stop_d, d_hard, stop_kind)
+        return _Objects(tl, d_tl, ss, d_ss, tl_near, tl_remaining, go, stop_d, d_hard, stop_kind)
 
-    def _green_wave(self, t: float, s: float, obj: _Objects) -> tuple[float | None, bool]:
+    def _green_wave(self, t: float, s: float, pred: _Prediction, obj: _Objects) -> tuple[float | None, bool]:
         """(v_ref,min of eq. (1) or None, stop at the light expected) for the light within spat_range."""
         if not obj.tl_near:
             return None, False
         cfg, tl, d_tl, ss = self.settings, obj.tl, obj.d_tl, obj.ss
         # eq. (1) with v_max the lowest limit up to the line and v_min >= gw_min_fraction x speed limit
         xs = self._s
-        v_hi_gw = float(_min(_interp(s + max(d_tl, 0.0) * self._frac8, xs, self._vmax, None, None)))
-        v_lo_gw = max(float(_interp(s, xs, self._vmin, None, None)),
-                      cfg.gw_min_fraction * float(_interp(s, xs, self._limit, None, None)))
+        v_line = _interp(s + max(d_tl, 0.0) * self._frac8, xs, self._vmax, None, None)
+        v_hi_gw = float(v_line[v_line.argmin()])                   # (argmin: cheaper than min)
+        v_lo_gw = max(float(_interp(s, xs, self._vmin, None, None)), cfg.gw_min_fraction * pred.limit)
         gw_ok = d_tl > 0 and (ss is None or ss.s > tl.s)            # a stop sign before the light goes first
         band = green_wave_band(d_tl, t, tl, min(v_lo_gw, v_hi_gw), v_hi_gw, cfg.gw_horizon, cfg.gw_margin,
                                v_floor=cfg.gw_v_floor) if gw_ok else None
@@ -348,7 +353,7 @@ class PedasController:
         """v_ref (green wave, else v_DP with a departure ramp; curve and stop envelopes), the speed bounds and the
         d_ITS rows."""
         cfg, N, dt = self.settings, self.n, self.dt
-        v_gw, tl_stop_expected = self._green_wave(t, s, obj)
+        v_gw, tl_stop_expected = self._green_wave(t, s, pred, obj)
         # the stop envelope of v_ref: at a stop sign, and at a light when eq. (1) has no band (stop unavoidable);
         # with a green-wave band the hard d_ITS rows alone keep the plan out of the red phases
         envelope_d = None
@@ -366,30 +371,31 @@ class PedasController:
             j0 = bisect_left(self._dp_list, s)
             j1 = bisect_left(self._dp_list, s + cfg.cruise_look)
             cruise = float(_max(self._dp_v[j0:max(j1, j0 + 1)])) if j0 < self._dp_v.size else float(self._dp_v[-1])
-            np.minimum(np.add(self._depart, v, out=v_ref), cruise, out=v_ref)
+            np.minimum(np.add(self._depart, v, v_ref), cruise, out=v_ref)
             np.maximum(pred.vdp, v_ref, out=v_ref)
             np.minimum(v_ref, pred.venv, out=v_ref)
             mode = "dp"
         if envelope_d is not None:
             # aim inside the stop-line band: d_target = envelope_d - stop_aim d_s,ITS - (s_pred - s)
-            stop_env = np.subtract(pred.s_pred, s, out=self._wn)
-            np.subtract(envelope_d - cfg.stop_aim * self._d_sits, stop_env, out=stop_env)
-            np.sqrt(np.multiply(np.maximum(stop_env, 0.0, out=stop_env), 2 * cfg.a_stop, out=stop_env),
-                    out=stop_env)
+            k = self._k0
+            stop_env = np.subtract(pred.s_pred, s, self._wn)
+            np.subtract(envelope_d - cfg.stop_aim * self._d_sits, stop_env, stop_env)
+            np.sqrt(np.multiply(np.maximum(stop_env, k.zero, out=stop_env), k.two_a_stop, stop_env), stop_env)
             if stop_env[-1] < v_ref[-1] or (obj.stop_kind == "tl" and tl_stop_expected):
                 mode = "stop"
             np.minimum(v_ref, stop_env, out=v_ref)
-        reach = np.subtract(v, self._reach, out=self._reachv)
+        reach = np.subtract(v, self._reach, self._reachv)
         v_hi = np.maximum(pred.vmax, reach, out=self._vhi)
         v_lo = self._vlo
         if mode in ("green_wave", "dp") and leader is None:
-            np.minimum(pred.vmin, v, out=v_lo)
+            # v_min at the predicted positions (looked up only here: the one stage that uses it)
+            np.minimum(_interp(pred.s_pred, self._s, self._vmin, None, None), v, out=v_lo)
         else:
             v_lo.fill(0.0)
         np.minimum(v_lo, v_hi, out=v_lo)
         d_sits = self._d_sits if mode == "stop" else INF
         d_hard, stop_d = obj.d_hard, obj.stop_d
-        if d_hard is None or stop_d > float(_max(v_hi)) * N * dt + 5.0:
+        if d_hard is None or stop_d > float(v_hi[v_hi.argmax()]) * N * dt + 5.0:   # (argmax: cheaper than max)
             # no stop object within reach of the horizon: the d_ITS rows cannot bind; unbounding them and keeping the
             # state at 0 also keeps OSQP's relative tolerance from scaling with a distance of several hundred m
             d_hard, d_its0, d_sits = None, 0.0, INF
@@ -399,7 +405,7 @@ class PedasController:
 
     def _solve(self, v: float, leader, pred: _Prediction, ref: _Reference) -> _Solution:
         """Controller choice, warm start at a hand-over, the MPC solve and the fallback plan on failure."""
-        cfg, dt, st = self.settings, self.dt, self.stats
+        cfg, st = self.settings, self.stats
         use_cf = leader is not None and leader[0] <= SENSOR_RANGE
         ctrl = "cf" if use_cf else "rt"
         st[ctrl] += 1
@@ -417,13 +423,13 @@ class PedasController:
             psi = d_rel - (self.d_min + self.h_s * v)
             mode = "follow"
             # min(v_hi, max(v_DP, min(v + departure ramp, v_max), reach))
-            v_hi_cf = np.minimum(np.add(self._depart, v, out=self._vhicf), pred.vmax, out=self._vhicf)
+            v_hi_cf = np.minimum(np.add(self._depart, v, self._vhicf), pred.vmax, out=self._vhicf)
             np.maximum(pred.vdp, v_hi_cf, out=v_hi_cf)
             np.maximum(v_hi_cf, ref.reach, out=v_hi_cf)
             np.minimum(ref.v_hi, v_hi_cf, out=v_hi_cf)
             # back-off safe_backoff above d_s, approached from the current margin psi at psi_recovery m per sample
             # (with psi < 0 eq. (7a) cannot hold at k=1; eq. (11) then sets the advice)
-            margin = np.minimum(cfg.safe_backoff, np.add(self._recover, psi, out=self._margin), out=self._margin)
+            margin = np.minimum(self._k0.safe_backoff, np.add(self._recover, psi, self._margin), out=self._margin)
             plan = self.cf.plan(v, d_rel, v_p, ref.v_lo, v_hi_cf, pred.grade, d_its0=ref.d_its0,
                                 d_hard_lo=ref.d_hard, d_s_its=ref.d_sits, ft_prev=self._prev_ft, v_lin=pred.v_lin,
                                 ft_lin=pred.ft_lin, safe_margin=margin)
@@ -463,8 +469,8 @@ class PedasController:
         self._prev_advice = v_adv
         return v_adv, status
 
-    def _hud(self, t: float, s: float, v: float, a_meas: float, dt_real: float, obj: _Objects, sol: _Solution,
-             plan_v: tuple) -> HudAdvice:
+    def _hud(self, s: float, v: float, a_meas: float, dt_real: float, pred: _Prediction, obj: _Objects,
+             sol: _Solution, plan_v: tuple) -> HudAdvice:
         """The HUD record (pedas.hud.advisory) and the unfollowed-advice timer behind its warning tone."""
         cfg = self.settings
         self._unfollowed = update_unfollowed(self._unfollowed, self._last_arrow, a_meas, dt_real,
@@ -474,21 +480,19 @@ class PedasController:
             j = bisect_left(self._curve_list, s)
             if j < self._curve_s.size and self._curve_v[j] < v:
                 curve_d = float(self._curve_s[j] - s)
-        tl = obj.tl
-        ctx = HudContext(mode=sol.mode, tl_distance=obj.d_tl, tl_remaining=tl.remaining(t) if tl is not None else None,
-                         stop_distance=obj.d_ss, curve_distance=curve_d, psi=sol.psi,
-                         speed_limit=float(_interp(s, self._s, self._limit, None, None)))
+        ctx = HudContext(mode=sol.mode, tl_distance=obj.d_tl, tl_remaining=obj.tl_remaining, stop_distance=obj.d_ss,
+                         curve_distance=curve_d, psi=sol.psi, speed_limit=pred.limit)
         hud = advisory(HudState(v=v, a=a_meas, slow_unfollowed=self._unfollowed), plan_v, ctx, **self._hud_kw)
         self._last_arrow = hud.hud_arrow
         return hud
 
     # ------------------------------------------------------------------------------------------------------
-    def _nongreen(self, tl, t: float) -> np.ndarray:
-        """Mask over k=1..N: the light is not green at t + k dt."""
+    def _nongreen(self, state: str, changes: list[tuple[float, str]], t: float) -> np.ndarray:
+        """Mask over k=1..N: the light (in `state` at t, then the phase `changes` (time, state)) is not green at
+        t + k dt."""
         tk = t + self.dt * self._k
-        state = tl.state_at(t)
         mask = np.full(self.n, state != "green")
-        for tc, st in tl.next_phase_starts(t, self.n * self.dt):
+        for tc, st in changes:
             mask[tk >= tc] = st != "green"
         return mask
 
@@ -506,5 +510,4 @@ class PedasController:
             v = np.r_[v0, np.minimum(np.full(N, v0), v_hi)]
             ft = np.zeros(N)
             fb = np.zeros(N)
-        return MpcPlan("fallback", False, v, ft, fb, np.zeros(N + 1), None, np.zeros(N), np.zeros(N), None,
-                       float("nan"), 0, None)
+        return MpcPlan("fallback", False, v, ft, fb, np.zeros(N + 1), None, np.zeros(N), np.zeros(N), None, 0, None)

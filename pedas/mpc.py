@@ -36,7 +36,7 @@ import scipy.sparse as sp
 from pedas.constants import DT, N_HORIZON
 from pedas.params import CONTROLLER, LEAF, DaqpSettings, MpcWeights, OsqpSettings
 from pedas.power import PowerMap
-from pedas.qp import BACKENDS, DaqpBackend, DaqpCondensedBackend, OsqpBackend, residual
+from pedas.qp import BACKENDS, CsrProduct, DaqpBackend, DaqpCondensedBackend, OsqpBackend, residual
 
 KN = 1000.0  # N per kN: forces inside the QP are in kN
 LU = 1.0  # m per length unit of distances inside the QP (10 m and 0.1 m were tried: more iterations)
@@ -44,6 +44,15 @@ KW = 1000.0  # W per kW: the power cost inside the QP is in kW
 INF = np.inf
 _sum = np.add.reduce   # the reduction behind ndarray.sum (pairwise), without the method's dispatch
 BIG = 1e30  # OSQP's infinity: the bound vectors hold +-BIG for unbounded rows (DAQP gets them as +-DaqpSettings.bound)
+
+class Scalars:
+    """Named constants held as 0-d float64 arrays: as a ufunc operand a Python float costs ~0.2 us of conversion
+    per call, a 0-d float64 array none (the same float64 operation, the same bits)."""
+
+    def __init__(self, **values: float) -> None:
+        for name, value in values.items():
+            setattr(self, name, np.array(float(value)))
+
 
 @dataclass(frozen=True)
 class MpcModel:
@@ -71,9 +80,10 @@ def power_hessian_eigs(m: MpcModel) -> np.ndarray:
     return np.linalg.eigvalsh(m.power.hessian)
 
 
-@dataclass
+@dataclass(slots=True)
 class MpcPlan:
-    """A solved (or fallback) plan over the horizon, SI units. ``v`` and the distances have N+1 entries (k=0..N)."""
+    """A solved (or fallback) plan over the horizon, SI units. ``v`` and the distances have N+1 entries (k=0..N).
+    ``x``: the QP solution (QP units); its cost is :meth:`SparseMpc.objective`."""
 
     status: str
     ok: bool
@@ -85,7 +95,6 @@ class MpcPlan:
     eps1: np.ndarray
     eps2: np.ndarray
     eps3: np.ndarray | None
-    objective: float
     iterations: int
     x: np.ndarray = field(repr=False, default=None)
 
@@ -274,11 +283,17 @@ class SparseMpc:
         if follow:
             self._i_r0 = rs["init_r"].start
             self._l_dynr, self._u_dynr, self._l_safe = l_[rs["dyn_r"]], u_[rs["dyn_r"]], l_[rs["safe"]]
-        self._c_r = model.c_r
-        self._two_pa20, self._two_pa02 = 2.0 * self.pa20, 2.0 * self.pa02
-        self._two_z1, self._two_zv = 2.0 * w.zeta1, 2.0 * w.zeta_v
-        self._w1, self._w2, self._w3 = np.empty(N), np.empty(N), np.empty(N)
-        self._fb_lin = np.empty(N)
+        self._two_zv = 2.0 * w.zeta_v
+        # the constant operands of set_step's elementwise operations (Scalars: 0-d arrays)
+        self._k0 = Scalars(c_r=model.c_r, c_grade=self._c_grade, c_const=self.c_const, neg_big=-BIG, big=BIG,
+                            d_min=w.d_min, lu=LU, kn=KN, pa10=self.pa10, pa01=self.pa01, pa11=self.pa11,
+                            two_pa20=2.0 * self.pa20, two_pa02=2.0 * self.pa02, two_z1=2.0 * w.zeta1)
+        self._w1, self._w2 = np.empty(N), np.empty(N)
+        # this step's linearisation point and reference, kept for the objective constant (:attr:`const`)
+        self._v_lin, self._fb_lin, self._v_ref = np.empty(N), np.empty(N), np.empty(N)
+        self._v_p = 0.0
+        self._Pfull = CsrProduct(P + P.T - sp.diags(P.diagonal()))
+        self._wx = np.empty(self.nx)
         # unpack: x times one scale vector (1 on speeds, KN on forces, LU on distances), the plan's arrays are views
         self._scale = np.ones(self.nx)
         for idx, k in ((self.id, LU), (self.ift, KN), (self.ifb, KN), (self.ie1, LU), (self.ie2, KN)) + (
@@ -303,7 +318,6 @@ class SparseMpc:
         self.x_prev: np.ndarray | None = None
         self.last_solve_time = 0.0
         self.last_iter = 0
-        self.const = 0.0  # objective constant of the current step (power offsets), for reporting the true cost
 
     # ------------------------------------------------------------------------------------------------------
     def set_step(self, v0: float, v_lo: np.ndarray, v_hi: np.ndarray, grade: np.ndarray,
@@ -317,20 +331,21 @@ class SparseMpc:
         ``safe_margin`` (m, scalar or N values for k=1..N, car following) shifts the hard safe-distance row to
         d_rel - h_s v >= d_min + margin: a positive back-off keeps solver-tolerance violations outside d_s, a
         negative value (psi < 0) relaxes it while the speed correction eq. (11) acts."""
-        N, l, u = self.n, self.l, self.u
+        l, u = self.l, self.u
         w1, w2 = self._w1, self._w2
         l[self._i_v0] = u[self._i_v0] = v0
         l[self._i_d0] = u[self._i_d0] = d_its0 / LU
         # eq. (3a) right-hand side with grade theta_k (rolling + gradient resistance):
         # c = c_const - c_grade (c_r cos(theta) + sin(theta)), elementwise into the dyn_v rows
-        np.cos(grade, out=w1)
-        np.multiply(w1, self._c_r, out=w1)
-        np.add(w1, np.sin(grade, out=w2), out=w1)
-        np.multiply(w1, self._c_grade, out=w1)
-        np.subtract(self.c_const, w1, out=self._l_dynv)
-        np.copyto(self._u_dynv, self._l_dynv)
-        np.maximum(v_lo, -BIG, out=self._l_vlim)
-        np.minimum(v_hi, BIG, out=self._u_vlim)
+        k = self._k0
+        np.cos(grade, w1)
+        np.multiply(w1, k.c_r, w1)
+        np.add(w1, np.sin(grade, w2), w1)
+        np.multiply(w1, k.c_grade, w1)
+        np.subtract(k.c_const, w1, self._l_dynv)
+        self._u_dynv[...] = self._l_dynv
+        np.maximum(v_lo, k.neg_big, out=self._l_vlim)
+        np.minimum(v_hi, k.big, out=self._u_vlim)
         if ft_prev is None:
             u[self._j_up] = BIG
             l[self._j_dn] = -BIG
@@ -340,46 +355,71 @@ class SparseMpc:
         if d_hard_lo is None:
             self._l_dhard.fill(-BIG)
         else:
-            np.maximum(d_hard_lo, -BIG, out=self._l_dhard)
+            np.maximum(d_hard_lo, k.neg_big, out=self._l_dhard)
         self._u_dsoft.fill(min(d_s_its / LU, BIG))
         if self.follow:
             l[self._i_r0] = u[self._i_r0] = d_rel0 / LU
             self._l_dynr.fill(self.dt * v_p / LU)
             self._u_dynr.fill(self.dt * v_p / LU)
-            np.divide(np.add(safe_margin, self.w.d_min, out=self._l_safe), LU, out=self._l_safe)
-        # linear cost: power (eq. 5) on k=0..N-1 and tracking on v_1..v_N; other entries of q stay 0.
-        # Sums of products, not `@`: a BLAS dot product's last bits depend on the kernel numpy picks.
+            np.divide(np.add(safe_margin, k.d_min, self._l_safe), k.lu, self._l_safe)
+        # linear cost: power (eq. 5) on k=0..N-1 and tracking on v_1..v_N; other entries of q stay 0. The constant
+        # terms are not needed for the solve: :attr:`const` computes them on demand from the kept vb, Fbar, v_ref.
         q_v0, q_ft = self._q_v0, self._q_ft
-        const = N * self.pa00
         if self.power_convex:
             q_v0.fill(self.pa10)
             q_ft.fill(self.pa01)
         else:
-            vb = np.full(N, v0) if v_lin is None else v_lin
-            fb_ = self._fb_lin
+            vb, fb_ = self._v_lin, self._fb_lin
+            if v_lin is None:
+                vb.fill(v0)
+            else:
+                vb[...] = v_lin
             if ft_lin is None:
                 fb_.fill(0.0)
             else:
-                np.divide(ft_lin, KN, out=fb_)
+                np.divide(ft_lin, k.kn, fb_)
             # a11 v F ~ a11 (vbar F + Fbar v - vbar Fbar): first-order Taylor at the previous trajectory
-            np.add(np.multiply(fb_, self.pa11, out=w1), self.pa10, out=q_v0)
-            np.add(np.multiply(vb, self.pa11, out=w1), self.pa01, out=q_ft)
-            const -= self.pa11 * float(_sum(np.multiply(vb, fb_, out=w1)))
+            np.add(np.multiply(fb_, k.pa11, w1), k.pa10, q_v0)
+            np.add(np.multiply(vb, k.pa11, w1), k.pa01, q_ft)
             if self.lin_v2:
-                np.add(q_v0, np.multiply(vb, self._two_pa20, out=w1), out=q_v0)
-                const -= self.pa20 * float(_sum(np.multiply(vb, vb, out=w1)))
+                np.add(q_v0, np.multiply(vb, k.two_pa20, w1), q_v0)
             if self.lin_f2:
-                np.add(q_ft, np.multiply(fb_, self._two_pa02, out=w1), out=q_ft)
-                const -= self.pa02 * float(_sum(np.multiply(fb_, fb_, out=w1)))
+                np.add(q_ft, np.multiply(fb_, k.two_pa02, w1), q_ft)
         self.q[self._ivN] = 0.0
         if not self.follow:
             q_v1 = self._q_v1                                          # zeta1 (v_{k+1} - v_ref,k)^2, eq. (9a)
-            np.subtract(q_v1, np.multiply(v_ref, self._two_z1, out=w1), out=q_v1)
-            const += self.w.zeta1 * float(_sum(np.multiply(v_ref, v_ref, out=w1)))
+            np.subtract(q_v1, np.multiply(v_ref, k.two_z1, w1), q_v1)
+            self._v_ref[...] = v_ref
         elif self.w.zeta_v > 0:
             np.subtract(self._q_v1, self._two_zv * v_p, out=self._q_v1)   # zeta_v (v_{k+1} - v_p)^2
-            const += self.w.zeta_v * N * v_p * v_p
-        self.const = const
+        self._v_p = v_p
+
+    @property
+    def const(self) -> float:
+        """The constant of this step's cost (power offsets, linearisation, tracking), so that 1/2 x'Px + q'x + const
+        is eq. (9a) / (10a) of x. Sums of products, not `@`: a BLAS dot product's last bits depend on the kernel."""
+        N, w = self.n, self._wx[:self.n]
+        const = N * self.pa00
+        if not self.power_convex:
+            vb, fb_ = self._v_lin, self._fb_lin
+            const -= self.pa11 * float(_sum(np.multiply(vb, fb_, out=w)))
+            if self.lin_v2:
+                const -= self.pa20 * float(_sum(np.multiply(vb, vb, out=w)))
+            if self.lin_f2:
+                const -= self.pa02 * float(_sum(np.multiply(fb_, fb_, out=w)))
+        if not self.follow:
+            const += self.w.zeta1 * float(_sum(np.multiply(self._v_ref, self._v_ref, out=w)))
+        elif self.w.zeta_v > 0:
+            const += self.w.zeta_v * N * self._v_p * self._v_p
+        return const
+
+    def objective(self, x: np.ndarray) -> float:
+        """The cost eq. (9a) / (10a) of x (QP units) for this step's data (valid until the next :meth:`set_step`):
+        1/2 x'Px + q'x + :attr:`const`, sparse products (no BLAS). Not computed per solve: no check needs it."""
+        w = self._wx
+        px = self._Pfull.product(x)
+        return (0.5 * float(_sum(np.multiply(x, px, out=w))) + float(_sum(np.multiply(self.q, x, out=w)))
+                + self.const)
 
     def solve(self) -> MpcPlan:
         """Solve this step's QP with the backend; a plan only from a checked result (status, finite, feasible)."""
@@ -389,9 +429,9 @@ class SparseMpc:
         self.last_solve_time = res.run_time   # s, the solver's own timer
         self.last_iter = res.iterations
         if not res.ok:
-            return MpcPlan(res.status, False, *([None] * 8), float("nan"), res.iterations, None)
+            return MpcPlan(res.status, False, *([None] * 8), res.iterations, None)
         self.x_prev = res.x
-        return self.unpack(res.x, res.status, res.objective + self.const, res.iterations)
+        return self.unpack(res.x, res.status, res.iterations)
 
     def reset(self) -> None:
         """Forget the previous solution and start the backend cold (a new drive)."""
@@ -402,14 +442,14 @@ class SparseMpc:
         """Largest violation of l <= A x <= u (QP units)."""
         return residual(self.A, self.l, self.u, x)
 
-    def unpack(self, x: np.ndarray, status: str, obj: float, iters: int) -> MpcPlan:
+    def unpack(self, x: np.ndarray, status: str, iters: int) -> MpcPlan:
         """The plan of a QP solution x (QP units): one product with the unit scale, the plan's arrays are views of
         it (the same numbers as scaling each block)."""
         y = x * self._scale
         return MpcPlan(
             status=status, ok=True, v=y[self._sv], ft=y[self._sft], fb=y[self._sfb], d_its=y[self._sd],
             d_rel=y[self._sr] if self.follow else None, eps1=y[self._se1], eps2=y[self._se2],
-            eps3=y[self._se3] if self.follow else None, objective=obj, iterations=iters, x=x)
+            eps3=y[self._se3] if self.follow else None, iterations=iters, x=x)
 
     def warm_start_from(self, v: np.ndarray, ft: np.ndarray, fb: np.ndarray) -> None:
         """Warm-start the primal variables from another controller's plan (SI), e.g. at a hand-over."""

@@ -12,11 +12,11 @@ per-step vectors ``q``, ``l``, ``u`` (:class:`pedas.mpc.SparseMpc` keeps them an
   unbounded sides as ``+-bound`` (finite: a hot start on a row whose bound became infinite returned NaN).
 
 Every solve returns a :class:`QpResult` whose ``ok`` is true only if the status is an optimum, the solution is
-finite and it satisfies ``l <= A x <= u`` within the backend's residual tolerance (QP units).
+finite and it satisfies ``l <= A x <= u`` within the backend's residual tolerance (QP units). The objective is not
+part of the result (no check needs it): :meth:`pedas.mpc.SparseMpc.objective` evaluates it on demand.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -40,15 +40,14 @@ _DAQP_STATUS = {1: "solved", 2: "solved", -1: "primal infeasible", -2: "cycling"
                 -4: "maximum iterations reached", -5: "nonconvex", -6: "overdetermined initial active set"}
 
 
-@dataclass
+@dataclass(slots=True)
 class QpResult:
     """One checked solve: status text, ok (status, finiteness and primal feasibility all passed), x (QP units;
-    None when not ok), objective 1/2 x'Px + q'x (without the step's constant), iterations, solver time (s)."""
+    None when not ok), iterations, solver time (s)."""
 
     status: str
     ok: bool
     x: np.ndarray | None
-    objective: float
     iterations: int
     run_time: float
 
@@ -59,37 +58,30 @@ def residual(A: sp.csc_matrix, l: np.ndarray, u: np.ndarray, x: np.ndarray) -> f
     return float(max(np.max(l - Ax, initial=0.0), np.max(Ax - u, initial=0.0)))
 
 
-_sum = np.add.reduce
-_max = np.maximum.reduce
+def _postcondition(status: str, x: np.ndarray | None, violation: float, tol: float) -> str:
+    """The status of a solution the solver calls optimal, after the checks: unchanged if x is finite and its
+    ``violation`` of l <= A x <= u (from :class:`_Residual`) is at most ``tol``, else 'rejected:<status>:non-finite'
+    or 'rejected:<status>:residual' (not 'infeasible': that word is the solver's own verdict, on which the
+    controller's fallback brakes).
 
-
-def _finite(x: np.ndarray) -> bool:
-    """All entries finite. A finite sum proves it in one reduction; otherwise (a NaN/inf, or an overflow of finite
-    values) the elementwise test decides."""
-    return math.isfinite(_sum(x)) or bool(np.isfinite(x).all())
-
-
-def _postcondition(status: str, x: np.ndarray | None, feasible) -> str:
-    """The status of a solution the solver calls optimal, after the checks: unchanged if x is finite and
-    ``feasible()`` (l <= A x <= u within tolerance) holds, else 'rejected:<status>:non-finite' or
-    'rejected:<status>:residual' (not 'infeasible': that word is the solver's own verdict, on which the controller's
-    fallback brakes)."""
-    if x is None or not _finite(x):
+    One comparison checks both: a non-finite x makes the violation NaN or +inf (every column of A has a nonzero,
+    :class:`_Residual`), and NaN fails ``<=``. The elementwise finiteness test only names the reason of a rejection.
+    """
+    if violation <= tol:
+        return status
+    if x is None or not np.isfinite(x).all():
         return f"rejected:{status}:non-finite"
-    if not feasible():
-        return f"rejected:{status}:residual"
-    return status
+    return f"rejected:{status}:residual"
 
 
-class _CsrProduct:
-    """:func:`residual` for one constant A with preallocated work vectors (scipy's CSR product kernel directly,
-    which skips the per-call checks of ``A @ x``; the same loop, the same bits)."""
+class CsrProduct:
+    """A x for one constant A with a preallocated result vector (scipy's CSR product kernel directly, which skips the
+    per-call checks of ``A @ x``; the same loop, the same bits: no BLAS)."""
 
     def __init__(self, A: sp.spmatrix) -> None:
         self.A = sp.csr_matrix(A)
         self.A.sort_indices()
         self._ax = np.empty(self.A.shape[0])
-        self._t = np.empty(self.A.shape[0])
         try:
             from scipy.sparse._sparsetools import csr_matvec
         except ImportError:   # pragma: no cover - scipy moved its kernels
@@ -107,12 +99,27 @@ class _CsrProduct:
             self._kernel(*self._args, x, ax)
         return ax
 
+
+class _Residual:
+    """:func:`residual` for one constant A, without the floor at 0: ``max(max(l - Ax), max(Ax - u))`` in one
+    reduction over a preallocated ``[l - Ax | Ax - u]`` (which keeps a NaN). A non-finite entry of x makes
+    the result NaN or +inf, because every column of A has a nonzero (checked here): the residual check is the
+    finiteness check as well."""
+
+    def __init__(self, A: sp.spmatrix) -> None:
+        if not (abs(sp.csc_matrix(A)).sum(axis=0) > 0).all():
+            raise ValueError("a variable of the QP appears in no row of A")
+        self._Ax = CsrProduct(A)
+        m = A.shape[0]
+        self._t = np.empty(2 * m)
+        self._lo, self._hi = self._t[:m], self._t[m:]
+
     def __call__(self, l: np.ndarray, u: np.ndarray, x: np.ndarray) -> float:
-        ax, t = self.product(x), self._t
-        np.subtract(l, ax, out=t)
-        r = _max(t)
-        np.subtract(ax, u, out=t)
-        return float(max(r, _max(t), 0.0))
+        ax = self._Ax.product(x)
+        np.subtract(l, ax, self._lo)
+        np.subtract(ax, u, self._hi)
+        t = self._t
+        return float(t[t.argmax()])   # the maximum (argmax returns the first NaN if there is one), cheaper than max
 
 
 class OsqpBackend:
@@ -129,7 +136,7 @@ class OsqpBackend:
         kw = settings.as_dict()
         self.shift_warm_start = bool(kw.pop("shift_warm_start"))
         self.settings = kw
-        self._residual = _CsrProduct(A)
+        self._residual = _Residual(A)
         self.solver = osqp.OSQP()
         self.solver.setup(P=P, q=q, A=A, l=l, u=u, **kw)
         core = getattr(self.solver, "_solver", None)
@@ -144,21 +151,21 @@ class OsqpBackend:
             core.update_data_vec(q=q, l=l, u=u)
             core.solve()
             info = core.info
-            status, iters, run_time, obj = info.status, int(info.iter), float(info.run_time), info.obj_val
+            status, iters, run_time = info.status, int(info.iter), float(info.run_time)
             sol = core.solution
             x, y = sol.x, sol.y
         else:
             self.solver.update(q=q, l=l, u=u)
             res = self.solver.solve(raise_error=False)
-            status, iters, run_time, obj = res.info.status, int(res.info.iter), float(res.info.run_time), \
-                res.info.obj_val
+            status, iters, run_time = res.info.status, int(res.info.iter), float(res.info.run_time)
             x, y = res.x, res.y
         if status in _OSQP_OK or status in _OSQP_CHECK:
-            status = _postcondition(status, x, lambda: self._residual(l, u, x) <= OSQP_RESIDUAL_TOL)
+            violation = float("nan") if x is None else self._residual(l, u, x)
+            status = _postcondition(status, x, violation, OSQP_RESIDUAL_TOL)
         if status not in _OSQP_OK and status not in _OSQP_CHECK:
-            return QpResult(status, False, None, float("nan"), iters, run_time)
+            return QpResult(status, False, None, iters, run_time)
         self.y = y
-        return QpResult(status, True, x, float(obj), iters, run_time)
+        return QpResult(status, True, x, iters, run_time)
 
     def warm_start(self, x: np.ndarray, y: np.ndarray | None = None) -> None:
         """Start the next solve's ADMM iterates from x (and y)."""
@@ -175,10 +182,9 @@ class _DaqpBase:
     """What both DAQP formulations share: the checked solve, the cold retry after a failure, the hot start.
 
     A subclass sets ``model`` (a set-up ``daqp.Model``), ``_sense0``, ``settings`` and ``_residual`` and implements
-    ``_fill`` (this step's DAQP vectors from q, l, u), ``_primal`` (x in the QP's variables from DAQP's solution) and
-    ``_objective`` (1/2 x'Px + q'x of that x). After any failed solve the working set is cleared and the solve is repeated once from a
-    cold start (a stale working set can make the active-set method fail on a feasible problem); a second failure is
-    reported as such.
+    ``_fill`` (this step's DAQP vectors from q, l, u) and ``_primal`` (x in the QP's variables from DAQP's solution).
+    After any failed solve the working set is cleared and the solve is repeated once from a cold start (a stale
+    working set can make the active-set method fail on a feasible problem); a second failure is reported as such.
     """
 
     name = "daqp"
@@ -194,12 +200,13 @@ class _DaqpBase:
         self.model.settings = s
         self._cold = False
 
-    def _bounds(self, A: sp.csr_matrix, eq_rows: np.ndarray, nx: int) -> np.ndarray:
+    def _bounds(self, A: sp.csr_matrix, eq_rows: np.ndarray, nx: int) -> tuple[np.ndarray, np.ndarray]:
         """Split the rows of A into DAQP simple bounds (a single coefficient 1: one row per variable) and general
-        rows; set up the gather of [l; -bound; u; +bound] into DAQP's [simple | general] order. Returns the indices
-        of the general rows."""
+        rows. Returns the indices of the general rows and DAQP's order of the rows, ``perm`` (constraint i is row
+        perm[i]; the sentinel A.shape[0] for a variable without a simple bound)."""
         m = A.shape[0]
         self.bound = float(self.settings.bound)
+        self._bound_lo, self._bound_hi = np.array(-self.bound), np.array(self.bound)   # 0-d: cheap ufunc operands
         nnz = np.diff(A.indptr)
         single = (nnz == 1) & (A.data[np.minimum(A.indptr[:-1], A.data.size - 1)] == 1.0)
         # simple bound of variable j: the (only) single-variable row on it, else the sentinel row m (unbounded)
@@ -215,28 +222,25 @@ class _DaqpBase:
         is_eq = np.zeros(m + 1, dtype=bool)
         is_eq[eq_rows] = True
         self._sense0 = np.where(is_eq[perm], 5, 0).astype(np.int32)
-        # work vectors, updated in place each solve. [l; -bound; u; +bound] in one buffer: one gather (np.take)
-        # builds DAQP's [lower | upper] bounds, one clip bounds them to +-bound
-        self._lu = np.empty(2 * (m + 1))
-        self._lu_l, self._lu_u = self._lu[:m], self._lu[m + 1:2 * m + 1]
-        self._lu[m] = -self.bound
-        self._lu[2 * m + 1] = self.bound
         nb = perm.size
-        self._gather = np.concatenate([perm, perm + m + 1])
-        self._lohi = np.empty(2 * nb)
+        self._lohi = np.empty(2 * nb)     # DAQP's [lower | upper] bounds, updated in place each solve
         self._lo, self._hi = self._lohi[:nb], self._lohi[nb:]
-        return general
+        return general, perm
 
-    def _gather_bounds(self) -> None:
-        self._lu.take(self._gather, out=self._lohi)
-        _clip(self._lohi, -self.bound, self.bound, out=self._lohi)
+    def _gather_setup(self, rows: np.ndarray, m: int) -> None:
+        """DAQP's bounds by one gather (np.take) from a work buffer ``[l (m rows) | -inf | u | +inf]``: constraint i
+        takes row rows[i] (m: unbounded; the clip to +-bound makes the infinities +-bound)."""
+        self._src = np.empty(2 * (m + 1))
+        self._src_l, self._src_u = self._src[:m], self._src[m + 1:2 * m + 1]
+        self._src[m], self._src[2 * m + 1] = -np.inf, np.inf
+        self._gather = np.concatenate([rows, rows + m + 1])
 
     def solve(self, q: np.ndarray, l: np.ndarray, u: np.ndarray) -> QpResult:
         self._fill(q, l, u)
-        res = self._solve_checked(q, l, u)
+        res = self._solve_checked(l, u)
         if not res.ok:
             self.cold_start()
-            again = self._solve_checked(q, l, u)
+            again = self._solve_checked(l, u)
             again.iterations += res.iterations
             again.run_time += res.run_time
             res = again
@@ -244,22 +248,22 @@ class _DaqpBase:
                 self.cold_start()
         return res
 
-    def _solve_checked(self, q: np.ndarray, l: np.ndarray, u: np.ndarray) -> QpResult:
+    def _solve_checked(self, l: np.ndarray, u: np.ndarray) -> QpResult:
         if self._cold:
             self.model.update(f=self._f, bupper=self._hi, blower=self._lo, sense=self._sense0)
             self._cold = False
         else:
             self.model.update(f=self._f, bupper=self._hi, blower=self._lo)
-        z, fval, flag, info = self.model.solve()
+        z, _, flag, info = self.model.solve()
         iters, run_time = int(info["iterations"]), float(info["solve_time"])
-        status = _DAQP_STATUS.get(int(flag), f"daqp exit {int(flag)}")
+        status = _DAQP_STATUS.get(flag) or f"daqp exit {flag}"
         x = None
-        if int(flag) in (1, 2):
-            x = self._primal(z) if _finite(z) else None
-            status = _postcondition(status, x, lambda: self._residual(l, u, x) <= self.settings.residual_tol)
+        if status == "solved":
+            x = self._primal(z)   # a non-finite z gives a non-finite x (each y is one entry of x)
+            status = _postcondition(status, x, self._residual(l, u, x), self.settings.residual_tol)
         if status != "solved":
-            return QpResult(status, False, None, float("nan"), iters, run_time)
-        return QpResult(status, True, x, self._objective(float(fval), q, x), iters, run_time)
+            return QpResult(status, False, None, iters, run_time)
+        return QpResult(status, True, x, iters, run_time)
 
     def warm_start(self, x: np.ndarray, y: np.ndarray | None = None) -> None:
         """A primal guess is no working set: start the next solve cold (used at a hand-over between the MPCs)."""
@@ -278,39 +282,34 @@ class DaqpBackend(_DaqpBase):
 
     def __init__(self, P: sp.csc_matrix, A: sp.csc_matrix, l: np.ndarray, u: np.ndarray, eq_rows: np.ndarray,
                  settings: DaqpSettings) -> None:
-        self._residual = _CsrProduct(A)
+        self._residual = _Residual(A)
         self.settings = settings
         nx = A.shape[1]
         rho = float(settings.rho)
         Acsr = sp.csr_matrix(A)
-        general = self._bounds(Acsr, eq_rows, nx)
+        general, perm = self._bounds(Acsr, eq_rows, nx)
+        self._gather_setup(perm, Acsr.shape[0])
         Aeq = sp.csr_matrix(Acsr[eq_rows])
         self._eq_rows = np.asarray(eq_rows)
-        self._AeqT = _CsrProduct(sp.csr_matrix(Aeq.T) * rho)   # its product kernel computes rho A_eq' b_eq
-        self._rho = rho
+        self._AeqT = CsrProduct(sp.csr_matrix(Aeq.T) * rho)   # its product kernel computes rho A_eq' b_eq
         self.P = (P + P.T - sp.diags(P.diagonal())).tocsc()
         self.H = (self.P + rho * (Aeq.T @ Aeq)).toarray()
         self._beq = np.empty(self._eq_rows.size)
-        self._beq2 = np.empty(self._eq_rows.size)
         self._f = np.empty(nx)
         self._fill(np.zeros(nx), l, u)
         self._setup(self.H, Acsr[general].toarray())
 
     def _fill(self, q: np.ndarray, l: np.ndarray, u: np.ndarray) -> None:
         """f = q - rho A_eq' b_eq and the DAQP bounds (simple bounds first, then general rows), clipped to +-bound."""
-        np.copyto(self._lu_l, l)
-        np.copyto(self._lu_u, u)
-        self._gather_bounds()
-        l.take(self._eq_rows, out=self._beq)
-        np.subtract(q, self._AeqT.product(self._beq), out=self._f)
+        self._src_l[...] = l
+        self._src_u[...] = u
+        self._src.take(self._gather, None, self._lohi)
+        _clip(self._lohi, self._bound_lo, self._bound_hi, self._lohi)
+        l.take(self._eq_rows, None, self._beq)
+        np.subtract(q, self._AeqT.product(self._beq), self._f)
 
     def _primal(self, z: np.ndarray) -> np.ndarray:
         return z
-
-    def _objective(self, fval: float, q: np.ndarray, x: np.ndarray) -> float:
-        # on A_eq x = b_eq the regularised cost is the true one minus rho/2 |b_eq|^2 (module docstring)
-        beq = self._beq
-        return fval + 0.5 * self._rho * float(_sum(np.multiply(beq, beq, out=self._beq2)))
 
 
 class DaqpCondensedBackend(_DaqpBase):
@@ -328,7 +327,7 @@ class DaqpCondensedBackend(_DaqpBase):
 
     def __init__(self, P: sp.csc_matrix, A: sp.csc_matrix, l: np.ndarray, u: np.ndarray, eq_rows: np.ndarray,
                  basic: np.ndarray, settings: DaqpSettings) -> None:
-        self._residual = _CsrProduct(A)
+        self._residual = _Residual(A)
         self.settings = settings
         Acsr = sp.csr_matrix(A)
         m, nx = Acsr.shape
@@ -350,36 +349,64 @@ class DaqpCondensedBackend(_DaqpBase):
         A_in = sp.csr_matrix(Acsr[ineq] @ Z)
         A_in.eliminate_zeros()
         A_in.sort_indices()
-        self._ZT, self._Z, self._E = _CsrProduct(ZT), _CsrProduct(Z), _CsrProduct(E)
-        self._G = _CsrProduct(ZT @ self.P @ E)
-        self._K = _CsrProduct(Acsr[ineq] @ E)
-        self._Px = _CsrProduct(self.P)
-        self._eq_rows, self._ineq = eq_rows, ineq
-        general = self._bounds(A_in, np.zeros(0, dtype=int), free.size)
-        self._beq = np.empty(eq_rows.size)
-        self._lin, self._uin = np.empty(ineq.size), np.empty(ineq.size)
-        self._f = np.empty(free.size)
-        self._w = np.empty(nx)
+        nf, neq = free.size, eq_rows.size
+        general, perm = self._bounds(A_in, np.zeros(0, dtype=int), nf)
+        # DAQP constraint i is inequality row perm[i] (ineq.size: none), i.e. row rows[i] of l, u (m: none)
+        self._gather_setup(np.append(ineq, m)[perm], m)
+        # K's rows in DAQP's order (an empty row for none), so that the shift of the gathered bounds needs no gather
+        K = sp.vstack([Acsr[ineq] @ E, sp.csr_matrix((1, neq))], format="csr")[perm]
+        # the per-step products, each set in one block-diagonal product (one kernel call; every row is the row of its
+        # block, summed in the same order: the same bits as separate products):
+        # [Z'q | Z'PE b_eq | K b_eq] from [q | b_eq], and [E b_eq | Z y] from [b_eq | y]
+        self._vec = CsrProduct(_block_diag_csr(ZT, sp.vstack([ZT @ self.P @ E, K], format="csr")))
+        self._map = CsrProduct(_block_diag_csr(E, Z))
+        self._in_vec, self._in_map = np.empty(nx + neq), np.empty(neq + nf)
+        self._q_in, self._beq = self._in_vec[:nx], self._in_vec[nx:]
+        self._beq_map, self._y_in = self._in_map[:neq], self._in_map[neq:]
+        self._nf, self._nx = nf, nx
+        self._eq_rows = eq_rows
+        self._lohi2 = self._lohi.reshape(2, -1)     # [lower; upper] as two rows: one broadcast subtraction
+        self._f = np.empty(nf)
         self._fill(np.zeros(nx), l, u)
         self._setup(self.H, A_in[general].toarray())
 
     def _fill(self, q: np.ndarray, l: np.ndarray, u: np.ndarray) -> None:
         """f = Z'q + Z'PE b_eq and the shifted inequality bounds (simple first, then general), clipped to +-bound."""
-        beq = l.take(self._eq_rows, out=self._beq)
-        np.add(self._ZT.product(q), self._G.product(beq), out=self._f)
-        shift = self._K.product(beq)
-        np.subtract(l.take(self._ineq, out=self._lin), shift, out=self._lu_l)
-        np.subtract(u.take(self._ineq, out=self._uin), shift, out=self._lu_u)
-        self._gather_bounds()
+        self._q_in[...] = q
+        beq = l.take(self._eq_rows, None, self._beq)
+        self._beq_map[...] = beq
+        nf = self._nf
+        prod = self._vec.product(self._in_vec)
+        np.add(prod[:nf], prod[nf:2 * nf], self._f)
+        self._src_l[...] = l
+        self._src_u[...] = u
+        self._src.take(self._gather, None, self._lohi)
+        np.subtract(self._lohi2, prod[2 * nf:], self._lohi2)      # l - K b_eq, u - K b_eq in DAQP's order
+        _clip(self._lohi, self._bound_lo, self._bound_hi, self._lohi)
 
     def _primal(self, z: np.ndarray) -> np.ndarray:
         """x = E b_eq + Z y, a new array (the plan keeps it)."""
-        return np.add(self._E.product(self._beq), self._Z.product(z))
+        self._y_in[...] = z
+        prod = self._map.product(self._in_map)
+        return np.add(prod[:self._nx], prod[self._nx:])
 
-    def _objective(self, fval: float, q: np.ndarray, x: np.ndarray) -> float:
-        # evaluated at x itself: DAQP's fval lacks the constant terms of the eliminated states
-        px = self._Px.product(x)
-        return 0.5 * float(_sum(np.multiply(x, px, out=self._w))) + float(_sum(np.multiply(q, x, out=self._w)))
+
+def _block_diag_csr(*blocks: sp.spmatrix) -> sp.csr_matrix:
+    """The block-diagonal CSR matrix of ``blocks``, built from their sorted CSR arrays (every stored entry kept, each
+    row's entries in the order of its block's row)."""
+    mats = [sp.csr_matrix(b) for b in blocks]
+    for b in mats:
+        b.sort_indices()
+    indptr, indices, data = [np.zeros(1, dtype=np.int64)], [], []
+    r0 = c0 = nnz = 0
+    for b in mats:
+        indptr.append(b.indptr[1:].astype(np.int64) + nnz)
+        indices.append(b.indices.astype(np.int64) + c0)
+        data.append(b.data)
+        nnz += b.nnz
+        r0 += b.shape[0]
+        c0 += b.shape[1]
+    return sp.csr_matrix((np.concatenate(data), np.concatenate(indices), np.concatenate(indptr)), shape=(r0, c0))
 
 
 def _substitute(AB: sp.csr_matrix, AN: sp.csr_matrix) -> tuple[np.ndarray, np.ndarray]:

@@ -88,6 +88,17 @@ class TrafficLight:
     def phase_starts(self, t0: float, t1: float) -> list[tuple[float, str]]:
         """All phase starts (time, state) with t0 < time <= t1, plus the phase active at t0 as (its start, state)."""
         i, start, _ = self._locate(t0)
+        return self._starts_from(i, start, t1)
+
+    def spat(self, t0: float, horizon: float) -> tuple[str, float, list[tuple[float, str]]]:
+        """(:meth:`state_at`, :meth:`remaining` and :meth:`next_phase_starts` at t0 over `horizon` s), from one
+        look-up of the active phase: the same numbers as the three calls."""
+        i, start, _ = self._locate(t0)
+        state, dur = self.phases[i]
+        return state, start + dur - t0, [(t, st) for t, st in self._starts_from(i, start, t0 + horizon) if t > t0]
+
+    def _starts_from(self, i: int, start: float, t1: float) -> list[tuple[float, str]]:
+        """Phase i (starting at `start`) and the phase starts after it up to t1."""
         out = [(start, self.phases[i][0])]
         t = start
         n = len(self.phases)

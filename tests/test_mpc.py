@@ -176,4 +176,4 @@ def test_qp_data_is_the_solved_problem(cf):
     Ax = A @ x
     assert np.all(Ax >= l - 1e-2) and np.all(Ax <= u + 1e-2)
     Pf = (P + P.T - sp.diags(P.diagonal())).tocsc()
-    assert 0.5 * x @ (Pf @ x) + q @ x + const == pytest.approx(plan.objective, rel=1e-6, abs=1e-6)
+    assert 0.5 * x @ (Pf @ x) + q @ x + const == pytest.approx(cf.objective(x), rel=1e-12, abs=1e-9)

@@ -121,17 +121,27 @@ def test_daqp_is_exact_to_1e_8_with_production_settings(recorded, kind):
     assert len(gaps) >= 40 and max(gaps) <= 1e-8, max(gaps)
 
 
-def test_the_reported_objective_is_the_true_one():
-    """DAQP solves the condensed or the regularised QP; the objective reported is 1/2 x'Px + q'x (+ constant) of
-    the full QP."""
+def test_the_objective_is_eq_9a_of_the_plan():
+    """``SparseMpc.objective(x)`` (1/2 x'Px + q'x + const, no longer computed per solve) is eq. (9a) with the
+    linearised power term, written out here term by term in SI units, for each backend's plan."""
     m = vehicle_model()
+    pm = m.power
     N = 20
+    v_ref = np.linspace(12.0, 14.0, N)
+    v_lin, ft_lin = np.linspace(8.0, 9.0, N), np.linspace(900.0, 300.0, N)
+    w = CONTROLLER.rt_weights
     for backend, form in (("daqp", "condensed"), ("daqp", "regularised"), ("osqp", "condensed")):
         rt = ReferenceTrackingMpc(m, backend=backend, daqp=dataclasses.replace(CONTROLLER.daqp, formulation=form))
-        plan = rt.plan(8.0, np.full(N, 12.0), np.zeros(N), np.full(N, 30.0), np.zeros(N))
+        plan = rt.plan(8.0, v_ref, np.zeros(N), np.full(N, 30.0), np.zeros(N), v_lin=v_lin, ft_lin=ft_lin)
         assert plan.ok
-        f = _objective(rt.P, rt.q, plan.x) + rt.const
-        assert plan.objective == pytest.approx(f, rel=1e-6 if backend == "daqp" else 1e-3)
+        v, F, Fb = plan.v[:-1], plan.ft, plan.fb
+        # eq. (5) in W with a11 v F replaced by its Taylor expansion at (v_lin, ft_lin); kW in the cost
+        power = (pm.a00 + pm.a10 * v + pm.a01 * F + pm.a11 * (v_lin * F + ft_lin * v - v_lin * ft_lin)
+                 + pm.a20 * v ** 2 + pm.a02 * F ** 2) / 1000.0
+        cost = (power.sum() + w.zeta1 * ((plan.v[1:] - v_ref) ** 2).sum() + w.zeta2 * ((Fb / KN) ** 2).sum()
+                + w.zeta3 * (plan.eps1 ** 2).sum() + w.zeta4 * ((plan.eps2 / KN) ** 2).sum())
+        assert rt.objective(plan.x) == pytest.approx(cost, rel=1e-9)
+        assert rt.objective(plan.x) == pytest.approx(_objective(rt.P, rt.q, plan.x) + rt.const, rel=1e-12)
 
 
 def test_an_unchecked_solution_never_reaches_the_plan(monkeypatch):
