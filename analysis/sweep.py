@@ -64,7 +64,8 @@ def count_cached(tasks, cache_dir) -> int:
 
 def point_kpis(design: pd.DataFrame, people: pd.DataFrame, tasks: list, logs: dict) -> pd.DataFrame:
     """The points frame: the design's columns, then per point the KPIS, ``n_violation`` and ``n_red`` (people
-    whose violation / red-stop reduction is defined: the baseline drive has some), ``holds_<band>`` per band and
+    whose violation / red-stop reduction is defined: the baseline drive has some), ``n_failed`` (drives that failed,
+    missing from `logs`: their person is left out of the point's KPIs), ``holds_<band>`` per band and
     ``holds_all``; plus the bands' edges (``attrs['bands']``: key -> band, kpi, lo, hi; hi None =
     no upper edge)."""
     from analysis.kpi_spec import study_spec
@@ -83,8 +84,9 @@ def point_kpis(design: pd.DataFrame, people: pd.DataFrame, tasks: list, logs: di
             for slot, person in enumerate(people.to_dict("records")):
                 add_participant(st, point_id(int(point), slot),
                                 {a: person[a] for a in attrs if pd.notna(person[a])})
+        done = [t for t in tasks if (t.participant_id, t.condition) in logs]
         with st.transaction():
-            store_simulated(st, tasks, logs)
+            store_simulated(st, done, logs)
         spec = study_spec(definition(st))
         kpis = store_kpis(st, spec=spec)
     rows, edges = [], {}
@@ -102,6 +104,7 @@ def point_kpis(design: pd.DataFrame, people: pd.DataFrame, tasks: list, logs: di
             row[k] = float(mean.loc[k, "mean"])
         row["n_violation"] = int(mean.loc["violation_reduction_pct", "n"])
         row["n_red"] = int(mean.loc["red_stop_reduction_pct", "n"])
+        row["n_failed"] = sum(t.participant_id in ids and (t.participant_id, t.condition) not in logs for t in tasks)
         for key, (band, kpi) in BANDS.items():
             row[f"holds_{key}"] = bool(bands.loc[band, "holds"])
             hi = float(bands.loc[band, "hi"])
@@ -115,8 +118,10 @@ def point_kpis(design: pd.DataFrame, people: pd.DataFrame, tasks: list, logs: di
 
 
 def simulate_points(design, people, spec, workers=None, scheduler=None, client=None, cache_dir=None,
-                    progress=True, echo=None) -> pd.DataFrame:
-    """Drive every point of `design` (one simulate_cohort call) and return its points frame."""
+                    progress=True, echo=None, failures: list | None = None) -> pd.DataFrame:
+    """Drive every point of `design` (one simulate_cohort call) and return its points frame. A drive that fails
+    (pedas.drive.DriveError) does not stop the sweep: it is counted in the point's ``n_failed``, and appended to
+    `failures` as a dict (point, participant, seed, style, condition, kind, message)."""
     from pedas.cohort import default_cache_dir, simulate_cohort
 
     cdir = Path(cache_dir or default_cache_dir())
@@ -125,8 +130,14 @@ def simulate_points(design, people, spec, workers=None, scheduler=None, client=N
     phase = design["phase"].iloc[0]
     echo(f"{phase}: {len(design)} points x {len(people)} people x 2 conditions = {len(tasks)} drives, "
          f"{count_cached(tasks, cdir)} already cached")
+    failed: list = []
     logs = simulate_cohort(tasks, workers=workers, scheduler=scheduler, client=client, cache_dir=cdir,
-                           progress=progress)
+                           progress=progress, failures=failed)
+    for task, exc in failed:
+        echo(f"drive failed: {exc}")
+        if failures is not None:
+            failures.append({"participant": task.participant_id, "seed": task.seed, "style": task.style,
+                             "condition": task.condition, "kind": exc.kind, "message": str(exc)})
     return point_kpis(design, people, tasks, logs)
 
 
@@ -141,7 +152,8 @@ def run_sweep(spec: SweepSpec, out: Path, workers=None, scheduler=None, client=N
     t0 = time.perf_counter()
     people = cohort(spec)
     design = morris_design(spec)
-    points = simulate_points(design, people, spec, workers, scheduler, client, cache_dir, progress, echo)
+    failures: list[dict] = []
+    points = simulate_points(design, people, spec, workers, scheduler, client, cache_dir, progress, echo, failures)
     edges = points.attrs["bands"]
     sobol_factors: list[str] = []
     if spec.sobol_n:
@@ -149,14 +161,14 @@ def run_sweep(spec: SweepSpec, out: Path, workers=None, scheduler=None, client=N
         more = sobol_design(spec, sobol_factors, start=len(design))
         design = pd.concat([design, more], ignore_index=True)
         points = pd.concat([points, simulate_points(more, people, spec, workers, scheduler, client, cache_dir,
-                                                    progress, echo)], ignore_index=True)
+                                                    progress, echo, failures)], ignore_index=True)
     meta = {
         "factors": [{"name": f, "lo": lo, "hi": hi} for f, lo, hi in spec.factors],
         "sobol_factors": sobol_factors, "trajectories": spec.trajectories, "morris_levels": MORRIS_LEVELS,
         "sobol_n": spec.sobol_n, "top": spec.top, "seed": spec.seed, "scenario": spec.scenario,
         "participants_per_style": spec.participants, "styles": list(spec.styles),
         "cohort": list(people["participant_id"]), "points": len(design),
-        "drives": 2 * len(design) * len(people), "bands": edges,
+        "drives": 2 * len(design) * len(people), "bands": edges, "failures": failures,
         "code_version": code_version(),
         "wall_s": round(time.perf_counter() - t0, 1),
         # the local pool's size as simulate_cohort chooses it (None on a Dask cluster)

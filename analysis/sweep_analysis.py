@@ -253,6 +253,15 @@ def ranking_lines(ind: pd.DataFrame) -> list[str]:
     return out
 
 
+def _failures_line(failures: list[dict]) -> str:
+    """How many drives of the sweep failed (each person with a failed drive is left out of that point)."""
+    if not failures:
+        return "Every drive of the sweep reached the end of the route without a safety or liveness violation."
+    kinds = pd.Series([f["kind"] for f in failures]).value_counts()
+    return (f"{len(failures)} drive(s) of the sweep failed ({', '.join(f'{k}: {n}' for k, n in kinds.items())}); "
+            "their persons are left out of those points' KPIs (points.csv n_failed, sweep.json failures).")
+
+
 def summary_lines(points: pd.DataFrame, meta: dict, current_code: str) -> list[str]:
     """The sweep's paragraph of the report (Markdown lines): design, code version (and whether it is the current
     one), what moves each KPI, what would have to be true."""
@@ -264,6 +273,8 @@ def summary_lines(points: pd.DataFrame, meta: dict, current_code: str) -> list[s
              f"{meta['trajectories']} trajectories over {', '.join(f['name'] for f in meta['factors'])}, then "
              + (f"Sobol with N = {meta['sobol_n']} over {', '.join(meta['sobol_factors'])}."
                 if meta["sobol_factors"] else "no Sobol phase."),
+             "",
+             _failures_line(meta.get("failures", [])),
              "",
              f"Simulation code of the sweep: {meta['code_version']}; "
              + ("the same as the current code." if same else

@@ -146,13 +146,17 @@ def _run_task_keyed(task: DriveTask, cache_dir: str | None, key: str) -> tuple[D
 
 def simulate_cohort(tasks: list[DriveTask], workers: int | None = None, scheduler: str | None = None,
                     cache_dir: str | Path | None = None, progress: bool = True,
-                    client=None) -> dict[tuple[str, str], pd.DataFrame]:
+                    client=None, failures: list | None = None) -> dict[tuple[str, str], pd.DataFrame]:
     """Run all `tasks`; {(participant_id, condition): drive log}.
 
     workers: size of the local process pool (default: CPU count, at most the number of tasks); scheduler: address
     of a Dask distributed scheduler to run on instead (or pass a ``distributed.Client`` as `client`); cached
-    tasks are read without starting any worker. A drive that fails (e.g. SafetyViolation) raises here.
+    tasks are read without starting any worker. A drive that fails (a :class:`pedas.drive.DriveError`, e.g. a
+    SafetyViolation) raises here, unless `failures` is a list: then ``(task, error)`` is appended to it, the
+    drive is missing from the result, and the other drives go on (a failure is not cached: a rerun tries again).
     """
+    from pedas.drive import DriveError
+
     from tqdm import tqdm
 
     cdir = Path(cache_dir or default_cache_dir())
@@ -175,10 +179,9 @@ def simulate_cohort(tasks: list[DriveTask], workers: int | None = None, schedule
             own = client is None
             cl = client or Client(scheduler)
             try:
-                futs = [cl.submit(_run_task_keyed, t, str(cdir), task_key(t), pure=False) for t in todo]
+                futs = {cl.submit(_run_task_keyed, t, str(cdir), task_key(t), pure=False): t for t in todo}
                 for fut in dask_completed(futs):
-                    task, df = fut.result()
-                    out[(task.participant_id, task.condition)] = df
+                    _collect(futs[fut], fut.result, out, failures, DriveError)
                     bar.update(1)
             finally:
                 if own:
@@ -186,14 +189,25 @@ def simulate_cohort(tasks: list[DriveTask], workers: int | None = None, schedule
         else:
             n = max(1, min(int(workers or os.cpu_count() or 1), len(todo)))
             with ProcessPoolExecutor(max_workers=n, mp_context=get_context("spawn")) as pool:
-                futs = [pool.submit(_run_task_keyed, t, str(cdir), task_key(t)) for t in todo]
+                futs = {pool.submit(_run_task_keyed, t, str(cdir), task_key(t)): t for t in todo}
                 for fut in as_completed(futs):
-                    task, df = fut.result()
-                    out[(task.participant_id, task.condition)] = df
+                    _collect(futs[fut], fut.result, out, failures, DriveError)
                     bar.update(1)
     finally:
         bar.close()
     return out
+
+
+def _collect(task: DriveTask, result, out: dict, failures: list | None, error_type) -> None:
+    """Put a finished drive into `out`, or its DriveError into `failures` (re-raised when that is None)."""
+    try:
+        _, df = result()
+    except error_type as exc:
+        if failures is None:
+            raise
+        failures.append((task, exc))
+        return
+    out[(task.participant_id, task.condition)] = df
 
 
 def cohort_tasks(participants: pd.DataFrame, base_seed: int = 0,

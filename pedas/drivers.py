@@ -295,10 +295,13 @@ class HumanDriver:
                 self._tl_decision.pop(tl.tl_id, None)
                 decision = None
             elif state == "yellow" and decision is None:
-                # stop if comfortable enough, else go if the line is reached before red, else stop hard
+                # stop if comfortable enough, else go if the line is reached before red, else stop hard. The time
+                # to the line counts with the driver's own slowing before it (a turn or curve just after the
+                # light): the mean of v and the anticipated wish at the line, not v
                 need = v * v / (2.0 * max(d - STOP_MARGIN, 0.1))
                 left = (seen.tl_remaining or 0.0) - lag
-                decision = "stop" if (need <= p.yellow_decel or v * max(left, 0.0) < d + 1.0) else "go"
+                v_go = 0.5 * (v + min(v, float(self._v0[self._idx(tl.s)])))
+                decision = "stop" if (need <= p.yellow_decel or v_go * max(left, 0.0) < d + 1.0) else "go"
                 self._tl_decision[tl.tl_id] = decision
                 self.events.append((t, tl.tl_id, f"yellow:{decision}"))
             elif state == "red" and decision != "go":

@@ -148,3 +148,21 @@ def test_cli_simulate_cohort_on_a_dask_scheduler(cli, tmp_db, tmp_path, cache):
         with Store.open(tmp_db, read_only=True) as st:
             n = st.df("SELECT n_samples FROM drives WHERE participant_id = 'P002' AND condition = 'baseline'")
         assert n["n_samples"][0] == len(pooled)
+
+
+def test_a_failed_drive_is_recorded_when_asked_and_raised_otherwise():
+    from pedas.cohort import _collect
+    from pedas.drive import DriveError, SafetyViolation
+
+    task = DriveTask("P001", 5, "normal", "baseline")
+
+    def boom():
+        raise SafetyViolation("red light TL4 crossed", "red_light")
+
+    out, failures = {}, []
+    _collect(task, boom, out, failures, DriveError)
+    assert out == {} and failures[0][0] == task and failures[0][1].kind == "red_light"
+    with pytest.raises(SafetyViolation, match="TL4"):
+        _collect(task, boom, out, None, DriveError)
+    _collect(task, lambda: (task, "log"), out, failures, DriveError)
+    assert out == {("P001", "baseline"): "log"} and len(failures) == 1
