@@ -117,3 +117,17 @@ def test_a_drive_records_its_settings_and_the_person_drives_faster():
         base.attrs["drive"]["driver"]["speed_factor"] + 0.1)
     town = base["segment"] == "urban"
     assert (fast.loc[fast["segment"] == "urban", "v"].max() > base.loc[town, "v"].max())
+
+
+def test_a_driver_who_goes_at_yellow_counts_with_braking_for_the_turn_behind_the_light():
+    """The drive the first full what-if sweep stopped at: a faster-than-documented participant saw TL4 turn yellow
+    12 m before the line at 29 km/h with a turn right behind it. Counting the time to the line at the current speed
+    said "go"; braking for the turn then brought the car to the line in red (SafetyViolation). The decision now
+    counts with that braking: the driver stops, and the drive completes."""
+    from pedas.drive import drive
+
+    wi = WhatIf(urban_density=0.833333, highway_density=1.5, lorry_share=0.25, compliance_shift=-0.15,
+                speeding_shift=0.05)
+    df = drive(613194163, "normal", "baseline", whatif=wi)
+    at_tl4 = df[(df["tl_id"] == "TL4") & (df["d_tl"] < 15)]
+    assert at_tl4["v"].min() < 0.1  # it stood at TL4
