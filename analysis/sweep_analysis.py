@@ -212,7 +212,9 @@ def write_analysis(out: Path, points: pd.DataFrame, meta: dict) -> list[Path]:
 
     out.mkdir(parents=True, exist_ok=True)
     ind, reg = indices(points, meta), region(points, meta)
-    ind.to_csv(out / "indices.csv", **CSV)
+    # 8 significant digits: SALib's bootstrap half-widths and sigma of the same points, computed in two processes,
+    # were seen to differ at the 13th (numpy's vectorised reductions are not bit-stable across array placement)
+    ind.to_csv(out / "indices.csv", **{**CSV, "float_format": "%.8g"})
     reg.to_csv(out / "region.csv", **CSV)
     notes = [f"Design: {meta['points']} points ({meta['trajectories']} Morris trajectories over "
              f"{len(meta['factors'])} factors; Sobol N = {meta['sobol_n']} over "
