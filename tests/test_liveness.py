@@ -89,7 +89,7 @@ def test_a_cohort_drive_error_names_the_participant(monkeypatch, tmp_path):
     import pedas.drive
     from pedas.cohort import DriveTask, run_task
 
-    def stalled(seed, style, condition, traffic_seed=None, scenario=None):
+    def stalled(seed, style, condition, traffic_seed=None, scenario=None, whatif=None):
         raise LivenessViolation(f"pEDAS drive of participant seed {seed} ({style}): standing still at t=1 s")
 
     monkeypatch.setattr(pedas.drive, "drive", stalled)

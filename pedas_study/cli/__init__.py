@@ -20,7 +20,9 @@ import argparse
 import importlib
 import logging
 import os
+import signal
 import sys
+import threading
 import traceback
 from typing import Callable, Sequence
 
@@ -152,8 +154,19 @@ def _silence_stdout() -> None:
         pass
 
 
+def _interruptible() -> None:
+    """Ctrl-C (SIGINT) stops the command even when the parent started it with SIGINT ignored or blocked: a shell
+    script's background job ignores it, and a process started while a thread blocked it inherits the mask. The
+    servers (`survey serve`, `live serve`, `drive replay --serve`) stop on it."""
+    if threading.current_thread() is not threading.main_thread():
+        return  # signal dispositions belong to the main thread (main() called in-process from a thread)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run `pedas-study` with `argv` (default: the process arguments); the exit code."""
+    _interruptible()
     try:
         if os.environ.get(LOG_ENV):  # e.g. info: how long a command waited for a store another process held
             logging.basicConfig(level=os.environ[LOG_ENV].upper(), format="pedas-study: %(message)s", force=True)
