@@ -253,7 +253,7 @@ def sweep_step(cfg: ReportConfig) -> None:
     comparison scenario beside the share of sweep points where each holds); skipped.txt without a sweep."""
     from analysis.render import latex_table, markdown_table
     from analysis.sweep import CSV, read_run
-    from analysis.sweep_analysis import bands_beside, region, summary_lines, write_analysis
+    from analysis.sweep_analysis import bands_beside, summary_lines, write_analysis
     from pedas.cohort import code_version
 
     with _fresh_dir(cfg.out / "sweep") as out:
@@ -262,8 +262,8 @@ def sweep_step(cfg: ReportConfig) -> None:
                                        encoding="utf-8")
             return
         _, points, meta = read_run(cfg.sweep_dir)
-        write_analysis(out, points, meta)
-        (out / "sweep.md").write_text("\n".join(summary_lines(points, meta, code_version())) + "\n",
+        ind, reg = write_analysis(out, points, meta)
+        (out / "sweep.md").write_text("\n".join(summary_lines(ind, reg, meta, code_version())) + "\n",
                                       encoding="utf-8")
         folder = cfg.out / "scenarios" if (cfg.out / "scenarios" / "bands.csv").exists() else cfg.out / "drives"
         if not (folder / "bands.csv").exists():
@@ -274,7 +274,7 @@ def sweep_step(cfg: ReportConfig) -> None:
         labels = {cfg.scenario: f"{cfg.scenario} (default)"}
         if cfg.compares():
             labels[cfg.compare_scenario] = f"{cfg.compare_scenario} (previous)"
-        tidy, header, rows = bands_beside(bands, region(points, meta), labels)
+        tidy, header, rows = bands_beside(bands, reg, labels)
         title = "Reproduction bands by traffic scenario and across the what-if sweep"
         tidy.to_csv(out / "bands.csv", **CSV)
         (out / "bands.md").write_text(markdown_table(header, rows, title), encoding="utf-8")

@@ -206,8 +206,9 @@ def plot_indices(ind: pd.DataFrame, out: Path) -> list[Path]:
     return save_figure(fig, out / "figures", "sweep_indices")
 
 
-def write_analysis(out: Path, points: pd.DataFrame, meta: dict) -> list[Path]:
-    """indices.csv/.md/.tex, region.csv/.md/.tex and figures/sweep_indices.png/.pdf in `out`, from the points."""
+def write_analysis(out: Path, points: pd.DataFrame, meta: dict) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """indices.csv/.md/.tex, region.csv/.md/.tex and figures/sweep_indices.png/.pdf in `out`, from the points;
+    the (indices, region) frames written, for the report's paragraph and bands (computed once)."""
     from analysis.render import latex_table, markdown_table
 
     out.mkdir(parents=True, exist_ok=True)
@@ -233,8 +234,8 @@ def write_analysis(out: Path, points: pd.DataFrame, meta: dict) -> list[Path]:
     (out / "region.md").write_text(markdown_table(header, rows, title, notes=region_lines(reg), notes_style="plain"),
                                    encoding="utf-8")
     (out / "region.tex").write_text(latex_table(header, rows, title, label="tab:sweep_region"), encoding="utf-8")
-    files = [out / f"{stem}.{ext}" for stem in ("indices", "region") for ext in ("csv", "md", "tex")]
-    return files + plot_indices(ind, out)
+    plot_indices(ind, out)
+    return ind, reg
 
 
 # ------------------------------------------------------------------------------------------ in the report
@@ -264,10 +265,9 @@ def _failures_line(failures: list[dict]) -> str:
             "their persons are left out of those points' KPIs (points.csv n_failed, sweep.json failures).")
 
 
-def summary_lines(points: pd.DataFrame, meta: dict, current_code: str) -> list[str]:
-    """The sweep's paragraph of the report (Markdown lines): design, code version (and whether it is the current
-    one), what moves each KPI, what would have to be true."""
-    ind, reg = indices(points, meta), region(points, meta)
+def summary_lines(ind: pd.DataFrame, reg: pd.DataFrame, meta: dict, current_code: str) -> list[str]:
+    """The sweep's paragraph of the report (Markdown lines) from its :func:`indices` and :func:`region`: design,
+    code version (and whether it is the current one), what moves each KPI, what would have to be true."""
     same = meta["code_version"] == current_code
     lines = [f"The what-if sweep (docs/sweep.md) drove {len(meta['cohort'])} reference participants "
              f"({meta['participants_per_style']} per style: {', '.join(meta['styles'])}) in the {meta['scenario']} "
