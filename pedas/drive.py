@@ -173,8 +173,6 @@ def _setup(net_file: str, scenario: str, dp_time_weight: float = 1.0):
     from pedas.dp import W_TIME_DEFAULT, dp_reference
 
     route = study_route(net_file, scenario=scenario)
-    if dp_time_weight == 1.0:
-        return route, dp_reference(route)
     return route, dp_reference(route, w_time=W_TIME_DEFAULT * dp_time_weight)
 
 
@@ -229,7 +227,7 @@ def drive(participant_seed: int, style: str, condition: str, *, traffic_seed: in
                                              "warning")}
     wall0 = time.perf_counter()
     try:
-        demand = None if wi.is_default() else wi.demand(load_demand(scenario=sc))
+        demand = wi.demand(load_demand(scenario=sc))
         with Traffic(tseed, net_file, demand=demand, scenario=sc) as tr:
             steps, max_veh, t_ins = _loop(tr, lights, human, ctrl, guard, alive, cols, max_duration)
     except DriveError as exc:

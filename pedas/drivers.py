@@ -266,6 +266,7 @@ class HumanDriver:
         lag = t - seen.t
         a_int = math.inf  # IDM interaction term (most restrictive)
         a_hard = math.inf  # kinematic deceleration needed to stop before a line
+        a_go = -math.inf  # committed to go at a yellow light: the least acceleration that reaches the line before red
 
         # --- leader: the delayed view extrapolated over the lag (HDM temporal anticipation): the leader keeps its
         # seen acceleration (until it stands), the own car moved s - seen.s meanwhile
@@ -308,6 +309,12 @@ class HumanDriver:
                 decision = "stop"
             if decision == "stop":
                 a_int, a_hard = self._stop_line(v, d, a_int, a_hard)
+            elif decision == "go" and state == "yellow":
+                # a driver who has decided to go does not slow down into the red (for a turn behind the light,
+                # or an advice falling after the decision): cover d + 1 m in the yellow left, less one step
+                tt = max((seen.tl_remaining or 0.0) - lag - self.dt, self.dt)
+                a_go = min(2.0 * (d + 1.0 - v * tt) / (tt * tt), p.a_max)
+        a_lead = a_int  # only the leader so far: a commitment to a yellow light never overrides it
 
         # --- stop sign: a standing obstacle until the driver has halted at the line for the dwell time
         while self._ss_i < len(self._stops) and self._stops[self._ss_i].s < s - 0.1:
@@ -334,6 +341,7 @@ class HumanDriver:
             v0_next = self.v_wish(s + v * self.dt)
             if v > v0_next:
                 a = min(a, (v0_next - v) / self.dt)
+        a = max(a, min(a_go, p.a_max + a_lead))
         a = min(a, a_hard)
         a_lo, a_hi = self._vehicle_limits(v, s)
         a = min(max(a, a_lo), a_hi)

@@ -186,3 +186,24 @@ def test_assisted_drive_follows_advice_on_a_free_road():
     late = v[s > 2000]
     assert np.abs(late - target).max() <= HUD_BAND + 0.3 * KMH  # stays in (about) the band
     assert (a[s > 2000] <= 0.0).mean() > 0.3  # and coasts a good part of the time
+
+
+def test_a_driver_committed_at_yellow_does_not_slow_into_the_red():
+    """Decided to go at a yellow light, the driver brakes at most down to the deceleration that still covers the
+    distance to the line + 1 m in the yellow left less one step: a = 2 (d + 1 - v T) / T^2 (hand-worked), even
+    under a falling advice with a warning tone, which on green makes the same driver brake hard."""
+    tl = TrafficLight("Y", 440.0, (("green", 30.0), ("yellow", 4.0), ("red", 26.0)), offset=0.0)
+    route = Route.synthetic(length=600.0, ds=1.0, speed_limit=50 * KMH, lights=[tl])
+    drv = sample_driver(5, "normal")
+    human = HumanDriver(route, drv, assisted=True)
+    # 20 m before the line at the own wish speed (too close to stop comfortably), yellow left for 21 m + 0.3 s: go
+    s, v = 420.0, human.v_wish(440.0)
+    left = 21.0 / v + 0.3
+    on_yellow = human.act(30.5, s, v, Perception(30.5, None, None, "yellow", left, advice=5.0, warning=True, s=s))
+    assert human.events == [(30.5, "Y", "yellow:go")]
+    tt = left - DT
+    assert on_yellow == pytest.approx(2.0 * (20.0 + 1.0 - v * tt) / tt ** 2)
+    assert -1.5 < on_yellow < 0.0
+    on_green = HumanDriver(route, drv, assisted=True).act(
+        20.0, s, v, Perception(20.0, None, None, "green", 10.0, advice=5.0, warning=True, s=s))
+    assert on_green < on_yellow - 1.0
