@@ -131,3 +131,16 @@ def test_a_driver_who_goes_at_yellow_counts_with_braking_for_the_turn_behind_the
     df = drive(613194163, "normal", "baseline", whatif=wi)
     at_tl4 = df[(df["tl_id"] == "TL4") & (df["d_tl"] < 15)]
     assert at_tl4["v"].min() < 0.1  # it stood at TL4
+
+
+def test_an_assisted_driver_who_went_at_yellow_does_not_follow_a_falling_advice_into_the_red():
+    """The only failed drive of the committed sweep (Sobol point 77): a sporty assisted participant decided to go
+    as TL6 turned yellow 50 m ahead at 47 km/h; the advice then fell to 40 km/h with a warning tone, the driver
+    followed it fully and reached the line 0.2 s into the red (SafetyViolation). Committed, the driver now keeps
+    the speed that clears the line in the yellow: the drive completes and passes TL6 without stopping."""
+    from pedas.drive import drive, green_crossings
+
+    wi = WhatIf(urban_density=0.657639, compliance_shift=0.13981, speeding_shift=0.011787)
+    df = drive(2100531076, "sporty", "pedas", whatif=wi)
+    tl6 = green_crossings(df).set_index("tl_id").loc["TL6"]
+    assert tl6["state_at_crossing"] == "yellow" and not tl6["stopped"]
