@@ -63,7 +63,8 @@ def _ordered(df: pd.DataFrame, name: str) -> pd.DataFrame:
 CSV_FLOAT = "%.12g"
 
 
-def _stable(frame: pd.DataFrame) -> pd.DataFrame:
+def stable_frame(frame: pd.DataFrame) -> pd.DataFrame:
+    """A copy of `frame` with every numeric (non-boolean) value below 1e-10 in magnitude set to 0 (see CSV_FLOAT)."""
     num = frame.select_dtypes("number").columns.difference(frame.select_dtypes("bool").columns)
     out = frame.copy()
     out[num] = out[num].mask(out[num].abs() < 1e-10, 0.0)
@@ -162,10 +163,10 @@ class SurveyAnalysis:
         paths = []
         for name, frame in self.tables().items():
             p = out / f"{name}.csv"
-            _stable(frame).to_csv(p, index=False, float_format=CSV_FLOAT)
+            stable_frame(frame).to_csv(p, index=False, float_format=CSV_FLOAT)
             paths.append(p)
         p = out / "composites.csv"
-        _stable(self.composites).to_csv(p, index=True, index_label="participant_id", float_format=CSV_FLOAT)
+        stable_frame(self.composites).to_csv(p, index=True, index_label="participant_id", float_format=CSV_FLOAT)
         paths.append(p)
         p = out / "warnings.txt"
         p.write_text("".join(w + "\n" for w in self.warnings))

@@ -68,6 +68,8 @@ class ExtendedAnalysis:
         """<table>.csv for every table (10 significant digits), <spec>.lav for every model syntax, extended.md,
         settings.json (study, seed, resamples, group, structural paths), warnings.txt and timings.json (seconds per
         step; every other file is byte-identical between reruns)."""
+        from analysis.acceptance import stable_frame
+
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
         paths = []
@@ -75,7 +77,7 @@ class ExtendedAnalysis:
             if name == "invariance" and frame.empty:  # no group variable: no invariance table
                 continue
             p = out / f"{name}.csv"
-            frame.to_csv(p, index=False, float_format=CSV_FLOAT)
+            stable_frame(frame).to_csv(p, index=False, float_format=CSV_FLOAT)
             paths.append(p)
         if len(self.invariance_groups):
             p = out / "invariance_groups.csv"

@@ -198,11 +198,13 @@ def survey_step(cfg: ReportConfig) -> None:
 
 def write_table3_pca(pca, out: Path) -> None:
     """survey/pca/: loadings.csv, reliability.csv and table3.{md,tex,csv} of the analysis with PCA loadings."""
+    from analysis.acceptance import CSV_FLOAT, stable_frame
     from analysis.tables_survey import render_table
 
     out.mkdir(parents=True, exist_ok=True)
     for name in ("loadings", "reliability"):
-        getattr(pca, name).to_csv(out / f"{name}.csv", index=False, lineterminator="\n", float_format="%.12g")
+        stable_frame(getattr(pca, name)).to_csv(out / f"{name}.csv", index=False, lineterminator="\n",
+                                                float_format=CSV_FLOAT)
     for fmt in ("md", "tex", "csv"):
         (out / f"table3.{fmt}").write_text(render_table(pca, "table3", fmt), encoding="utf-8")
 

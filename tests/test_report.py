@@ -280,3 +280,25 @@ def test_full_reference_report_through_the_cli(cli, tmp_path):
     bands = pd.read_csv(out / "drives" / "bands.csv")
     assert len(bands) == 4 and bands["our_value"].notna().all()
     _check_tables_parse(out / "tables")
+
+
+def test_pca_tables_write_a_variance_at_its_bound_as_zero(tmp_path, monkeypatch):
+    """A variance the optimiser leaves at its bound comes out as 0 or ~1e-16 from run to run; the files do not."""
+    from types import SimpleNamespace
+
+    import analysis.tables_survey
+    from analysis.report import write_table3_pca
+
+    monkeypatch.setattr(analysis.tables_survey, "render_table", lambda *a: "")  # the CSVs are under test
+
+    def files(error_var):
+        lo = pd.DataFrame({"stage": ["initial"], "construct": ["PEoU"], "item": ["PEoU4"], "loading": [0.865113590809],
+                           "error_var": [error_var], "flag_low": [False]})
+        rel = pd.DataFrame({"construct": ["PEoU"], "alpha": [0.9], "cr": [0.91], "ave": [0.7]})
+        out = tmp_path / repr(error_var)
+        write_table3_pca(SimpleNamespace(loadings=lo, reliability=rel), out)
+        return (out / "loadings.csv").read_bytes(), (out / "reliability.csv").read_bytes()
+
+    assert files(0.0) == files(1.38052080008e-16)
+    assert b",0,False" in files(0.0)[0]
+    assert files(0.0) != files(2e-9)
