@@ -171,3 +171,28 @@ def test_car_following_happens_in_both_conditions(participant, style):
             assert car_following_share(df, "highway") > 0.1
         if condition == "pedas":  # the car-following MPC is exercised, not only the signal MPC
             assert (df["controller"] == "cf").mean() > 0.1
+
+
+def test_traffic_alone_replays_the_drive_it_times(baseline_log):
+    """bench drive's floor: the baseline drive's speeds replayed into SUMO arrive after the logged steps; a log
+    whose speeds were changed does not, and is refused instead of timed."""
+    from pedas_study.bench.drive import traffic_alone
+
+    res = traffic_alone(baseline_log)
+    assert res["steps"] == baseline_log.attrs["drive"]["steps"] and res["ms_per_step"] > 0
+    slower = baseline_log.copy()
+    slower.attrs = baseline_log.attrs
+    slower["v"] = slower["v"] * 0.9
+    with pytest.raises(RuntimeError, match="did not reproduce"):
+        traffic_alone(slower)
+
+
+def test_bench_drive_reports_the_traffic_alone(cli):
+    """bench drive prints SUMO's own share: the replayed baseline drive's ms/step and real-time factor."""
+    import re
+
+    r = cli("bench", "drive", "--cohort", "0", "--scenario", "single-lane", db=None)
+    assert r.code == 0, r.err
+    m = re.search(r"^traffic alone \(SUMO replaying the baseline drive\): ([\d.]+) ms/step -> (\d+)x real time",
+                  r.out, re.M)
+    assert m and float(m[1]) > 0 and int(m[2]) > 0, r.out

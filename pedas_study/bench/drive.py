@@ -1,11 +1,16 @@
 """Time of simulated drives (`pedas-study bench drive`): real-time factor of single drives (baseline, pEDAS with the
-default QP backend, and pEDAS with the other backend), the cohort's worker speed-up.
+default QP backend, and pEDAS with the other backend), the traffic simulation alone, the cohort's worker speed-up.
 
 A drive's wall time counts the drive loop only (SUMO start, traffic, driver, controller, invariants); the
 one-time setup per process (network build check, route, DP reference) is reported separately. The cohort
 speed-up runs the same small cohort on 1 and on 2 worker processes with empty caches; the projection to 68 drives
 on 2 workers = one worker's start-up overhead + the mean drive-loop time x 68 / 2 (the drives of a cohort are
 independent, so two workers share them evenly).
+
+The traffic simulation alone is the floor under every drive of a scenario: the baseline drive's logged speeds are
+replayed into a fresh SUMO run of the same traffic seed (:func:`traffic_alone`), and only the commands a drive sends
+SUMO each step are timed (set the ego's speed, step, did it arrive). No driver model, controller, invariant or log
+runs, so no drive of that scenario, assisted or not, can run faster than this.
 """
 from __future__ import annotations
 
@@ -13,14 +18,16 @@ import statistics
 import tempfile
 import time
 
+from pedas.constants import DT
 from pedas.vocabulary import CONDITIONS, STYLES
 
 
 def bench_drive(repeats: int = 1, cohort: int = 3, seed: int = 1, style: str = "normal",
                 scenario: str | None = None) -> dict:
     """{'setup_s', 'scenario', 'baseline': {...}, 'pedas': {...}, 'pedas_<backend>': {...}, 'pedas_over_baseline',
-    'cohort': {...}|None}. 'pedas' runs the default QP backend (CONTROLLER.qp_backend), 'pedas_<backend>' the other
-    one on the same drive; every drive in the traffic `scenario` (default pedas.scenario.DEFAULT_SCENARIO)."""
+    'traffic_alone': {...}, 'cohort': {...}|None}. 'pedas' runs the default QP backend (CONTROLLER.qp_backend),
+    'pedas_<backend>' the other one on the same drive; 'traffic_alone' replays the baseline drive
+    (:func:`traffic_alone`); every drive in the traffic `scenario` (default pedas.scenario.DEFAULT_SCENARIO)."""
     import dataclasses
 
     from pedas.drive import drive, study_route_and_reference
@@ -36,10 +43,11 @@ def bench_drive(repeats: int = 1, cohort: int = 3, seed: int = 1, style: str = "
     other = [b for b in BACKENDS if b != CONTROLLER.qp_backend]
     runs = [(cond, cond, None) for cond in CONDITIONS] + [
         (f"pedas_{b}", "pedas", dataclasses.replace(CONTROLLER, qp_backend=b)) for b in other]
+    logs = {}
     for key, cond, settings in runs:
         walls, info = [], None
         for _ in range(repeats):
-            df = drive(seed, style, cond, settings=settings, scenario=sc)
+            df = logs[key] = drive(seed, style, cond, settings=settings, scenario=sc)
             info = df.attrs["drive"]
             walls.append(info["wall_s"])
         wall = statistics.median(walls)
@@ -48,8 +56,45 @@ def bench_drive(repeats: int = 1, cohort: int = 3, seed: int = 1, style: str = "
                     "max_vehicles": info["max_vehicles"],
                     "backend": (settings or CONTROLLER).qp_backend if cond == "pedas" else None}
     out["pedas_over_baseline"] = out["pedas"]["wall_s_median"] / out["baseline"]["wall_s_median"]
+    out["traffic_alone"] = traffic_alone(logs["baseline"], repeats)
     out["cohort"] = _cohort_speedup(cohort, seed, sc) if cohort > 0 else None
     return out
+
+
+def traffic_alone(log, repeats: int = 1) -> dict:
+    """Time SUMO alone on a drive: replay the drive log's speeds (m/s) as the ego's speed commands into a new
+    simulation of the drive's scenario and traffic seed. {'ms_per_step', 'rtf_median', 'steps', 'repeats'}, medians
+    over `repeats` replays.
+
+    The replay must reproduce the drive: the ego has to arrive after exactly the logged number of steps (SUMO is
+    deterministic for a seed), else RuntimeError, because a replay that drove elsewhere timed something else.
+    """
+    from pedas.traffic import Traffic
+
+    info = log.attrs["drive"]
+    v = log["v"].to_numpy(float)
+    # the command of step k is the speed logged at step k + 1; the last one is the logged a applied once more
+    cmds = [*v[1:].tolist(), max(float(v[-1] + log["a"].iloc[-1] * DT), 0.0)]
+    walls = []
+    for _ in range(repeats):
+        with Traffic(info["traffic_seed"], scenario=info["scenario"]) as tr:
+            tr.insert_ego()
+            steps, arrived = 0, False
+            t0 = time.perf_counter()
+            for cmd in cmds:
+                tr.set_ego_speed(cmd)
+                tr.step()
+                steps += 1
+                if tr.ego_arrived():
+                    arrived = True
+                    break
+            walls.append(time.perf_counter() - t0)
+        if not arrived or steps != info["steps"]:
+            raise RuntimeError(f"the replay of the {info['scenario']} drive (traffic seed {info['traffic_seed']}) "
+                               f"did not reproduce it: {steps} steps of {info['steps']}")
+    wall = statistics.median(walls)
+    return {"ms_per_step": 1000.0 * wall / info["steps"], "rtf_median": info["duration_s"] / wall,
+            "steps": info["steps"], "repeats": repeats}
 
 
 def _cohort_speedup(n: int, seed: int, scenario: str) -> dict:
