@@ -155,8 +155,6 @@ def simulate_cohort(tasks: list[DriveTask], workers: int | None = None, schedule
     SafetyViolation) raises here, unless `failures` is a list: then ``(task, error)`` is appended to it, the
     drive is missing from the result, and the other drives go on (a failure is not cached: a rerun tries again).
     """
-    from pedas.drive import DriveError
-
     from tqdm import tqdm
 
     cdir = Path(cache_dir or default_cache_dir())
@@ -181,7 +179,7 @@ def simulate_cohort(tasks: list[DriveTask], workers: int | None = None, schedule
             try:
                 futs = {cl.submit(_run_task_keyed, t, str(cdir), task_key(t), pure=False): t for t in todo}
                 for fut in dask_completed(futs):
-                    _collect(futs[fut], fut.result, out, failures, DriveError)
+                    _collect(futs[fut], fut.result, out, failures)
                     bar.update(1)
             finally:
                 if own:
@@ -191,18 +189,21 @@ def simulate_cohort(tasks: list[DriveTask], workers: int | None = None, schedule
             with ProcessPoolExecutor(max_workers=n, mp_context=get_context("spawn")) as pool:
                 futs = {pool.submit(_run_task_keyed, t, str(cdir), task_key(t)): t for t in todo}
                 for fut in as_completed(futs):
-                    _collect(futs[fut], fut.result, out, failures, DriveError)
+                    _collect(futs[fut], fut.result, out, failures)
                     bar.update(1)
     finally:
         bar.close()
     return out
 
 
-def _collect(task: DriveTask, result, out: dict, failures: list | None, error_type) -> None:
-    """Put a finished drive into `out`, or its DriveError into `failures` (re-raised when that is None)."""
+def _collect(task: DriveTask, result, out: dict, failures: list | None) -> None:
+    """Put a finished drive (`result()`) into `out`, or its DriveError into `failures` (re-raised when that is
+    None)."""
+    from pedas.drive import DriveError
+
     try:
         _, df = result()
-    except error_type as exc:
+    except DriveError as exc:
         if failures is None:
             raise
         failures.append((task, exc))

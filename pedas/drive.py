@@ -32,6 +32,7 @@ import pandas as pd
 from pedas.constants import DT
 from pedas.drivers import DriverParams, HumanDriver, Perception, sample_driver
 from pedas.network import build_network
+from pedas.params import CONTROLLER
 from pedas.route_study import study_route
 from pedas.scenario import get_scenario
 from pedas.traffic import Traffic, load_demand
@@ -211,14 +212,13 @@ def drive(participant_seed: int, style: str, condition: str, *, traffic_seed: in
     drv = wi.driver(driver or sample_driver(participant_seed, style))
     tseed = int(participant_seed if traffic_seed is None else traffic_seed)
     assisted = condition == "pedas"
-    human = HumanDriver(route, drv, assisted=assisted, band=wi.hud_band)
+    cs = wi.controller(settings or CONTROLLER)
+    human = HumanDriver(route, drv, assisted=assisted, band=cs.hud_band)  # the band the HUD shows
     ctrl = controller if assisted else None
     if assisted and ctrl is None:
         from pedas.controller import PedasController
 
-        from pedas.params import CONTROLLER
-
-        ctrl = PedasController(route, v_dp=v_dp, settings=wi.controller(settings or CONTROLLER))
+        ctrl = PedasController(route, v_dp=v_dp, settings=cs)
     guard = SafetyGuard(route)
     alive = LivenessGuard()
     lights = tuple(route.lights)

@@ -114,8 +114,9 @@ class WhatIf:
             speed_factor_hw=params.speed_factor_hw + self.speeding_shift)
 
     def controller(self, settings):
-        """Controller settings (:class:`pedas.params.ControllerParams`) with the HUD band applied."""
-        if self.hud_band == settings.hud_band:
+        """Controller settings (:class:`pedas.params.ControllerParams`) with the HUD band applied; `settings`
+        themselves (their own band) when this setting is at its default."""
+        if self.hud_band_kmh == WhatIf.hud_band_kmh or self.hud_band == settings.hud_band:
             return settings
         return dataclasses.replace(settings, hud_band=self.hud_band)
 

@@ -94,6 +94,14 @@ def test_hud_band_reaches_the_hud():
     assert advisory(state, plan, ctx, band=wide.hud_band).hud_arrow == 0
 
 
+def test_default_whatif_keeps_the_band_of_the_given_controller_settings():
+    import dataclasses
+
+    own = dataclasses.replace(CONTROLLER, hud_band=1.0 * KMH)
+    assert WhatIf().controller(own) is own
+    assert WhatIf(hud_band_kmh=3.0).controller(own).hud_band == pytest.approx(3.0 * KMH)
+
+
 def test_whatif_is_part_of_the_task_and_its_key():
     import pandas as pd
 
