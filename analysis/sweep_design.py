@@ -9,18 +9,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
-
 import numpy as np
 import pandas as pd
 
 from pedas.paths import REFERENCE_DIR
 from pedas.scenario import DEFAULT_SCENARIO
 from pedas.vocabulary import STYLES
+from pedas.whatif import FACTORS, WhatIf
 from study.errors import UserError
-
-if TYPE_CHECKING:
-    from pedas.whatif import WhatIf
 
 #: Morris grid levels (SALib's default; the step is levels / (2 (levels - 1)) of the range)
 MORRIS_LEVELS = 4
@@ -51,17 +47,8 @@ class SweepSpec:
         return {f: (lo, hi) for f, lo, hi in self.factors}
 
 
-def all_factors() -> dict:
-    """The factors a sweep may vary: :data:`pedas.whatif.FACTORS` (name -> Factor with lo, hi, unit, doc)."""
-    from pedas.whatif import FACTORS
-
-    return FACTORS
-
-
 def default_value(name: str) -> float:
     """The default of a what-if field as a number (NaN for None: the scenario's own value)."""
-    from pedas.whatif import WhatIf
-
     v = getattr(WhatIf(), name)
     return np.nan if v is None else float(v)
 
@@ -69,7 +56,7 @@ def default_value(name: str) -> float:
 def parse_factors(texts: list[str] | None) -> tuple[tuple[str, float, float], ...]:
     """(name, lo, hi) per ``name`` or ``name=lo:hi`` (default: every factor with its range from FACTORS, in their
     order). Unknown or repeated name, unreadable range or lo >= hi -> UserError."""
-    known = all_factors()
+    known = FACTORS
     if not texts:
         return tuple((f.name, float(f.lo), float(f.hi)) for f in known.values())
     out: list[tuple[str, float, float]] = []
@@ -93,7 +80,7 @@ def parse_factors(texts: list[str] | None) -> tuple[tuple[str, float, float], ..
             raise UserError(f"--factors {text}: lo must be below hi")
         for v in (lo, hi):  # the design reaches both ends of the range
             try:
-                _whatif(**{name: v})
+                WhatIf(**{name: v})
             except ValueError as exc:
                 raise UserError(f"--factors {text}: {exc}") from None
         out.append((name, lo, hi))
@@ -124,7 +111,7 @@ def problem(factors: tuple[tuple[str, float, float], ...]) -> dict:
 
 
 def _frame(x: np.ndarray, names: list[str], phase: str, start: int) -> pd.DataFrame:
-    cols = list(all_factors())
+    cols = list(FACTORS)
     df = pd.DataFrame({c: np.full(len(x), default_value(c)) for c in cols})
     for j, name in enumerate(names):
         df[name] = np.round(x[:, j], DIGITS) + 0.0  # + 0.0: no -0 in design.csv
@@ -153,15 +140,9 @@ def sobol_design(spec: SweepSpec, top: list[str], start: int) -> pd.DataFrame:
     return _frame(x, list(top), "sobol", start)
 
 
-def _whatif(**values) -> "WhatIf":
-    from pedas.whatif import WhatIf
-
-    return WhatIf(**values)
-
-
-def whatif_of(row) -> "WhatIf":
+def whatif_of(row) -> WhatIf:
     """The :class:`pedas.whatif.WhatIf` of a design row (NaN = the field's default)."""
-    return _whatif(**{f: float(row[f]) for f in all_factors() if f in row and pd.notna(row[f])})
+    return WhatIf(**{f: float(row[f]) for f in FACTORS if f in row and pd.notna(row[f])})
 
 
 def cohort(spec: SweepSpec) -> pd.DataFrame:

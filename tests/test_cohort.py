@@ -152,7 +152,7 @@ def test_cli_simulate_cohort_on_a_dask_scheduler(cli, tmp_db, tmp_path, cache):
 
 def test_a_failed_drive_is_recorded_when_asked_and_raised_otherwise():
     from pedas.cohort import _collect
-    from pedas.drive import DriveError, SafetyViolation
+    from pedas.drive import SafetyViolation
 
     task = DriveTask("P001", 5, "normal", "baseline")
 
@@ -160,9 +160,9 @@ def test_a_failed_drive_is_recorded_when_asked_and_raised_otherwise():
         raise SafetyViolation("red light TL4 crossed", "red_light")
 
     out, failures = {}, []
-    _collect(task, boom, out, failures, DriveError)
+    _collect(task, boom, out, failures)
     assert out == {} and failures[0][0] == task and failures[0][1].kind == "red_light"
     with pytest.raises(SafetyViolation, match="TL4"):
-        _collect(task, boom, out, None, DriveError)
-    _collect(task, lambda: (task, "log"), out, failures, DriveError)
+        _collect(task, boom, out, None)
+    _collect(task, lambda: (task, "log"), out, failures)
     assert out == {("P001", "baseline"): "log"} and len(failures) == 1
