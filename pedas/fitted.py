@@ -2,55 +2,31 @@
 limit line (p3, p4, eq. 6a) and the power map a00..a02 (eq. 5).
 
 The fits are exact (:mod:`pedas.exact_lstsq`), so refitting gives the same bits on every machine; committing them
-still makes the model reviewable as numbers, and a test checks that :func:`refit` reproduces the file. A record
-applies only to the vehicle parameters and speed range it was fitted for (its ``key`` is a hash of both); any
-other vehicle or range is fitted on the fly, with the same exact methods.
+still makes the model reviewable as numbers, and a test checks that :func:`refit` reproduces the file. Reading the
+file is :mod:`pedas.coefficients`' job (the vehicle and power models read it there; this module imports them).
 
 Refit after changing `pedas.params.LEAF` or a fitting method: ``python -m pedas.fitted`` (``make refit``).
 """
 from __future__ import annotations
 
-import hashlib
 import json
 from dataclasses import asdict
-from functools import lru_cache
 from pathlib import Path
 
+from pedas.coefficients import FITS_FILE, fit_key
 from pedas.params import LEAF, VehicleParams
-from pedas.vehicle import V_RANGE_DEFAULT
-
-FITS_FILE = Path(__file__).with_name("fitted_coefficients.json")
-
-
-def fit_key(p: VehicleParams, v_range: tuple[float, float]) -> str:
-    """Hash of the vehicle parameters and the fitted speed range (floats by their exact repr)."""
-    blob = json.dumps({"params": asdict(p), "v_range": [float(v_range[0]), float(v_range[1])]}, sort_keys=True)
-    return hashlib.sha256(blob.encode()).hexdigest()[:16]
+from pedas.power import fit_power_map
+from pedas.vehicle import V_RANGE_DEFAULT, fit_aero, fit_traction_limit
 
 
 def refit(p: VehicleParams = LEAF, v_range: tuple[float, float] = V_RANGE_DEFAULT) -> dict:
     """The coefficients of `p` over `v_range` (m/s), fitted now: {key, v_range, aero, traction_limit, power_map}."""
-    from pedas.power import fit_power_map  # pedas.power imports this module's users: import when called
-    from pedas.vehicle import fit_aero, fit_traction_limit
-
     v_lo, v_hi = float(v_range[0]), float(v_range[1])
     p1, p2 = fit_aero(p, v_lo, v_hi)
     p3, p4 = fit_traction_limit(p, v_lo, v_hi)
     pm, _ = fit_power_map(p, (v_lo, v_hi))
     return {"key": fit_key(p, (v_lo, v_hi)), "v_range": [v_lo, v_hi],
             "aero": {"p1": p1, "p2": p2}, "traction_limit": {"p3": p3, "p4": p4}, "power_map": asdict(pm)}
-
-
-@lru_cache(maxsize=1)
-def _committed() -> dict[str, dict]:
-    if not FITS_FILE.exists():
-        return {}
-    return {rec["key"]: rec for rec in json.loads(FITS_FILE.read_text())["fits"]}
-
-
-def committed(p: VehicleParams, v_range: tuple[float, float]) -> dict | None:
-    """The committed record for `p` over `v_range`, or None when none was committed for exactly these inputs."""
-    return _committed().get(fit_key(p, v_range))
 
 
 def write(records: list[dict], path: Path = FITS_FILE) -> None:

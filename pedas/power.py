@@ -17,6 +17,7 @@ from functools import lru_cache
 import numpy as np
 
 from pedas import exact_lstsq
+from pedas.coefficients import committed
 from pedas.params import LEAF, VehicleParams
 from pedas.vehicle import V_RANGE_DEFAULT, forces_from_trace, split_braking, traction_envelope
 
@@ -169,9 +170,7 @@ def _cached_fit(p: VehicleParams) -> tuple[PowerMap, FitReport]:
 @lru_cache(maxsize=8)
 def power_map(p: VehicleParams = LEAF) -> PowerMap:
     """The power map of `p` over 0-130 km/h: the committed coefficients where they exist for `p`
-    (:mod:`pedas.fitted`), else fitted now (exactly)."""
-    from pedas.fitted import committed
-
+    (:mod:`pedas.coefficients`), else fitted now (exactly)."""
     rec = committed(p, V_RANGE_DEFAULT)
     return PowerMap(**rec["power_map"]) if rec is not None else _cached_fit(p)[0]
 

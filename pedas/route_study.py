@@ -24,6 +24,7 @@ import numpy as np
 
 from pedas.constants import HIGHWAY_MIN_SPEED
 from pedas.route import Route, StopSign, TrafficLight
+from pedas.route_toml import Light, Stop, dump_route
 
 URBAN_EDGES = ("u01", "u02", "u03", "u04", "u05", "u06", "u07", "u08", "u09", "u10", "u11")
 HIGHWAY_EDGES = ("r01", "h01", "h02", "h03", "h04", "h05")  # r01 is the on-ramp from town onto the highway
@@ -276,10 +277,8 @@ lights: stop line and fixed-time plan of the ego's signal; stops: stop lines of 
 
 
 def route_file_text(net_file: str | Path | None = None, scenario=None) -> str:
-    """The paper's route as the text of a route file (study.route_file format), built from the network of
+    """The paper's route as the text of a route file (:mod:`pedas.route_toml`), built from the network of
     `scenario` (default :data:`pedas.scenario.DEFAULT_SCENARIO`; `net_file`: its network, built if None)."""
-    from study.route_file import Light, Stop, dump_route
-
     if net_file is None:
         from pedas.network import build_network
 

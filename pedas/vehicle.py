@@ -17,6 +17,7 @@ import numpy as np
 
 from pedas import exact_lstsq
 from pedas.constants import DT, KMH
+from pedas.coefficients import committed
 from pedas.params import LEAF, VehicleParams
 
 V_RANGE_DEFAULT = (0.0, 130.0 * KMH)  # m/s, speed range the linear model is fitted over (route: 0-130 km/h)
@@ -154,9 +155,7 @@ class AeroLinearisation:
 @lru_cache(maxsize=32)
 def linear_model(p: VehicleParams = LEAF, v_range: tuple[float, float] = V_RANGE_DEFAULT) -> LinearModel:
     """The (cached) linear model of `p` over `v_range` m/s: the committed coefficients where they exist for exactly
-    these inputs (:mod:`pedas.fitted`), else fitted now with the same exact methods."""
-    from pedas.fitted import committed
-
+    these inputs (:mod:`pedas.coefficients`), else fitted now with the same exact methods."""
     v_lo, v_hi = float(v_range[0]), float(v_range[1])
     rec = committed(p, (v_lo, v_hi))
     if rec is not None:  # the committed coefficients (pedas/fitted_coefficients.json)

@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from pedas.route_toml import Light, Stop, dump_route  # noqa: F401  (the format's records and writer)
 from study.errors import UserError
 
 SEGMENT_MAX = 64
@@ -44,24 +45,6 @@ LIGHT_STATES = ("green", "yellow", "red")
 _ROUTE_KEYS = ("name", "speed_unit", "position_unit", "description")
 _SECTION_KEYS = ("s_from", "s_to", "speed_limit", "segment", "speed_unit", "label")
 EPS = 1e-6   # m: positions this close to the route's ends count as on the route (float sums of lane lengths)
-
-
-@dataclass(frozen=True)
-class Light:
-    """A traffic light: id, stop-line position s (m), optional fixed-time phases ((state, s), ...) and offset (s)."""
-
-    id: str
-    s: float
-    phases: tuple[tuple[str, float], ...] = ()
-    offset: float = 0.0
-
-
-@dataclass(frozen=True)
-class Stop:
-    """A stop sign: id and stop-line position s (m)."""
-
-    id: str
-    s: float
 
 
 @dataclass(frozen=True)
@@ -289,38 +272,6 @@ def study_route(study) -> RouteFile | None:
     """The route a study declares ([files] route), None when it declares none."""
     text = study.text("route")
     return None if text is None else load_route(text, study.paths["route"])
-
-
-# ---------------------------------------------------------------------------------------------- writing
-def _fmt(x: float) -> str:
-    """A number as TOML: whole numbers without a fraction, others in their shortest exact form."""
-    x = float(x)
-    return str(int(x)) if x.is_integer() else repr(x)
-
-
-def _str(s: str) -> str:
-    return '"' + s.replace("\\", "\\\\").replace('"', '\\"') + '"'
-
-
-def dump_route(name: str, sections: list[tuple[float, float, float, str]], lights: list[Light] = (),
-               stops: list[Stop] = (), speed_unit: str = "m/s", header: str = "", description: str = "") -> str:
-    """The TOML text of a route: `sections` as (s_from m, s_to m, speed_limit in `speed_unit`, segment)."""
-    out = [f"# {ln}" if ln else "#" for ln in header.splitlines()]
-    out += ["", "[route]", f"name = {_str(name)}"]
-    if description:
-        out.append(f"description = {_str(description)}")
-    out += [f"speed_unit = {_str(speed_unit)}", 'position_unit = "m"']
-    for a, b, lim, seg in sections:
-        out += ["", "[[sections]]", f"s_from = {_fmt(a)}", f"s_to = {_fmt(b)}", f"speed_limit = {_fmt(lim)}",
-                f"segment = {_str(seg)}"]
-    for tl in lights:
-        out += ["", "[[lights]]", f"id = {_str(tl.id)}", f"s = {_fmt(tl.s)}"]
-        if tl.phases:
-            out.append("phases = [" + ", ".join(f"[{_str(st)}, {_fmt(d)}]" for st, d in tl.phases) + "]")
-            out.append(f"offset = {_fmt(tl.offset)}")
-    for ss in stops:
-        out += ["", "[[stops]]", f"id = {_str(ss.id)}", f"s = {_fmt(ss.s)}"]
-    return "\n".join(out).lstrip("\n") + "\n"
 
 
 # ---------------------------------------------------------------------------------------------- study check

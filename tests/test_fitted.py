@@ -8,7 +8,7 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from pedas import exact_lstsq, fitted
+from pedas import coefficients, exact_lstsq, fitted
 from pedas.params import LEAF
 from pedas.power import PowerMap, fit_power_map, power_map
 from pedas.vehicle import V_RANGE_DEFAULT, fit_traction_limit, linear_model, traction_envelope
@@ -63,7 +63,7 @@ def test_traction_line_pinned_and_under_the_envelope():
 
 def test_committed_coefficients_are_what_a_refit_gives():
     """The committed file is reproduced bit for bit by refitting (`python -m pedas.fitted`)."""
-    doc = json.loads(fitted.FITS_FILE.read_text())
+    doc = json.loads(coefficients.FITS_FILE.read_text())
     rec = doc["fits"][0]
     new = fitted.refit(LEAF, V_RANGE_DEFAULT)
     assert {k: rec[k] for k in new} == new
@@ -77,7 +77,7 @@ def test_committed_coefficients_are_what_a_refit_gives():
 
 def test_other_vehicles_are_fitted_not_looked_up():
     heavy = replace(LEAF, m_v=2000.0, m_eq=2080.0, T_max=320.0)
-    assert fitted.committed(heavy, V_RANGE_DEFAULT) is None
+    assert coefficients.committed(heavy, V_RANGE_DEFAULT) is None
     m = linear_model(heavy)
     assert (m.p3, m.p4) == fit_traction_limit(heavy)
     assert m.p4 <= heavy.F_t_peak
