@@ -15,7 +15,6 @@
 from __future__ import annotations
 
 import hashlib
-import importlib
 import io
 import re
 import tomllib
@@ -27,6 +26,11 @@ from typing import Any
 import pandas as pd
 
 from study.errors import UserError, check_name
+from study.file_checks import run_file_checks
+from study.instrument import Instrument
+from study.problems import Problem, Problems, StudyError
+from study.protocol_file import parse_protocol
+from study.toml_lines import line_of
 
 STUDY_FILE = "study.toml"
 ATTRIBUTE_TYPES = ("integer", "number", "choice", "text")
@@ -41,33 +45,6 @@ FILE_KEYS = {"instrument": "survey codebook (CSV)", "protocols": "protocol files
              "log_mapping": "drive-log column mapping (TOML)", "route": "route: sections, lights, stop signs",
              "kpis": "declared KPIs (TOML)"}
 
-
-class StudyError(UserError):
-    """A study folder (or stored definition) with problems; ``problems`` lists all of them."""
-
-    def __init__(self, problems: list["Problem"]):
-        self.problems = problems
-        more = f" (and {len(problems) - 1} more problem(s); run `pedas-study study check`)" if len(problems) > 1 else ""
-        super().__init__(f"{problems[0]}{more}")
-
-
-@dataclass(frozen=True)
-class Problem:
-    """One problem of a study folder: where (file, 1-based line or None, field) and what."""
-
-    file: str
-    line: int | None
-    field: str
-    message: str
-
-    def __str__(self) -> str:
-        where = f"{self.file}:{self.line}" if self.line else self.file
-        return f"{where}: {self.field}: {self.message}" if self.field else f"{where}: {self.message}"
-
-
-class _Problems(list):
-    def add(self, file: str, line: int | None, fld: str, message: str) -> None:
-        self.append(Problem(file, line, fld, message))
 
 
 # ---------------------------------------------------------------------------------------------- declarations
@@ -236,8 +213,6 @@ class StudyDefinition:
     @cached_property
     def instruments(self) -> dict[str, Any]:
         """Instrument name -> :class:`study.instrument.Instrument` (one per study version)."""
-        from study.instrument import Instrument
-
         out = {}
         rel = self.paths.get("instrument")
         if rel:
@@ -262,9 +237,7 @@ class StudyDefinition:
 
     @cached_property
     def protocols(self) -> dict[str, Any]:
-        """Protocol name -> :class:`study.protocol.Protocol`, the default (first declared) first."""
-        from study.protocol import parse_protocol
-
+        """Protocol name -> :class:`study.protocol_file.Protocol`, the default (first declared) first."""
         out = {}
         for rel in self.paths.get("protocols", []):
             proto = parse_protocol(self.files[rel], rel)
@@ -283,7 +256,7 @@ class StudyDefinition:
     @cached_property
     def model(self) -> AnalysisModel | None:
         text = self.text("model")
-        return None if text is None else parse_model(text, self.paths["model"], _Problems(), strict=True)
+        return None if text is None else parse_model(text, self.paths["model"], Problems(), strict=True)
 
     @property
     def alpha(self) -> float:
@@ -340,14 +313,14 @@ def check(folder: str | Path) -> list[Problem]:
         files = read_folder(folder)
     except StudyError as exc:
         return exc.problems
-    problems = _Problems()
+    problems = Problems()
     _parse(files, problems)
     return list(problems)
 
 
 def from_files(files: dict[str, str]) -> StudyDefinition:
     """Parse stored or read texts; any problem -> StudyError."""
-    problems = _Problems()
+    problems = Problems()
     study = _parse(files, problems)
     if problems:
         raise StudyError(list(problems))
@@ -355,27 +328,6 @@ def from_files(files: dict[str, str]) -> StudyDefinition:
 
 
 # ---------------------------------------------------------------------------------------------- parsing
-def _line_of(text: str, key: str, section: str | None = None, nth: int = 0) -> int | None:
-    """1-based line of `key = ...` (after the header of `section`, its nth occurrence), else of the header."""
-    lines = text.splitlines()
-    start = 0
-    if section:
-        hdr = re.compile(rf"^\s*\[\[?\s*{re.escape(section)}\s*\]\]?\s*(#.*)?$")
-        hits = [i for i, ln in enumerate(lines) if hdr.match(ln)]
-        if not hits:
-            return None
-        start = hits[min(nth, len(hits) - 1)]
-        if not key:
-            return start + 1
-    pat = re.compile(rf"^\s*{re.escape(key)}\s*=")
-    for i in range(start, len(lines)):
-        if i > start and section and re.match(r"^\s*\[", lines[i]):
-            break
-        if pat.match(lines[i]):
-            return i + 1
-    return start + 1 if section else None
-
-
 def _toml_field(text: str, line: int) -> str:
     """The dotted name (table.key) a line of a TOML text is about, as far as its header and key tell."""
     lines = text.splitlines()
@@ -392,7 +344,7 @@ def _toml_field(text: str, line: int) -> str:
     return ".".join(x for x in (table, key) if x) or "toml"
 
 
-def _parse(files: dict[str, str], problems: _Problems) -> StudyDefinition | None:
+def _parse(files: dict[str, str], problems: Problems) -> StudyDefinition | None:
     text = files.get(STUDY_FILE, "")
     try:
         data = tomllib.loads(text)
@@ -405,12 +357,12 @@ def _parse(files: dict[str, str], problems: _Problems) -> StudyDefinition | None
     def need(section: dict, key: str, sect: str, kind: type, default: Any = ...) -> Any:
         if key not in section:
             if default is ...:
-                problems.add(STUDY_FILE, _line_of(text, "", sect) if sect else None, f"{sect}.{key}".strip("."),
+                problems.add(STUDY_FILE, line_of(text, "", sect) if sect else None, f"{sect}.{key}".strip("."),
                              "missing")
             return None if default is ... else default
         value = section[key]
         if not isinstance(value, kind) or isinstance(value, bool) and kind is not bool:
-            problems.add(STUDY_FILE, _line_of(text, key, sect or None), f"{sect}.{key}".strip("."),
+            problems.add(STUDY_FILE, line_of(text, key, sect or None), f"{sect}.{key}".strip("."),
                          "must be " + (kind.__name__ if not isinstance(kind, tuple)
                                        else " or ".join(k.__name__ for k in kind)))
             return None if default is ... else default
@@ -422,7 +374,7 @@ def _parse(files: dict[str, str], problems: _Problems) -> StudyDefinition | None
         s = {}
     study_id = need(s, "id", "study", str) or "?"
     if study_id != "?" and not re.fullmatch(r"[a-z][a-z0-9_-]{0,39}", study_id):
-        problems.add(STUDY_FILE, _line_of(text, "id", "study"), "study.id",
+        problems.add(STUDY_FILE, line_of(text, "id", "study"), "study.id",
                      f"{study_id!r}: use lower-case letters, digits, _ or - (at most 40, starting with a letter)")
     title = need(s, "title", "study", str) or ""
     description = need(s, "description", "study", str, "")
@@ -433,10 +385,10 @@ def _parse(files: dict[str, str], problems: _Problems) -> StudyDefinition | None
     try:
         rx = re.compile(id_pattern)
         if id_example and not rx.fullmatch(id_example):
-            problems.add(STUDY_FILE, _line_of(text, "id_example", "participants"), "participants.id_example",
+            problems.add(STUDY_FILE, line_of(text, "id_example", "participants"), "participants.id_example",
                          f"{id_example!r} does not match id_pattern {id_pattern}")
     except re.error as exc:
-        problems.add(STUDY_FILE, _line_of(text, "id_pattern", "participants"), "participants.id_pattern",
+        problems.add(STUDY_FILE, line_of(text, "id_pattern", "participants"), "participants.id_pattern",
                      f"not a regular expression: {exc}")
 
     attributes = []
@@ -444,13 +396,13 @@ def _parse(files: dict[str, str], problems: _Problems) -> StudyDefinition | None
         attr = _attribute(raw, k, text, problems)
         if attr:
             if any(a.name == attr.name for a in attributes):
-                problems.add(STUDY_FILE, _line_of(text, "name", "attributes", k), f"attributes[{k}].name",
+                problems.add(STUDY_FILE, line_of(text, "name", "attributes", k), f"attributes[{k}].name",
                              f"{attr.name!r} declared twice")
             attributes.append(attr)
 
     conditions = []
     for k, raw in enumerate(data.get("conditions", [])):
-        line = _line_of(text, "name", "conditions", k)
+        line = line_of(text, "name", "conditions", k)
         if not isinstance(raw, dict) or not isinstance(raw.get("name"), str) or not NAME.match(raw["name"]):
             problems.add(STUDY_FILE, line, f"conditions[{k}].name", "needs a name of letters, digits and _")
             continue
@@ -458,24 +410,24 @@ def _parse(files: dict[str, str], problems: _Problems) -> StudyDefinition | None
             problems.add(STUDY_FILE, line, f"conditions[{k}].name", f"{raw['name']!r} declared twice")
         conditions.append(Condition(raw["name"], str(raw.get("label", raw["name"]))))
     if not conditions:
-        problems.add(STUDY_FILE, _line_of(text, "", "conditions"), "conditions",
+        problems.add(STUDY_FILE, line_of(text, "", "conditions"), "conditions",
                      "declare at least one [[conditions]] with a name")
 
     checks = []
     for k, raw in enumerate(data.get("checks", [])):
         if not isinstance(raw, dict) or not isinstance(raw.get("sql"), str) or not isinstance(raw.get("message"), str):
-            problems.add(STUDY_FILE, _line_of(text, "", "checks", k), f"checks[{k}]", "needs sql and message")
+            problems.add(STUDY_FILE, line_of(text, "", "checks", k), f"checks[{k}]", "needs sql and message")
             continue
         checks.append(Check(raw["sql"], raw["message"]))
     _check_sql(checks, attributes, text, problems)
 
     paths = data.get("files", {})
     if not isinstance(paths, dict):
-        problems.add(STUDY_FILE, _line_of(text, "", "files"), "files", "must be a table")
+        problems.add(STUDY_FILE, line_of(text, "", "files"), "files", "must be a table")
         paths = {}
     clean: dict[str, Any] = {}
     for key, value in paths.items():
-        line = _line_of(text, key, "files")
+        line = line_of(text, key, "files")
         if key not in FILE_KEYS:
             problems.add(STUDY_FILE, line, f"files.{key}", f"unknown key (known: {', '.join(FILE_KEYS)})")
             continue
@@ -492,17 +444,17 @@ def _parse(files: dict[str, str], problems: _Problems) -> StudyDefinition | None
                 problems.add(STUDY_FILE, line, f"files.{key}", f"file {v!r} not found in the study folder")
         clean[key] = list(values) if key == "protocols" else values[0]
     if "protocols" not in clean:
-        problems.add(STUDY_FILE, _line_of(text, "", "files"), "files.protocols", "declare at least one protocol")
+        problems.add(STUDY_FILE, line_of(text, "", "files"), "files.protocols", "declare at least one protocol")
 
     settings = {k: v for k, v in data.items() if k not in ("study", "participants", "attributes", "conditions",
                                                              "checks", "files")}
     inst = settings.get("instrument", {})
     if inst and (not isinstance(inst.get("name", ""), str) or not isinstance(inst.get("version", 1), int)):
-        problems.add(STUDY_FILE, _line_of(text, "", "instrument"), "instrument",
+        problems.add(STUDY_FILE, line_of(text, "", "instrument"), "instrument",
                      "name must be text and version a whole number")
     alpha = settings.get("analysis", {}).get("alpha", 0.05)
     if not isinstance(alpha, (int, float)) or not 0 < alpha < 1:
-        problems.add(STUDY_FILE, _line_of(text, "alpha", "analysis"), "analysis.alpha", "must be in (0, 1)")
+        problems.add(STUDY_FILE, line_of(text, "alpha", "analysis"), "analysis.alpha", "must be in (0, 1)")
 
     study = StudyDefinition(study_id=study_id, title=title, description=description, id_pattern=id_pattern,
                             id_example=id_example, attributes=tuple(attributes), conditions=tuple(conditions),
@@ -513,8 +465,8 @@ def _parse(files: dict[str, str], problems: _Problems) -> StudyDefinition | None
     return study
 
 
-def _attribute(raw: Any, k: int, text: str, problems: _Problems) -> Attribute | None:
-    line = _line_of(text, "name", "attributes", k)
+def _attribute(raw: Any, k: int, text: str, problems: Problems) -> Attribute | None:
+    line = line_of(text, "name", "attributes", k)
     fld = f"attributes[{k}]"
     if not isinstance(raw, dict) or not isinstance(raw.get("name"), str) or not NAME.match(raw["name"]):
         problems.add(STUDY_FILE, line, f"{fld}.name", "needs a name of letters, digits and _, starting with a letter")
@@ -525,28 +477,28 @@ def _attribute(raw: Any, k: int, text: str, problems: _Problems) -> Attribute | 
         return None
     kind = raw.get("type")
     if kind not in ATTRIBUTE_TYPES:
-        problems.add(STUDY_FILE, _line_of(text, "type", "attributes", k), f"{fld}.type",
+        problems.add(STUDY_FILE, line_of(text, "type", "attributes", k), f"{fld}.type",
                      f"{kind!r} is not one of {'|'.join(ATTRIBUTE_TYPES)}")
         return None
     lo, hi = raw.get("min"), raw.get("max")
     for key, v in (("min", lo), ("max", hi)):
         if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))):
-            problems.add(STUDY_FILE, _line_of(text, key, "attributes", k), f"{fld}.{key}", "must be a number")
+            problems.add(STUDY_FILE, line_of(text, key, "attributes", k), f"{fld}.{key}", "must be a number")
             return None
     if lo is not None and hi is not None and lo > hi:
-        problems.add(STUDY_FILE, _line_of(text, "min", "attributes", k), f"{fld}.min", f"min {lo} > max {hi}")
+        problems.add(STUDY_FILE, line_of(text, "min", "attributes", k), f"{fld}.min", f"min {lo} > max {hi}")
     choices = raw.get("choices", [])
     if kind == "choice" and (not isinstance(choices, list) or len(choices) < 2
                              or not all(isinstance(c, str) and c for c in choices)
                              or len(set(choices)) != len(choices)):
-        problems.add(STUDY_FILE, _line_of(text, "choices", "attributes", k), f"{fld}.choices",
+        problems.add(STUDY_FILE, line_of(text, "choices", "attributes", k), f"{fld}.choices",
                      "a choice attribute needs a list of at least 2 distinct texts")
         return None
     return Attribute(name=raw["name"], type=kind, label=str(raw.get("label", raw["name"])), min=lo, max=hi,
                      choices=tuple(choices) if kind == "choice" else (), required=bool(raw.get("required", False)))
 
 
-def _check_sql(checks: list[Check], attributes: list[Attribute], text: str, problems: _Problems) -> None:
+def _check_sql(checks: list[Check], attributes: list[Attribute], text: str, problems: Problems) -> None:
     """Each check must be a boolean SQL expression over the declared attributes (tried on an empty table)."""
     if not checks:
         return
@@ -561,17 +513,14 @@ def _check_sql(checks: list[Check], attributes: list[Attribute], text: str, prob
             try:
                 con.execute(f"SELECT CAST(({c.sql}) AS BOOLEAN) FROM p").fetchall()
             except duckdb.Error as exc:
-                problems.add(STUDY_FILE, _line_of(text, "sql", "checks", k), f"checks[{k}].sql",
+                problems.add(STUDY_FILE, line_of(text, "sql", "checks", k), f"checks[{k}].sql",
                              " ".join(str(exc).split())[:200])
     finally:
         con.close()
 
 
-def _check_files(study: StudyDefinition, problems: _Problems) -> None:
+def _check_files(study: StudyDefinition, problems: Problems) -> None:
     """Parse every declared file and cross-check names between them."""
-    from study.instrument import Instrument
-    from study.protocol import parse_protocol
-
     instrument = None
     rel = study.paths.get("instrument")
     if rel in study.files:
@@ -607,26 +556,7 @@ def _check_files(study: StudyDefinition, problems: _Problems) -> None:
             pd.read_csv(io.StringIO(study.files[rel]))
         except Exception as exc:  # noqa: BLE001 - any parser error is a problem of the file
             problems.add(rel, None, "", f"not a readable CSV: {' '.join(str(exc).split())}")
-    for module in CHECK_MODULES:  # each registers the check of the file or table it owns
-        importlib.import_module(module)
-
-    for hook in _FILE_CHECKS:
-        hook(study, problems)
-
-
-#: extra checks registered by modules that own a declared file (log mapping, route, KPIs): f(study, problems)
-_FILE_CHECKS: list = []
-#: the modules that register them, imported by name before every check so that a direct `load` checks every declared
-#: file as the CLI does (the KPI declaration belongs to the analysis; it is a plug-in here, not a dependency)
-CHECK_MODULES = ("study.logmap", "study.route_file", "study.drives", "study.export", "analysis.kpi_spec")
-
-
-def register_file_check(fn) -> Any:
-    """Register ``fn(study, problems)`` to be run by every parse (problems.add(file, line, field, message)); a
-    function registered twice runs once."""
-    if fn not in _FILE_CHECKS:
-        _FILE_CHECKS.append(fn)
-    return fn
+    run_file_checks(study, problems)  # the checks of the modules that own a declared file (log mapping, route, ...)
 
 
 def _json_line(text: str, name: str) -> int | None:
@@ -636,7 +566,7 @@ def _json_line(text: str, name: str) -> int | None:
     return None
 
 
-def _check_item_attributes(study: StudyDefinition, instrument, rel: str, problems: _Problems) -> None:
+def _check_item_attributes(study: StudyDefinition, instrument, rel: str, problems: Problems) -> None:
     """An item that fills a participant attribute must name a declared one and fit its type."""
     if "attribute" not in instrument.items.columns:
         return
@@ -659,7 +589,7 @@ def _check_item_attributes(study: StudyDefinition, instrument, rel: str, problem
 
 
 # ---------------------------------------------------------------------------------------------- model file
-def parse_model(text: str, rel: str, problems: _Problems, strict: bool = False) -> AnalysisModel | None:
+def parse_model(text: str, rel: str, problems: Problems, strict: bool = False) -> AnalysisModel | None:
     """Parse a model file in lavaan syntax (semopy's parser reads every line).
 
     * ``C =~ i1 + i2 + ...``  the final measurement model (CFA): construct C measured by items.
@@ -752,7 +682,7 @@ def parse_model(text: str, rel: str, problems: _Problems, strict: bool = False) 
 
 
 def _check_model_names(study: StudyDefinition, model: AnalysisModel, instrument, rel: str,
-                       problems: _Problems) -> None:
+                       problems: Problems) -> None:
     lines = study.files[rel].splitlines()
 
     def line_of(word: str) -> int | None:

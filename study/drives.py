@@ -33,17 +33,13 @@ import numpy as np
 import pandas as pd
 
 from study import logmap, route_file
+from study.definition import STUDY_FILE
+from study.drive_columns import BOOL_OPTIONAL, COLUMNS, FLOAT_OPTIONAL, REQUIRED, TEXT_OPTIONAL
 from study.errors import UserError, check_choice
+from study.file_checks import register_file_check
+from study.toml_lines import line_of
 
 SOURCES = ("import", "simulation")
-REQUIRED = ("t", "s", "v", "segment", "speed_limit")
-TL_STATES = ("green", "yellow", "red")
-CONTROLLERS = ("rt", "cf", "none")
-FLOAT_OPTIONAL = ("a", "grade", "ft", "fb", "p_batt", "d_tl", "leader_gap", "leader_v", "v_advice")
-TEXT_OPTIONAL = {"tl_id": None, "tl_state": TL_STATES, "controller": CONTROLLERS}
-BOOL_OPTIONAL = ("hud_in_band", "warning")
-COLUMNS = REQUIRED + ("a", "grade", "ft", "fb", "p_batt", "tl_id", "tl_state", "d_tl", "leader_gap", "leader_v",
-                      "v_advice", "controller", "hud_arrow", "hud_in_band", "warning")
 V_MAX = 70.0            # m/s, upper plausibility bound of speed and speed limit (252 km/h)
 SEGMENT_MAX = route_file.SEGMENT_MAX
 #: vehicle models a study may declare as [drives] energy_model: name -> what drives.meta says it used
@@ -91,6 +87,66 @@ class DriveImport:
     @property
     def rows_per_second(self) -> float:
         return self.n_samples / self.seconds if self.seconds > 0 else float("inf")
+
+
+@dataclass(frozen=True)
+class PreparedDrive:
+    """A log ready to be stored: mapped, joined to the study's route, validated and checked (:func:`_prepare`).
+
+    * ``frame``: the validated drive log, the known columns in canonical order (:data:`COLUMNS`) in SI units
+      (t s, s m, v and speed_limit m/s, a m/s², ft and fb N, p_batt W, grade rad, d_tl and leader_gap m).
+    * ``extras``: the extra channels of the log mapping, one float column each in its stored unit
+      (:attr:`study.logmap.Channel.stored_unit`), row for row with ``frame``; None without a mapping.
+    * ``labels``: canonical column -> how messages name it (e.g. ``"v (column speed_kmh, km/h)"``); empty without a
+      mapping (messages then say "column <name>").
+    * ``ignored``: source columns that were not read (neither mapped nor canonical).
+    * ``joined``: the columns added from the route (speed_limit, segment, tl_id, d_tl), in that order.
+    * ``s_integrated``: True when the position s (m) was integrated from v dt (a mapped log without a position).
+    * ``overridden``: the plausibility problems imported anyway (``force``), one line each.
+    * ``channels``: the extra channels (:class:`study.logmap.Channel`) whose values ``extras`` holds; () without a
+      mapping.
+    """
+
+    frame: pd.DataFrame
+    extras: pd.DataFrame | None
+    labels: dict[str, str]
+    ignored: tuple[str, ...]
+    joined: tuple[str, ...]
+    s_integrated: bool
+    overridden: tuple[str, ...]
+    channels: tuple = ()
+
+
+@dataclass(frozen=True)
+class DriveRecord:
+    """One drive to store for (participant, condition) (:func:`_store_drive`): the ``drives`` row and its samples.
+
+    * ``participant_id``, ``condition``: whose drive, in which condition of the study.
+    * ``prepared``: the samples and what preparing them found (:class:`PreparedDrive`).
+    * ``checksum``: sha256 (hex) that identifies the content: of the file (with mapping and route when used) or of
+      the validated frame (:func:`frame_checksum`); the same checksum again is a no-op.
+    * ``source``: one of :data:`SOURCES` ('import' of a log, 'simulation').
+    * ``route``: the route name stored with the drive (``drives.route``), None when none.
+    * ``file_name``: the imported file's name (``drives.file_name``), None for a frame.
+    * ``seed``: the random seed of a simulated drive, None otherwise.
+    * ``meta``: JSON-serialisable settings for ``drives.meta`` (``energy_source`` is added unless given).
+    * ``replace``: replace a stored drive of different content for (participant, condition) instead of refusing.
+    * ``started``: :func:`time.perf_counter` when the import began (s); :attr:`DriveImport.seconds` counts from it.
+    * ``progress``: called with one line per step of a long import, or None.
+    """
+
+    participant_id: str
+    condition: str
+    prepared: PreparedDrive
+    checksum: str
+    source: str
+    started: float
+    route: str | None = None
+    file_name: str | None = None
+    seed: int | None = None
+    meta: dict | None = None
+    replace: bool = False
+    progress: Callable[[str], None] | None = None
 
 
 # ---------------------------------------------------------------------------------------------- validation
@@ -331,8 +387,6 @@ def energy_model(study) -> str | None:
 
 def _check_study(study, problems) -> None:
     """[drives] of study.toml: only known keys; energy_model one of ENERGY_MODELS."""
-    from study.definition import STUDY_FILE, _line_of
-
     drives = study.settings.get("drives")
     if drives is None:
         return
@@ -342,20 +396,14 @@ def _check_study(study, problems) -> None:
     text = study.files.get(STUDY_FILE, "")
     for key, value in drives.items():
         if key != "energy_model":
-            problems.add(STUDY_FILE, _line_of(text, key, "drives"), f"drives.{key}", "unknown key (known: "
-                                                                                    "energy_model)")
+            problems.add(STUDY_FILE, line_of(text, key, "drives"), f"drives.{key}", "unknown key (known: "
+                                                                                   "energy_model)")
         elif value not in ENERGY_MODELS:
-            problems.add(STUDY_FILE, _line_of(text, key, "drives"), "drives.energy_model",
+            problems.add(STUDY_FILE, line_of(text, key, "drives"), "drives.energy_model",
                          f"unknown vehicle model {value!r} (known: {', '.join(ENERGY_MODELS)})")
 
 
-def _register() -> None:
-    from study.definition import register_file_check
-
-    register_file_check(_check_study)
-
-
-_register()
+register_file_check(_check_study)
 
 
 # ---------------------------------------------------------------------------------------------- plausibility
@@ -476,21 +524,21 @@ def _store_channels(st, channels: tuple) -> None:
                             f"add to = \"{have}\" to its [channels.{ch.name}]")
 
 
-def _store_drive(st, participant_id: str, condition: str, frame: pd.DataFrame, checksum: str, source: str,
-                 route: str | None, file_name: str | None, replace: bool, seed: int | None,
-                 meta: dict | None, ignored: tuple[str, ...], t0: float,
-                 progress: Callable[[str], None] | None, extras: pd.DataFrame | None = None,
-                 channels: tuple = (), overridden: tuple[str, ...] = ()) -> DriveImport:
+def _store_drive(st, drive: DriveRecord) -> DriveImport:
+    """Store `drive` in one transaction (the audited ``drives`` row and all its samples), or find it stored."""
     from study.participants import require
     from study.studies import definition
 
+    participant_id, condition, checksum, source = drive.participant_id, drive.condition, drive.checksum, drive.source
+    prep, progress, t0 = drive.prepared, drive.progress, drive.started
+    frame, extras, channels, ignored = prep.frame, prep.extras, prep.channels, prep.ignored
     study = definition(st)
     study.check_condition(condition)
     check_choice("source", source, SOURCES)
     if "p_batt" in frame.columns and frame["p_batt"].isna().all():
         frame = frame.drop(columns="p_batt")  # an empty power column is no measurement
     model, energy_source = _energy(frame, study, source)
-    meta = dict(meta or {})
+    meta = dict(drive.meta or {})
     meta.setdefault("energy_source", energy_source)
     try:
         with st.transaction():
@@ -505,7 +553,7 @@ def _store_drive(st, participant_id: str, condition: str, frame: pd.DataFrame, c
                                       [checksum]).fetchone()
                 if twin:
                     raise UserError(f"this log is already stored as the {twin[1]} drive of {twin[0]}")
-            if have and not replace:
+            if have and not drive.replace:
                 raise UserError(f"{participant_id} already has a {condition} drive"
                                 f"{' from ' + have[2] if have[2] else ''} with different content; "
                                 f"use --replace to replace it")
@@ -520,9 +568,9 @@ def _store_drive(st, participant_id: str, condition: str, frame: pd.DataFrame, c
             t = frame["t"].to_numpy()
             s = frame["s"].to_numpy()
             row = st.insert("drives", {
-                "participant_id": participant_id, "condition": condition, "source": source, "route": route,
-                "checksum": checksum, "n_samples": len(frame), "file_name": file_name,
-                "duration_s": float(t[-1] - t[0]), "distance_m": float(s[-1] - s[0]), "seed": seed,
+                "participant_id": participant_id, "condition": condition, "source": source, "route": drive.route,
+                "checksum": checksum, "n_samples": len(frame), "file_name": drive.file_name,
+                "duration_s": float(t[-1] - t[0]), "distance_m": float(s[-1] - s[0]), "seed": drive.seed,
                 "meta": json.dumps(meta, sort_keys=True, default=str)})
             drive_id = int(row["drive_id"])
             samples = frame.copy()
@@ -543,7 +591,7 @@ def _store_drive(st, participant_id: str, condition: str, frame: pd.DataFrame, c
             st._columns.pop("drive_samples", None)
     return DriveImport(drive_id, participant_id, condition, status, len(frame), checksum,
                        time.perf_counter() - t0, ignored, filled, tuple(ch.name for ch in channels),
-                       meta["energy_source"], overridden)
+                       meta["energy_source"], prep.overridden)
 
 
 def _mapping_for(study, path: Path, fmt: str, mapping) -> logmap.Mapping | None:
@@ -570,7 +618,7 @@ def _mapping_for(study, path: Path, fmt: str, mapping) -> logmap.Mapping | None:
 
 
 def _prepare(raw: pd.DataFrame, mapping: logmap.Mapping | None, route: route_file.RouteFile | None,
-             source: str, force: str | None) -> dict:
+             source: str, force: str | None) -> PreparedDrive:
     """Map, join to the route, validate and check a raw log; returns the pieces the store needs."""
     extras, labels, ignored = None, {}, ()
     s_integrated = False
@@ -611,9 +659,9 @@ def _prepare(raw: pd.DataFrame, mapping: logmap.Mapping | None, route: route_fil
         if problems and not force:
             raise UserError(f"{problems[0]} (if this is right, import with --force REASON)")
         overridden = tuple(problems)
-    return dict(frame=valid, extras=extras, labels=labels, ignored=ignored, joined=joined,
-                s_integrated=s_integrated, overridden=overridden,
-                channels=mapping.extras if mapping is not None else ())
+    return PreparedDrive(frame=valid, extras=extras, labels=labels, ignored=ignored, joined=joined,
+                         s_integrated=s_integrated, overridden=overridden,
+                         channels=mapping.extras if mapping is not None else ())
 
 
 def _force_reason(force: str | None) -> str | None:
@@ -656,10 +704,10 @@ def import_drive_file(st, participant_id: str, condition: str, path: str | Path,
     except UserError as exc:
         raise UserError(f"{path.name}: {exc}") from None
     checksum = file_checksum(path)
-    if m is not None or prep["joined"] or prep["s_integrated"]:
+    if m is not None or prep.joined or prep.s_integrated:
         h = hashlib.sha256(f"file\0{checksum}\0".encode())
         h.update(f"mapping\0{m.text if m is not None else ''}\0vehicle\0{vehicle or ''}\0".encode())
-        h.update(f"route\0{rfile.text if rfile is not None and prep['joined'] else ''}".encode())
+        h.update(f"route\0{rfile.text if rfile is not None and prep.joined else ''}".encode())
         checksum = h.hexdigest()
     meta: dict[str, Any] = {"format": kind}
     if m is not None:
@@ -667,17 +715,16 @@ def import_drive_file(st, participant_id: str, condition: str, path: str | Path,
         meta["units"] = {c.name: c.unit for c in m.channels if c.unit is not None}
     if vehicle:
         meta["vehicle"] = vehicle
-    if prep["joined"]:
-        meta["from_route"] = list(prep["joined"])
-    if prep["s_integrated"]:
+    if prep.joined:
+        meta["from_route"] = list(prep.joined)
+    if prep.s_integrated:
         meta["s"] = "integrated from v"
     if force is not None:
-        meta["forced"] = {"reason": force, "overridden": list(prep["overridden"])}
+        meta["forced"] = {"reason": force, "overridden": list(prep.overridden)}
     route = route or (rfile.name if rfile is not None else None)
     try:
-        return _store_drive(st, participant_id, condition, prep["frame"], checksum, "import", route, path.name,
-                            replace, None, meta, prep["ignored"], t0, progress, prep["extras"], prep["channels"],
-                            prep["overridden"])
+        return _store_drive(st, DriveRecord(participant_id, condition, prep, checksum, "import", t0, route=route,
+                                            file_name=path.name, meta=meta, replace=replace, progress=progress))
     except UserError as exc:
         if str(exc).startswith("channel "):
             raise UserError(f"{path.name}: {exc}") from None
@@ -703,13 +750,13 @@ def import_drive_frame(st, participant_id: str, condition: str, df: pd.DataFrame
     rfile = route_file.study_route(study)
     prep = _prepare(df, None, rfile, source, force)
     meta = dict(meta) if meta is not None else {}
-    if prep["joined"]:
-        meta["from_route"] = list(prep["joined"])
+    if prep.joined:
+        meta["from_route"] = list(prep.joined)
     if force is not None:
-        meta["forced"] = {"reason": force, "overridden": list(prep["overridden"])}
-    return _store_drive(st, participant_id, condition, prep["frame"], frame_checksum(prep["frame"]), source,
-                        route, file_name, replace, seed, meta, prep["ignored"], t0, progress,
-                        overridden=prep["overridden"])
+        meta["forced"] = {"reason": force, "overridden": list(prep.overridden)}
+    return _store_drive(st, DriveRecord(participant_id, condition, prep, frame_checksum(prep.frame), source, t0,
+                                        route=route, file_name=file_name, seed=seed, meta=meta, replace=replace,
+                                        progress=progress))
 
 
 def drive_samples(st, participant_id: str, condition: str, channels: bool | list[str] = False) -> pd.DataFrame:

@@ -35,6 +35,7 @@ from pathlib import Path
 import pandas as pd
 
 from study.errors import UserError, check_choice
+from study.file_checks import register_file_check
 
 FORMATS = ("csv", "parquet", "sav")
 
@@ -216,13 +217,7 @@ def _check_study(study, problems) -> None:
         problems.add("study.toml", None, "export.bands", str(exc).split(": ", 2)[-1])
 
 
-def _register() -> None:
-    from study.definition import register_file_check
-
-    register_file_check(_check_study)
-
-
-_register()
+register_file_check(_check_study)
 
 
 def _study_of(st):

@@ -19,6 +19,8 @@ from functools import cached_property
 
 import pandas as pd
 
+from study.problems import Problems, StudyError
+
 SCALED_KINDS = ("likert", "semantic")
 DEMOGRAPHIC_TYPES = ("number", "choice")
 RESPONSE_TYPE = re.compile(r"^(likert|semantic)(\d+)?$|^(number|choice|text)$")
@@ -182,10 +184,8 @@ def parse_choices(raw: str) -> dict[int, str]:
 def _from_csv(cls, name: str, text: str, rel: str = "codebook.csv", problems=None) -> "Instrument":
     """Parse and check a codebook's text; with `problems` (a list with .add) every problem is added there, else the
     first raises StudyError. Lines are 1-based lines of the CSV (header = line 1)."""
-    from study.definition import StudyError, _Problems
-
     own = problems is None
-    problems = _Problems() if own else problems
+    problems = Problems() if own else problems
     n0 = len(problems)
     try:
         items = pd.read_csv(io.StringIO(text), dtype=str, keep_default_na=False)

@@ -34,7 +34,10 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from study.drive_columns import COLUMNS
 from study.errors import UserError
+from study.file_checks import register_file_check
+from study.units import parse_unit, units
 
 FORMATS = ("csv", "parquet", "sumo-fcd")
 #: SI unit of each numeric canonical channel (the unit it is stored in)
@@ -52,27 +55,7 @@ _CHANNEL_KEYS = ("column", "unit", "scale", "offset", "description", "to")
 _SLOPE_UNITS = ("percent", "permille")   # grade given as rise/run, not as an angle
 
 
-@lru_cache(maxsize=1)
-def units():
-    """The pint unit registry (built once: it takes about a second)."""
-    import pint
-
-    return pint.UnitRegistry()
-
-
-def parse_unit(text: Any):
-    """The pint unit of `text`; unknown or malformed units -> UserError."""
-    if not isinstance(text, str) or not text.strip():
-        raise UserError("needs a unit (e.g. \"km/h\", \"m\", \"kW\", \"%\"; \"1\" for a unitless number)")
-    try:
-        return units().Unit(text.strip())
-    except Exception:  # noqa: BLE001 - pint raises several error types for bad unit text
-        raise UserError(f"unknown unit {text!r} (e.g. km/h, mph, m/s, ms, s, kW, W, ft, m, %, ‰)") from None
-
-
 def canonical_names() -> tuple[str, ...]:
-    from study.drives import COLUMNS
-
     return tuple(COLUMNS) + RESERVED
 
 
@@ -397,10 +380,4 @@ def _check_study(study, problems) -> None:
                 break
 
 
-def _register() -> None:
-    from study.definition import register_file_check
-
-    register_file_check(_check_study)
-
-
-_register()
+register_file_check(_check_study)

@@ -7,16 +7,15 @@ and typed again by the declaration when read (:func:`participant_attributes`).
 """
 from __future__ import annotations
 
-import re
 from typing import Any, Mapping
 
 import pandas as pd
 
+from study.attributes import typed_attributes
 from study.errors import UserError
 
 #: pandas dtype of each attribute type in the wide tables (integers keep missing values as <NA>)
 DTYPES = {"integer": "Int64", "number": "float64", "choice": "object", "text": "object"}
-_SQL_TYPES = {"integer": "BIGINT", "number": "DOUBLE", "choice": "VARCHAR", "text": "VARCHAR"}
 
 
 def _study(st):
@@ -30,48 +29,6 @@ def _as_text(value: Any) -> str:
     if isinstance(value, float):
         return repr(value)  # shortest text that reads back as the same float
     return str(value)
-
-
-def typed_attributes(study, attributes: Mapping[str, Any] | None) -> dict[str, Any]:
-    """{name: typed value} of every declared attribute (None when not given) after checking each value, the
-    required attributes and the study's checks; any problem -> UserError (one line)."""
-    given = dict(attributes or {})
-    values: dict[str, Any] = {a.name: None for a in study.attributes}
-    for name, raw in given.items():
-        values[study.attribute(name).name] = study.attribute(name).parse(raw)
-    missing = [a.name for a in study.attributes if a.required and values[a.name] is None]
-    if missing:
-        raise UserError(f"{', '.join(missing)} {'is' if len(missing) == 1 else 'are'} required "
-                        f"(study {study.study_id})")
-    run_checks(study, values)
-    return values
-
-
-def run_checks(study, values: dict[str, Any]) -> None:
-    """Evaluate the study's [[checks]] with DuckDB over one row of typed values. A check that is false refuses
-    the values with its message; NULL (a value it needs is missing) passes, as in a SQL CHECK constraint."""
-    if not study.checks:
-        return
-    import duckdb
-
-    attrs = study.attributes
-    cols = ", ".join(f'CAST(? AS {_SQL_TYPES[a.type]}) AS "{a.name}"' for a in attrs) or "NULL AS _none"
-    params = [values.get(a.name) for a in attrs]
-    # a connection of its own: an error inside the store's transaction would abort that transaction
-    con = duckdb.connect()
-    try:
-        for c in study.checks:
-            try:
-                ok = con.execute(f"SELECT CAST(({c.sql}) AS BOOLEAN) FROM (SELECT {cols}) AS p", params).fetchone()[0]
-            except duckdb.Error as exc:
-                raise UserError(f"check {c.sql!r} of study {study.study_id} failed: {' '.join(str(exc).split())}") \
-                    from None
-            if ok is False:
-                used = [a.name for a in attrs if re.search(rf"\b{re.escape(a.name)}\b", c.sql)]
-                shown = ", ".join(f"{n} {values[n]}" for n in used if values.get(n) is not None)
-                raise UserError(f"{c.message}" + (f" ({shown})" if shown else ""))
-    finally:
-        con.close()
 
 
 def add_participant(st, participant_id: str, attributes: Mapping[str, Any] | None = None,

@@ -1,9 +1,8 @@
-"""The study protocol as data, and recording a participant's way through it.
+"""Recording a participant's way through the study protocol.
 
 A protocol is a JSON file of a study folder (declared in its ``study.toml``, docs/study_folder.md) with an ordered
-list of ``phases`` (each a ``name``, ``planned_minutes``, whether it is a ``drive`` and for which ``condition`` of
-the study). Extra keys are kept in :attr:`Phase.extra` / :attr:`Protocol.extra` so that newer files load in
-older code. The store's protocols come from its stored study: :func:`load_protocol`.
+list of ``phases``; the file as data (:class:`Protocol`, :func:`parse_protocol`) is :mod:`study.protocol_file`. The
+store's protocols come from its stored study: :func:`load_protocol`.
 
 Semantics of the phase log (table ``phase_events``, one row per phase a participant entered):
 
@@ -18,8 +17,6 @@ Semantics of the phase log (table ``phase_events``, one row per phase a particip
 """
 from __future__ import annotations
 
-import json
-from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from typing import Any
 
@@ -27,85 +24,19 @@ import pandas as pd
 
 from study.audit_trail import not_in_future, utcnow
 from study.errors import UserError
-
-
-@dataclass(frozen=True)
-class Phase:
-    name: str
-    planned_minutes: float | None = None
-    drive: bool = False
-    condition: str | None = None
-    extra: dict[str, Any] = field(default_factory=dict, compare=False, hash=False)
-
-
-@dataclass(frozen=True)
-class Protocol:
-    """An ordered list of phases. ``.phases`` are the names in order, ``.steps`` the Phase objects."""
-
-    name: str
-    steps: tuple[Phase, ...]
-    version: int | None = None
-    extra: dict[str, Any] = field(default_factory=dict, compare=False, hash=False)
-
-    @property
-    def phases(self) -> tuple[str, ...]:
-        return tuple(p.name for p in self.steps)
-
-    def phase(self, name: str) -> Phase:
-        for p in self.steps:
-            if p.name == name:
-                return p
-        raise UserError(f"unknown phase {name!r} (protocol {self.name}: {', '.join(self.phases)})")
-
-    def index(self, name: str) -> int:
-        """0-based position of a phase; unknown phase -> UserError."""
-        return self.phases.index(self.phase(name).name)
-
-
-def parse_protocol(text: str, rel: str = "protocol.json") -> Protocol:
-    """Parse a protocol file's JSON text (unknown keys are kept, not refused); a problem -> UserError naming `rel`."""
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise UserError(f"{rel}:{exc.lineno}: not valid JSON: {exc.msg}") from None
-    if not isinstance(data, dict) or not isinstance(data.get("name"), str):
-        raise UserError(f"{rel}: a protocol is a JSON object with a name and phases")
-    name = data["name"]
-    steps = []
-    for raw in data.get("phases", []):
-        raw = {"name": raw} if isinstance(raw, str) else dict(raw)
-        known = {k: raw.pop(k) for k in ("name", "planned_minutes", "drive", "condition") if k in raw}
-        if not isinstance(known.get("name"), str):
-            raise UserError(f"{rel}: every phase needs a name")
-        pm = known.get("planned_minutes")
-        if pm is not None and (isinstance(pm, bool) or not isinstance(pm, (int, float)) or pm < 0):
-            raise UserError(f"{rel}: phase {known['name']}: planned_minutes must be a number >= 0")
-        steps.append(Phase(extra=raw, **known))
-    names = [s.name for s in steps]
-    if not names or len(set(names)) != len(names):
-        raise UserError(f"{rel}: phases must be a non-empty list of distinct names")
-    extra = {k: v for k, v in data.items() if k not in ("name", "version", "phases")}
-    proto = Protocol(name=name, steps=tuple(steps), version=data.get("version"), extra=extra)
-    from study.scheduling import protocol_orders  # checks that every order lists each phase once
-
-    try:
-        protocol_orders(proto)
-    except UserError as exc:
-        raise UserError(f"{rel}: {exc}") from None
-    return proto
+from study.orders import ensure_order, participant_protocol
+from study.protocol_file import Protocol
+from study.studies import definition
 
 
 def load_protocol(st, name: str | None = None) -> Protocol:
     """A protocol of the store's study (`name` None = its default protocol); unknown name -> UserError."""
-    from study.studies import definition
-
     return definition(st).protocol(name)
 
 
 def protocol_of(st, participant_id: str) -> Protocol:
-    """The protocol a registered participant follows; unknown participant -> UserError."""
-    from study.scheduling import participant_protocol  # a multi-order protocol in the participant's order
-
+    """The protocol a registered participant follows (a multi-order protocol in the participant's order); unknown
+    participant -> UserError."""
     return participant_protocol(st, participant_id)
 
 
@@ -152,8 +83,6 @@ def advance(st, participant_id: str, phase: str, note: str | None = None,
 
     Returns {"started": phase, "completed": previous phase or None}.
     """
-    from study.scheduling import ensure_order
-
     when = _when(at)
     with st.transaction():  # the order assignment too: a refused step leaves the store as it was
         reason = _closed_by_exclusion(st, participant_id)

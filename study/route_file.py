@@ -37,8 +37,11 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from pedas.route_toml import Light, Stop, dump_route  # noqa: F401  (the format's records and writer)
+from pedas.route_toml import Light, Stop
 from study.errors import UserError
+from study.file_checks import register_file_check
+from study.toml_lines import line_of
+from study.units import parse_unit, units
 
 SEGMENT_MAX = 64
 LIGHT_STATES = ("green", "yellow", "red")
@@ -110,9 +113,7 @@ class RouteFile:
 # ---------------------------------------------------------------------------------------------- parsing
 def _line(text: str, table: str, nth: int = 0, key: str | None = None) -> int | None:
     """1-based line of the nth `[table]` / `[[table]]` header, or of `key = ...` inside it."""
-    from study.definition import _line_of
-
-    return _line_of(text, key or "", table, nth)
+    return line_of(text, key or "", table, nth)
 
 
 def _number(v: Any) -> bool:
@@ -121,8 +122,6 @@ def _number(v: Any) -> bool:
 
 def parse_route(text: str, name: str) -> tuple[RouteFile | None, list[tuple[int | None, str, str]]]:
     """Parse a route text; returns (route or None, problems as (line, field, message))."""
-    from study.logmap import parse_unit, units
-
     problems: list[tuple[int | None, str, str]] = []
     try:
         data = tomllib.loads(text)
@@ -283,10 +282,4 @@ def _check_study(study, problems) -> None:
         problems.add(rel, line, fld, msg)
 
 
-def _register() -> None:
-    from study.definition import register_file_check
-
-    register_file_check(_check_study)
-
-
-_register()
+register_file_check(_check_study)

@@ -1,4 +1,4 @@
-"""Scheduling: simulator appointments, balanced condition orders, day agenda, calendar export, planned vs actual.
+"""Scheduling: simulator appointments, day agenda, calendar export, planned vs actual.
 
 Times of appointments are the lab's local wall-clock time (naive datetimes), the way a lab books a slot; the calendar
 export writes them as floating local times (RFC 5545 §3.3.5), so a calendar shows them at the same clock time.
@@ -8,15 +8,10 @@ study's protocol file declares them) plus a buffer (default
 :data:`DEFAULT_BUFFER_MINUTES`) for set-up, briefing and cleaning the simulator. Two booked slots on the same
 simulator must not overlap; a participant holds at most one booked slot; excluded participants are not booked.
 
-Balanced assignment (protocols with several ``orders``): the next participant gets the order with the fewest
-participants that are *completed or in progress* — everyone assigned to it who has not dropped out. A dropout is a
-participant excluded with scope ``all`` or with reason ``withdrawn``, or whose only appointment ended as a no-show
-or was cancelled before any phase started; a dropout frees its place. Ties go to the order listed first in the protocol
-file, so the assignment is deterministic.
+Booking a participant of a protocol with several ``orders`` assigns their order (balanced: :mod:`study.orders`).
 """
 from __future__ import annotations
 
-from dataclasses import replace
 from datetime import date, datetime, timedelta
 from pathlib import Path
 from typing import Any
@@ -24,39 +19,13 @@ from typing import Any
 import pandas as pd
 
 from study.errors import UserError
-from study.protocol import Protocol, load_protocol
+from study.orders import ensure_order, exclusion_of, participant_row
+from study.protocol import load_protocol, status
+from study.protocol_file import planned_minutes
 
 DEFAULT_SIMULATOR = "sim1"
 DEFAULT_BUFFER_MINUTES = 15.0
 ACTIVE = "booked"
-
-
-# ---------------------------------------------------------------------------------------------- protocol orders
-def protocol_orders(proto: Protocol) -> dict[str, tuple[str, ...]]:
-    """Order name -> phase sequence. A protocol without ``orders`` has the single order ``default``."""
-    orders = proto.extra.get("orders")
-    if not orders:
-        return {"default": proto.phases}
-    out: dict[str, tuple[str, ...]] = {}
-    for name, seq in orders.items():
-        if sorted(seq) != sorted(proto.phases):
-            raise UserError(f"protocol {proto.name}: order {name!r} must list each phase exactly once")
-        out[name] = tuple(seq)
-    return out
-
-
-def ordered_protocol(proto: Protocol, order_name: str) -> Protocol:
-    """The protocol with its steps in the sequence of `order_name`."""
-    orders = protocol_orders(proto)
-    if order_name not in orders:
-        raise UserError(f"protocol {proto.name} has no order {order_name!r} (orders: {', '.join(orders)})")
-    by_name = {p.name: p for p in proto.steps}
-    return replace(proto, steps=tuple(by_name[n] for n in orders[order_name]))
-
-
-def planned_minutes(proto: Protocol) -> float:
-    """Planned duration of the whole protocol (minutes); phases without a plan count 0."""
-    return float(sum(p.planned_minutes or 0.0 for p in proto.steps))
 
 
 # ---------------------------------------------------------------------------------------------- helpers
@@ -82,18 +51,6 @@ def parse_date(value: str | date) -> date:
         raise UserError(f"malformed date {value!r} (use ISO 8601, e.g. 2026-05-04)") from None
 
 
-def _participant(st, participant_id: str) -> dict[str, Any]:
-    row = st.df("SELECT participant_id, protocol FROM participants WHERE participant_id = ?", [participant_id])
-    if row.empty:
-        raise UserError(f"unknown participant {participant_id}")
-    return row.iloc[0].to_dict()
-
-
-def _exclusion(st, participant_id: str) -> str | None:
-    return st.one("SELECT scope || ' (' || reason || ')' FROM exclusions WHERE participant_id = ? "
-                  "ORDER BY scope LIMIT 1", [participant_id])
-
-
 def _active(st, participant_id: str) -> pd.DataFrame:
     return st.df("SELECT * FROM appointments WHERE participant_id = ? AND status = ?", [participant_id, ACTIVE])
 
@@ -107,66 +64,6 @@ def _check_free(st, simulator: str, start: datetime, end: datetime, ignore: int 
         c = clash.iloc[0]
         raise UserError(f"{simulator} is booked {c['starts_at']:%Y-%m-%d %H:%M}-{c['ends_at']:%H:%M} "
                         f"for {c['participant_id']}; the slot {start:%Y-%m-%d %H:%M}-{end:%H:%M} overlaps")
-
-
-def participant_protocol(st, participant_id: str) -> Protocol:
-    """The protocol of a participant in the order assigned to them (the file's order when none is assigned)."""
-    p = _participant(st, participant_id)
-    proto = load_protocol(st, p["protocol"])
-    order = st.one("SELECT order_name FROM order_assignments WHERE participant_id = ?", [participant_id])
-    return ordered_protocol(proto, order) if order else proto
-
-
-# ---------------------------------------------------------------------------------------------- assignment
-def order_counts(st, protocol: str) -> pd.DataFrame:
-    """Per order of `protocol`: assigned, dropped_out and active (= assigned − dropped out) participants."""
-    orders = list(protocol_orders(load_protocol(st, protocol)))
-    df = st.df("""
-        SELECT a.order_name,
-               count(*) AS assigned,
-               count(*) FILTER (WHERE d.participant_id IS NOT NULL) AS dropped_out
-        FROM order_assignments a
-        LEFT JOIN (
-            SELECT participant_id FROM exclusions WHERE scope = 'all' OR reason = 'withdrawn'
-            UNION
-            SELECT participant_id FROM appointments
-            WHERE status IN ('no_show', 'cancelled')
-              AND participant_id NOT IN (SELECT participant_id FROM appointments WHERE status IN ('booked', 'attended'))
-              AND participant_id NOT IN (SELECT participant_id FROM phase_events)
-        ) d USING (participant_id)
-        WHERE a.protocol = ?
-        GROUP BY a.order_name""", [protocol]).set_index("order_name")
-    out = pd.DataFrame({"order_name": orders})
-    out["assigned"] = [int(df["assigned"].get(o, 0)) for o in orders]
-    out["dropped_out"] = [int(df["dropped_out"].get(o, 0)) for o in orders]
-    out["active"] = out["assigned"] - out["dropped_out"]
-    return out
-
-
-def assign_order(st, participant_id: str) -> str:
-    """Assign (once) and return the participant's condition order; audited. Idempotent for an assigned participant."""
-    p = _participant(st, participant_id)
-    with st.transaction():
-        have = st.one("SELECT order_name FROM order_assignments WHERE participant_id = ?", [participant_id])
-        if have:
-            return have
-        excluded = _exclusion(st, participant_id)
-        if excluded:
-            raise UserError(f"{participant_id} is excluded ({excluded}); no order is assigned")
-        counts = order_counts(st, p["protocol"])
-        # fewest active participants; ties -> first order in the protocol file (idxmin keeps the first)
-        order = str(counts.loc[counts["active"].idxmin(), "order_name"])
-        st.insert("order_assignments", {"participant_id": participant_id, "protocol": p["protocol"],
-                                        "order_name": order})
-    return order
-
-
-def ensure_order(st, participant_id: str) -> str | None:
-    """Assign an order if the participant's protocol has several and none is assigned yet; returns the order."""
-    p = _participant(st, participant_id)
-    if len(protocol_orders(load_protocol(st, p["protocol"]))) < 2:
-        return None
-    return assign_order(st, participant_id)
 
 
 # ---------------------------------------------------------------------------------------------- appointments
@@ -186,14 +83,14 @@ def book(st, participant_id: str, at: str | datetime, simulator: str = DEFAULT_S
     simulator = (simulator or "").strip()
     if not simulator:
         raise UserError("a simulator name is required")
-    p = _participant(st, participant_id)
+    p = participant_row(st, participant_id)
     proto = load_protocol(st, p["protocol"])
     minutes = planned_minutes(proto) + buffer_minutes
     if minutes <= 0:
         raise UserError(f"protocol {proto.name} plans no minutes; give a buffer to book a slot")
     end = start + timedelta(minutes=minutes)
     with st.transaction():
-        excluded = _exclusion(st, participant_id)
+        excluded = exclusion_of(st, participant_id)
         if excluded:
             raise UserError(f"{participant_id} is excluded ({excluded}) and cannot be booked")
         held = _active(st, participant_id)
@@ -209,7 +106,7 @@ def book(st, participant_id: str, at: str | datetime, simulator: str = DEFAULT_S
 
 
 def _held(st, participant_id: str) -> dict[str, Any]:
-    _participant(st, participant_id)
+    participant_row(st, participant_id)
     held = _active(st, participant_id)
     if held.empty:
         raise UserError(f"{participant_id} holds no booked appointment")
@@ -293,8 +190,6 @@ def phase_durations(st, participant_id: str | None = None) -> pd.DataFrame:
     Columns: participant_id, phase, planned_minutes, actual_minutes, delta_minutes, outcome. Phases not yet
     ended have no actual duration.
     """
-    from study.protocol import status
-
     ids = [participant_id] if participant_id else st.df(
         "SELECT DISTINCT participant_id FROM phase_events ORDER BY 1")["participant_id"].tolist()
     frames = []

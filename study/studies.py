@@ -16,8 +16,10 @@ from pathlib import Path
 import pandas as pd
 
 from study import audit_trail
+from study.attributes import run_checks
 from study.definition import StudyDefinition, from_files, load
 from study.errors import UserError
+from study.protocol_file import protocol_orders
 
 _CACHE: dict[str, StudyDefinition] = {}
 
@@ -92,9 +94,6 @@ def _check_compatible(st, study: StudyDefinition) -> None:
     """UserError if `study` would re-interpret anything already stored: a participant id it does not accept, an
     attribute value it does not declare or accept (or that fails one of its checks), a condition, protocol, phase
     or condition order it no longer declares, or an instrument with answers whose items it changes."""
-    from study.participants import run_checks
-    from study.scheduling import protocol_orders
-
     def refuse(what: str, exc: UserError | str) -> None:
         raise UserError(f"the new version would re-interpret stored data: {what}: {exc}")
 

@@ -215,7 +215,8 @@ def _fill_attributes(st, ins: Instrument, participant_id: str, answers: Mapping[
     value recorded earlier, as the participant's own statement on the form). The values are checked first with
     the attribute declarations, the study's required attributes and its checks, together with the attributes
     already stored; any problem -> UserError and nothing is written. Returns {attribute: typed value} written."""
-    from study.participants import participant_attributes, typed_attributes
+    from study.attributes import typed_attributes
+    from study.participants import participant_attributes
 
     study = _study(st)
     given: dict[str, Any] = {}

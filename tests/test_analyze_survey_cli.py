@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.acceptance import COLUMNS, analyze_survey as _analyze_survey
+from analysis.survey.acceptance import COLUMNS, analyze_survey as _analyze_survey
 from analysis.paper.published import paper_study
 from analysis.paper.synthetic import simulate_paper_responses as simulate_responses
 
@@ -53,7 +53,7 @@ def test_default_deletion_is_the_papers_final_model(res):
 
 
 def test_composites_and_regressions_are_consistent(res, data):
-    from analysis.scoring import score_responses
+    from analysis.survey.scoring import score_responses
 
     s = score_responses(data, STUDY.instrument()).scored
     assert np.allclose(res.composites["ATT"], s[["ATT6", "ATT7", "ATT8", "ATT9"]].mean(axis=1))
@@ -65,8 +65,8 @@ def test_composites_and_regressions_are_consistent(res, data):
 
 
 def test_reliability_uses_final_items(res):
-    from analysis.reliability import cronbach_alpha
-    from analysis.scoring import score_responses
+    from analysis.survey.reliability import cronbach_alpha
+    from analysis.survey.scoring import score_responses
 
     rel = res.reliability.set_index("construct")
     s = score_responses(simulate_responses(40, seed=11), STUDY.instrument()).scored
@@ -181,8 +181,8 @@ def test_cli_from_the_store_applies_subjective_exclusions(cli, paper_db, data, t
 
 
 def test_tables_are_rendered_from_the_frames(res):
-    from analysis.tables_survey import render_all
-    from analysis.validity import stars
+    from analysis.survey.tables import render_all
+    from analysis.survey.validity import stars
 
     out = render_all(res)
     t3, t4, t5 = out["table3.md"], out["table4.md"], out["table5.md"]

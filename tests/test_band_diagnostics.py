@@ -4,8 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from analysis.band_diagnostics import COLUMNS, why_missed
-from analysis.savings import BAND_HIGHWAY, BAND_OVERALL, BAND_RED, BAND_VIOLATION
+from analysis.drives.band_diagnostics import COLUMNS, why_missed
+from analysis.drives.savings import BAND_HIGHWAY, BAND_OVERALL, BAND_RED, BAND_VIOLATION
 
 DIAG = pd.DataFrame([
     (BAND_HIGHWAY, "v_highway", "mean speed on the highway", "km/h", 80.4, 79.9),

@@ -49,7 +49,7 @@ def test_bench_kpi_cli_bad_input(cli, args, msg):
 @pytest.mark.parametrize("workers", [2, 3, 7])
 def test_chunked_kpis_equal_one_chunk(tmp_path, workers):
     """Drive-id chunks run on their own cursors give exactly the one-query result, whatever the chunking."""
-    from analysis.kpis import _drive_chunks, kpis_from_relation
+    from analysis.drives.kpis import _drive_chunks, kpis_from_relation
 
     con = duckdb.connect(str(tmp_path / "k.duckdb"))
     con.execute("CREATE TABLE drive_samples AS " + synthetic_sql(60_000, 2_000, 3))

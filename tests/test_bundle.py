@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from analysis.bundle import locked_versions, table_hashes, write_bundle
+from analysis.report.bundle import locked_versions, table_hashes, write_bundle
 
 REPO = Path(__file__).resolve().parents[1]
 LK_STUDY = REPO / "studies" / "lane_keeping"

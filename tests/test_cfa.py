@@ -5,7 +5,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.cfa import fit_cfa, fit_indices, flag_items, heywood_cases, srmr
+from analysis.survey.cfa import fit_cfa, fit_indices, flag_items, heywood_cases, srmr
 
 HS_MODEL = {"visual": ["x1", "x2", "x3"], "textual": ["x4", "x5", "x6"], "speed": ["x7", "x8", "x9"]}
 # lavaan 0.6 cfa(HS.model, data = HolzingerSwineford1939): fitMeasures and standardizedSolution (std.all)
@@ -36,7 +36,7 @@ def test_holzinger_df_and_convergence(hs):
 
 def test_non_convergence_is_reported(hs, monkeypatch):
     """An optimiser stopped after one iteration: the result says it did not converge, with a warning."""
-    import analysis.cfa as cfa
+    import analysis.survey.cfa as cfa
 
     data, _ = hs
     monkeypatch.setattr(cfa, "SOLVERS", (("SLSQP", {"maxiter": 1}),))

@@ -11,13 +11,13 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-from analysis import bootstrap as B
-from analysis import ordinal as O
-from analysis.htmt import htmt2, reliability_bootstrap
-from analysis.invariance import invariance
-from analysis.omega import omega_stack
-from analysis.scoring import score_responses
-from analysis.validity import htmt
+from analysis.survey import bootstrap as B
+from analysis.survey import ordinal as O
+from analysis.survey.htmt import htmt2, reliability_bootstrap
+from analysis.survey.invariance import invariance
+from analysis.survey.omega import omega_stack
+from analysis.survey.scoring import score_responses
+from analysis.survey.validity import htmt
 from study.definition import load
 
 REPO = Path(__file__).resolve().parents[1]
@@ -117,7 +117,7 @@ def test_one_factor_omega_three_items_closed_form_and_iteration_agree():
     x = rng.normal(size=(500, 1)) * lam + rng.normal(size=(500, 4)) * np.sqrt(1 - lam ** 2)
     S = np.cov(x[:, :3], rowvar=False, bias=True)
     three = omega_stack(S[None])[0]
-    from analysis.omega import one_factor_loadings
+    from analysis.survey.omega import one_factor_loadings
 
     l3, ok = one_factor_loadings(S[None])
     assert ok[0] and three == pytest.approx(l3[0].sum() ** 2 / S.sum(), abs=1e-8)
@@ -159,7 +159,7 @@ def test_reliability_bootstrap_is_seeded(paper_scored):
     b = reliability_bootstrap(scored, meas, n_boot=100, seed=4)
     pd.testing.assert_frame_equal(a, b)
     alpha = a[a["statistic"] == "alpha"].set_index("a")["estimate"]
-    from analysis.reliability import cronbach_alpha
+    from analysis.survey.reliability import cronbach_alpha
 
     for c, its in meas.items():
         assert alpha[c] == pytest.approx(cronbach_alpha(scored[its])[0], abs=1e-12)

@@ -1,4 +1,4 @@
-"""The extended acceptance statistics (analysis/extended.py) against R: lavaan 0.6-14 and semTools 0.5-6.
+"""The extended acceptance statistics (analysis/survey/extended.py) against R: lavaan 0.6-14 and semTools 0.5-6.
 
 tests/data/r_reference/ holds the R script ``extended_reference.R``, its output ``extended_reference.csv``
 (committed; R is not needed to run these tests), the model syntax it reads (``paper_sem.lav``, ``paper_paths.lav``,
@@ -23,10 +23,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.extended import analyze_extended
-from analysis.invariance import invariance
-from analysis.scoring import score_responses
-from analysis.testing import simulate_study_participants, simulate_study_responses
+from analysis.survey.extended import analyze_extended
+from analysis.survey.invariance import invariance
+from analysis.survey.scoring import score_responses
+from analysis.survey.testing import simulate_study_participants, simulate_study_responses
 from study.definition import load
 from tests.conftest import needs_r, python_under_kernel
 
@@ -120,7 +120,7 @@ def test_committed_invariance_data_are_the_generators():
 
 @pytest.mark.parametrize("tag", ["paper", "lk"])
 def test_ordinal_cfa_and_omega_agree_with_lavaan(tag, reference, paper_ext, lk_ext):
-    from analysis import ordinal as _ord
+    from analysis.survey import ordinal as _ord
 
     ext = paper_ext if tag == "paper" else lk_ext
     study = load(PAPER if tag == "paper" else LK)

@@ -1,4 +1,4 @@
-"""SPSS-style extractions (analysis.extraction) and the feasibility test of Table 3's loadings
+"""SPSS-style extractions (analysis.survey.extraction) and the feasibility test of Table 3's loadings
 (analysis.paper.procedure): hand-worked numbers, properties, the audit finding, `analyze survey --loadings`."""
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from analysis import extraction as X
+from analysis.survey import extraction as X
 from analysis.paper import audit as A
 from analysis.paper import procedure as F
 
@@ -166,7 +166,7 @@ def test_cli_loadings_pca(cli, tmp_path):
 
 
 def test_a_paf_that_does_not_converge_is_warned_per_stage():
-    from analysis.extraction import construct_loadings
+    from analysis.survey.extraction import construct_loadings
 
     rng = np.random.default_rng(3)
     x = rng.normal(size=(40, 1))

@@ -5,10 +5,11 @@ from __future__ import annotations
 import pandas as pd
 import pytest
 
-from analysis.acceptance import survey_plan
-from analysis.hypotheses import judge_hypotheses, load_hypotheses
+from analysis.survey.acceptance import survey_plan
+from analysis.survey.hypotheses import judge_hypotheses, load_hypotheses
 from analysis.paper.published import paper_study
-from study.definition import Hypothesis, StudyError, _Problems, parse_model
+from study.definition import Hypothesis, parse_model
+from study.problems import Problems, StudyError
 
 
 def test_paper_model_tests_each_hypothesis_where_the_paper_does():
@@ -54,7 +55,7 @@ def test_alpha_is_strict():
 
 
 def test_a_label_without_sign_is_two_sided_and_signs_follow_the_model_file():
-    m = parse_model("Y =~ y1 + y2\nX =~ x1 + x2\nZ =~ z1 + z2\nY ~ Ha*X + Hb*Z\nHb < 0\n", "m.lav", _Problems())
+    m = parse_model("Y =~ y1 + y2\nX =~ x1 + x2\nZ =~ z1 + z2\nY ~ Ha*X + Hb*Z\nHb < 0\n", "m.lav", Problems())
     assert [(h.hypothesis, h.sign) for h in load_hypotheses(m)] == [("Hb", "<"), ("Ha", "!=")]
 
 
@@ -65,4 +66,4 @@ def test_missing_coefficient_is_an_error():
     with pytest.raises(ValueError, match="predicts PU, not BI"):
         judge_hypotheses(_reg(0.3, 0.01), [Hypothesis("H9", predictor="PEoU", dv="BI", model="1", step=1)])
     with pytest.raises(StudyError, match="sign given for a label"):
-        parse_model("Y =~ y1 + y2\nX =~ x1 + x2\nY ~ X\nH1 > 0\n", "m.lav", _Problems(), strict=True)
+        parse_model("Y =~ y1 + y2\nX =~ x1 + x2\nY ~ X\nH1 > 0\n", "m.lav", Problems(), strict=True)

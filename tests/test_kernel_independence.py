@@ -66,7 +66,7 @@ def test_drive_logs_and_fits_are_identical_under_every_kernel(tmp_path):
 
 SURVEY_SCRIPT = r"""
 import sys
-from analysis.acceptance import analyze_survey
+from analysis.survey.acceptance import analyze_survey
 from analysis.paper.published import paper_study
 from pedas.paths import REFERENCE_DIR
 import pandas as pd

@@ -1,4 +1,4 @@
-"""KPIs declared by a study (analysis.kpi_spec): a SQL KPI (SDLP) over an imported extra channel next to pandas,
+"""KPIs declared by a study (study.kpi_spec): a SQL KPI (SDLP) over an imported extra channel next to pandas,
 the speeding-tolerance rules worked by hand, refused KPI files, and energy measured / unavailable."""
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.kpi_spec import KpiSpecProblems, check_sql, parse
-from analysis.kpis import kpis_from_frame
+from study.kpi_spec import KpiSpecProblems, check_sql, parse
+from analysis.drives.kpis import kpis_from_frame
 from pedas.constants import KMH
 from tests.conftest import LK_STUDY
 
@@ -62,7 +62,7 @@ def lk_store(tmp_path_factory):
 
 
 def test_sdlp_per_condition_from_the_declared_sql_kpi_equals_pandas(lk_store, capsys):
-    from analysis.savings import objective_results
+    from analysis.drives.savings import objective_results
     from study.store import Store
 
     db, logs = lk_store
@@ -104,7 +104,9 @@ def test_analyze_drives_without_comparison_has_no_savings_or_bands(lk_store, cli
     assert {"kpis.csv", "summary.csv", "kpi_table.md", "kpi_table.tex", "objective.md"} <= names
     assert not names & {"bands.csv", "per_participant.csv", "style_table.md", "band_diagnostics.csv"}
     assert "saving" not in r.out and "Reproduction bands" not in r.out
-    assert "sdlp mean (SD)" in r.out and "no comparison" in r.out
+    assert "sdlp mean (SD)" in r.out
+    # the paper's figures compare a treatment with a control: without a comparison they are not mentioned at all
+    assert "fig" not in r.out and "## Figures" not in (tmp_path / "o" / "objective.md").read_text()
     kpis = pd.read_csv(tmp_path / "o" / "kpis.csv")
     assert list(kpis.columns[5:]) == ["distance_m", "trip_time_s", "mean_speed_mps", "violation_distance_m",
                                       "violation_share", "violation_events", "sdlp"]
@@ -207,6 +209,16 @@ def test_comparison_must_name_declared_conditions():
     assert fields.count("comparison.control") == 1 and "comparison.treatment" in fields
 
 
+def test_comparison_participant_is_declared_or_none():
+    base = '[comparison]\ncontrol = "hud"\ntreatment = "no_hud"\n'
+    probs = KpiSpecProblems()
+    assert parse(base + 'participant = "LK-07"\n', probs, {}, ("hud", "no_hud")).comparison.participant == "LK-07"
+    assert not probs
+    assert parse(base, probs, {}, ("hud", "no_hud")).comparison.participant is None
+    parse(base + "participant = 7\n", probs, {}, ("hud", "no_hud"))
+    assert [(line, f) for line, f, _ in probs] == [(4, "comparison.participant")]
+
+
 # ------------------------------------------------------------------------------------------ energy source
 def energy_study(tmp_path, power: bool):
     """The lane-keeping study with energy among its KPIs; without `power` the mapping has no power channel."""
@@ -225,7 +237,7 @@ def energy_study(tmp_path, power: bool):
 
 @pytest.mark.parametrize("power", [True, False])
 def test_energy_measured_or_unavailable_never_substituted(cli, tmp_path, power, capsys):
-    from analysis.kpis import energy_note, store_kpis_with_sources
+    from analysis.drives.kpis import energy_note, store_kpis_with_sources
     from study.store import Store
 
     folder = energy_study(tmp_path, power)
@@ -255,7 +267,7 @@ def test_energy_measured_or_unavailable_never_substituted(cli, tmp_path, power, 
 
 def test_sql_kpis_over_standard_columns_beside_the_built_ins():
     """User KPIs may read any column, also those the built-ins read; values by hand on a 100 s drive."""
-    from analysis.kpi_spec import SqlKpi
+    from study.kpi_spec import SqlKpi
 
     df = speeding_log(36.0, 50).assign(p_batt=np.r_[np.full(500, 1000.0), np.full(501, 3000.0)],
                                        segment=["a"] * 500 + ["b"] * 501)
@@ -272,7 +284,7 @@ def test_sql_kpis_over_standard_columns_beside_the_built_ins():
 
 def test_store_sql_kpis_reading_standard_columns(lk_store):
     """From the store: SQL KPIs over columns the built-ins read too (s) and over others (grade, a channel)."""
-    from analysis.kpis import store_kpis
+    from analysis.drives.kpis import store_kpis
     from study.store import Store
 
     db, logs = lk_store

@@ -1,13 +1,13 @@
-"""Drive KPIs (analysis.kpis) on hand-made logs with known answers, and SQL vs the pandas peer."""
+"""Drive KPIs (analysis.drives.kpis) on hand-made logs with known answers, and SQL vs the pandas peer."""
 from __future__ import annotations
 
 import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.testing import kpis_pandas
+from analysis.drives.testing import kpis_pandas
 from pedas_study.bench.kpi import synthetic_sql
-from analysis.kpis import KPI_FIELDS, KpiParams, kpis_from_frame, kpis_from_relation
+from analysis.drives.kpis import KPI_FIELDS, KpiParams, kpis_from_frame, kpis_from_relation
 from pedas.constants import KMH
 
 DT = 0.1
@@ -71,7 +71,7 @@ def test_segments_split_at_the_left_sample_and_sum_to_overall():
 def test_store_energy_matches_power_model(paper_db):
     """A drive imported without p_batt: the importer fills it from the vehicle model, the KPI integrates it to
     the same Wh as the model's own trace energy (`kpi energy`)."""
-    from analysis.kpis import store_kpis
+    from analysis.drives.kpis import store_kpis
     from pedas.power import trace_energy
     from study.drives import import_drive_frame
     from study.participants import add_participant
@@ -90,7 +90,7 @@ def test_store_energy_matches_power_model(paper_db):
 
 
 def test_store_fills_missing_power_and_acceleration_without_changing_store(paper_db):
-    from analysis.kpis import store_kpis
+    from analysis.drives.kpis import store_kpis
     from pedas.power import trace_energy
     from study.drives import import_drive_frame
     from study.participants import add_participant
@@ -257,7 +257,7 @@ def test_sql_equals_pandas_peer_in_both_window_modes(seed):
 def test_stream_mode_is_refused_for_out_of_order_rows():
     import duckdb
 
-    from analysis.kpis import in_drive_order
+    from analysis.drives.kpis import in_drive_order
 
     logs = random_logs(3, 2)
     with duckdb.connect() as con:

@@ -18,8 +18,8 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from analysis.acceptance import SurveyAnalysis, analyze_survey
-from analysis.testing import simulate_study_participants, simulate_study_responses
+from analysis.survey.acceptance import SurveyAnalysis, analyze_survey
+from analysis.survey.testing import simulate_study_participants, simulate_study_responses
 from study.definition import load
 from tests.conftest import python_under_kernel
 

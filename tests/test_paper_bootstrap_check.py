@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from analysis.bootstrap import interval
+from analysis.survey.bootstrap import interval
 from analysis.paper import audit as A
 from analysis.paper import bootstrap_check as B
 

@@ -76,7 +76,7 @@ def test_a_loading_is_credited_to_an_audit_finding_only_with_evidence_about_its_
 
 @pytest.fixture(scope="module")
 def reproduction():
-    from analysis.acceptance import analyze_survey
+    from analysis.survey.acceptance import analyze_survey
 
     data = pd.read_csv(REFERENCE_DIR / "survey.csv")
     analysis = analyze_survey(data, P.paper_study(), n_boot=0, seed=1)

@@ -7,7 +7,8 @@ import pytest
 from study.errors import UserError
 from study.exclusions import exclude
 from study.participants import add_participant
-from study.protocol import abort, advance, complete, load_protocol, parse_protocol, protocol_of, status
+from study.protocol import abort, advance, complete, load_protocol, protocol_of, status
+from study.protocol_file import parse_protocol
 from study.store import Store
 
 PHASES = ("familiarisation", "baseline_drive", "pedas_intro", "practice", "pedas_drive", "survey")

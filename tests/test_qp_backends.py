@@ -248,7 +248,7 @@ def test_a_drive_with_each_backend_gives_the_same_kpis():
     and leaders, so the logs diverge. Stated tolerance: energy per km and trip time within 5 %, the same safety
     outcome (no violation, no red crossing, no missed stop sign). Measured (seed 21, normal): 83.5 vs 82.5 Wh/km,
     719.8 vs 717.8 s."""
-    from analysis.kpis import kpis_from_frame
+    from analysis.drives.kpis import kpis_from_frame
     from pedas.drive import drive
 
     out = {}

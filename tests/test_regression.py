@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from analysis.regression import (ModelSpec, bootstrap_coefs, f_change, hierarchical_regression, run_models,
+from analysis.survey.regression import (ModelSpec, bootstrap_coefs, f_change, hierarchical_regression, run_models,
                                  validate_models)
 
 # Hand-worked: x1, x2 centred and orthogonal, y = 3 + 2 x1 + 1 x2 + e with e orthogonal to 1, x1, x2.
@@ -158,8 +158,8 @@ def test_covariates_enter_numeric_as_is_and_choices_as_dummies():
     the step's block holds all of them (F change with df1 = 2 + 1), and the numbers are OLS on those columns."""
     import statsmodels.api as sm
 
-    from analysis.acceptance import analyze_survey
-    from analysis.testing import simulate_study_participants, simulate_study_responses
+    from analysis.survey.acceptance import analyze_survey
+    from analysis.survey.testing import simulate_study_participants, simulate_study_responses
     from pedas.paths import REPO_ROOT
     from study.definition import load
 

@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from analysis.reliability import (average_variance_extracted, composite_reliability, cronbach_alpha,
+from analysis.survey.reliability import (average_variance_extracted, composite_reliability, cronbach_alpha,
                                   reliability_table)
 
 # Paper Table 3: standardized loadings of the retained items, and the printed CR, AVE.
@@ -61,7 +61,7 @@ def test_omega_matches_semtools_on_holzinger():
     # visual 0.6120052, textual 0.8850608, speed 0.6858417; alpha 0.6261171, 0.8827069, 0.6884550
     from semopy.examples import holzinger39
 
-    from analysis.cfa import fit_cfa
+    from analysis.survey.cfa import fit_cfa
 
     data = holzinger39.get_data()
     cfa = fit_cfa(data, {"visual": ["x1", "x2", "x3"], "textual": ["x4", "x5", "x6"], "speed": ["x7", "x8", "x9"]})

@@ -1,5 +1,5 @@
-"""The replay page (analysis.replay): HUD frames rebuilt from a drive log with hand-worked numbers, the page's data,
-the CLI's errors, and the page in Debian's headless Chromium (the slider moves the HUD and the cursors); P006's
+"""The replay page (analysis.drives.replay): HUD frames rebuilt from a drive log with hand-worked numbers, the page's
+data, the CLI's errors, and the page in Debian's headless Chromium (the slider moves the HUD and the cursors); P006's
 simulated drives end to end (slow)."""
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.replay import ReplayDrive, log_frames, page_data
+from analysis.drives.replay import ReplayDrive, log_frames, page_data
 from pedas.constants import KMH
 from pedas.route import Route, StopSign, TrafficLight
 from tests.conftest import OUTPUT, needs_chromium
@@ -193,7 +193,7 @@ def test_replay_page_in_chromium(browser, cli, two_drives, tmp_path):
 @needs_chromium
 def test_replay_of_p006_in_chromium(browser, cli, tmp_db, tmp_path):
     """P006 of the reference cohort, both drives simulated in SUMO, replayed side by side."""
-    from analysis.report import load_reference
+    from analysis.report.build import load_reference
     from study.store import Store
 
     with Store.open(tmp_db, actor="lab") as st:

@@ -9,7 +9,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from analysis.pipeline import Pipeline, Step, StepFailed, hash_inputs
+from analysis.report.pipeline import Pipeline, Step, StepFailed, hash_inputs
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -117,7 +117,7 @@ def _check_tables_compile(tables: Path, work: Path) -> None:
 @pytest.mark.slow
 @pytest.mark.sumo
 def test_report_on_reduced_reference_cohort(tmp_path):
-    from analysis.report import ReportConfig, run_report
+    from analysis.report.build import ReportConfig, run_report
 
     ref = tmp_path / "reference"
     shutil.copytree(REPO / "data" / "reference", ref)
@@ -180,7 +180,7 @@ def test_report_on_reduced_reference_cohort(tmp_path):
 
 def test_report_on_a_lab_store_without_paper_comparison(cli, tmp_path):
     """A lab's own store: its survey is analysed, no paper audit or reproduction unless asked."""
-    from analysis.report import load_reference
+    from analysis.report.build import load_reference
     from study.store import Store
 
     db = tmp_path / "lab.duckdb"
@@ -217,7 +217,7 @@ def test_report_on_missing_store_is_one_line_error(cli, tmp_path):
 
 def test_a_step_that_fails_keeps_its_previous_outputs(tmp_path):
     """survey, drives and audit write into a fresh folder that replaces theirs only on success."""
-    from analysis.report import _fresh_dir
+    from analysis.report.build import _fresh_dir
 
     out = tmp_path / "drives"
     out.mkdir()
@@ -286,10 +286,10 @@ def test_pca_tables_write_a_variance_at_its_bound_as_zero(tmp_path, monkeypatch)
     """A variance the optimiser leaves at its bound comes out as 0 or ~1e-16 from run to run; the files do not."""
     from types import SimpleNamespace
 
-    import analysis.tables_survey
-    from analysis.report import write_table3_pca
+    import analysis.survey.tables
+    from analysis.report.build import write_table3_pca
 
-    monkeypatch.setattr(analysis.tables_survey, "render_table", lambda *a: "")  # the CSVs are under test
+    monkeypatch.setattr(analysis.survey.tables, "render_table", lambda *a: "")  # the CSVs are under test
 
     def files(error_var):
         lo = pd.DataFrame({"stage": ["initial"], "construct": ["PEoU"], "item": ["PEoU4"], "loading": [0.865113590809],

@@ -1,4 +1,4 @@
-"""A priori power (analysis.sample_size, `pedas-study plan power`): the analytic cases against R (pwr.f2.test and
+"""A priori power (analysis.survey.sample_size, `pedas-study plan power`): the analytic cases against R (pwr.f2.test and
 the noncentral chi-square of MacCallum et al. 1996, committed in tests/data/r_reference_power/, recomputed when
 Rscript is present), the Monte-Carlo estimate against the exact noncentral F, worker independence, and bad input."""
 from __future__ import annotations
@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis import sample_size as ss
+from analysis.survey import sample_size as ss
 from tests.conftest import needs_r
 
 REPO = Path(__file__).resolve().parents[1]
@@ -88,7 +88,7 @@ def test_measurement_df_of_the_paper_and_a_hand_count():
 
 
 def test_cholesky_and_sampling_reproduce_the_covariance():
-    from analysis.mvn import cholesky, draw
+    from analysis.survey.mvn import cholesky, draw
 
     cov = ((2.0, 0.6, 0.2), (0.6, 1.0, 0.3), (0.2, 0.3, 1.5))
     L = np.array(cholesky(cov))

@@ -1,4 +1,4 @@
-"""Per-participant effects of pEDAS, the summary by style and the reproduction bands (analysis.savings), with the
+"""Per-participant effects of pEDAS, the summary by style and the reproduction bands (analysis.drives.savings), with the
 comparison the paper's study declares (studies/pedas_paper/kpis.toml)."""
 from __future__ import annotations
 
@@ -6,10 +6,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.kpi_spec import parse
-from analysis.savings import (participant_effects, objective_results, reduction_pct, reproduction_bands,
+from study.kpi_spec import parse
+from analysis.drives.savings import (participant_effects, objective_results, reduction_pct, reproduction_bands,
                               summarise)
-from analysis.tables_drives import style_table
+from analysis.drives.tables import style_table
 from tests.conftest import PAPER_STUDY
 
 PAPER = parse((PAPER_STUDY / "kpis.toml").read_text(encoding="utf-8"))

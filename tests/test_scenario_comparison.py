@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from analysis.band_diagnostics import COLUMNS
-from analysis.savings import BAND_HIGHWAY, BAND_OVERALL
-from analysis.scenario_comparison import (BAND_COLUMNS, DIAG_COLUMNS, bands_by_scenario, bands_table,
+from analysis.drives.band_diagnostics import COLUMNS
+from analysis.drives.savings import BAND_HIGHWAY, BAND_OVERALL
+from analysis.drives.scenario_comparison import (BAND_COLUMNS, DIAG_COLUMNS, bands_by_scenario, bands_table,
                                           diagnostics_table, write_comparison)
 
 

@@ -7,10 +7,9 @@ import pytest
 
 from study.errors import UserError
 from study.protocol import load_protocol
-from study.scheduling import (
-    assign_order, book, day_agenda, order_counts, phase_durations, planned_minutes, protocol_orders, reschedule,
-    set_status, to_ics,
-)
+from study.orders import assign_order, order_counts
+from study.protocol_file import planned_minutes, protocol_orders
+from study.scheduling import book, day_agenda, phase_durations, reschedule, set_status, to_ics
 from study.store import Store
 
 FUTURE = (datetime.now() + timedelta(days=30)).replace(hour=9, minute=0, second=0, microsecond=0)  # a morning: +3 h stays that day

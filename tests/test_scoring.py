@@ -5,11 +5,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.descriptives import item_descriptives
+from analysis.survey.descriptives import item_descriptives
 from analysis.paper.published import paper_study
 from analysis.paper.synthetic import simulate_paper_responses
-from analysis.scoring import check_not_constant, composites, score_responses
-from analysis.testing import simulate_study_responses
+from analysis.survey.scoring import check_not_constant, composites, score_responses
+from analysis.survey.testing import simulate_study_responses
 from pedas.paths import REPO_ROOT
 from study.definition import load
 
@@ -91,7 +91,7 @@ def test_constant_column_is_named():
 
 
 def test_simulated_answers_are_the_same_under_every_blas_kernel():
-    """The default generator draws its factors without BLAS (analysis.mvn): the same answers whatever kernel
+    """The default generator draws its factors without BLAS (analysis.survey.mvn): the same answers whatever kernel
     OpenBLAS picks."""
     from tests.conftest import python_under_kernel
 

@@ -2,7 +2,7 @@
 
 `doctest` on a list of modules rather than `--doctest-modules` over the tree (which would import every module,
 CLI and benchmark included). The option flags are the ones `[tool.pytest.ini_options] doctest_optionflags`
-declares, so `pytest --doctest-modules analysis/reliability.py` checks the same thing.
+declares, so `pytest --doctest-modules analysis/survey/reliability.py` checks the same thing.
 """
 from __future__ import annotations
 
@@ -12,8 +12,9 @@ import io
 
 import pytest
 
-MODULES = ["analysis.reliability", "analysis.validity", "analysis.regression", "analysis.cfa", "analysis.hypotheses",
-           "analysis.scoring", "analysis.descriptives", "analysis.render", "analysis.acceptance", "analysis.testing"]
+MODULES = ["analysis.survey.reliability", "analysis.survey.validity", "analysis.survey.regression", "analysis.survey.cfa",
+           "analysis.survey.hypotheses", "analysis.survey.scoring", "analysis.survey.descriptives", "analysis.render",
+           "analysis.survey.acceptance", "analysis.survey.testing"]
 
 
 def _flags(config) -> int:
@@ -42,17 +43,17 @@ def test_docstring_examples(name, pytestconfig):
 
 def test_the_public_statistics_functions_have_examples():
     """Each public statistics function named in the docs carries a runnable example."""
-    wanted = {"analysis.reliability": ["cronbach_alpha", "composite_reliability", "average_variance_extracted",
+    wanted = {"analysis.survey.reliability": ["cronbach_alpha", "composite_reliability", "average_variance_extracted",
                                        "omega_semtools"],
-              "analysis.validity": ["stars", "pearson_p", "composite_correlations", "fornell_larcker", "htmt"],
-              "analysis.regression": ["ols", "f_change", "bootstrap_coefs", "bootstrap_ci",
+              "analysis.survey.validity": ["stars", "pearson_p", "composite_correlations", "fornell_larcker", "htmt"],
+              "analysis.survey.regression": ["ols", "f_change", "bootstrap_coefs", "bootstrap_ci",
                                       "hierarchical_regression"],
-              "analysis.cfa": ["fit_indices", "srmr", "heywood_cases", "model_description"],
-              "analysis.hypotheses": ["judge_hypotheses", "load_hypotheses", "supported"],
-              "analysis.scoring": ["composites", "score_responses", "check_not_constant", "resolve_instrument"],
-              "analysis.descriptives": ["item_descriptives"],
-              "analysis.acceptance": ["SurveyAnalysis", "survey_plan", "covariate_frame", "table_titles"],
-              "analysis.testing": ["simulate_study_responses", "simulate_study_participants", "participant_ids"]}
+              "analysis.survey.cfa": ["fit_indices", "srmr", "heywood_cases", "model_description"],
+              "analysis.survey.hypotheses": ["judge_hypotheses", "load_hypotheses", "supported"],
+              "analysis.survey.scoring": ["composites", "score_responses", "check_not_constant", "resolve_instrument"],
+              "analysis.survey.descriptives": ["item_descriptives"],
+              "analysis.survey.acceptance": ["SurveyAnalysis", "survey_plan", "covariate_frame", "table_titles"],
+              "analysis.survey.testing": ["simulate_study_responses", "simulate_study_participants", "participant_ids"]}
     parser = doctest.DocTestParser()
     for mod, names in wanted.items():
         module = importlib.import_module(mod)

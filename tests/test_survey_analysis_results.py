@@ -7,7 +7,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.acceptance import TEXT_COLUMNS, SurveyAnalysis, analyze_survey
+from analysis.survey.acceptance import TEXT_COLUMNS, SurveyAnalysis, analyze_survey
 from analysis.paper.published import paper_study
 from pedas.paths import REFERENCE_DIR
 
@@ -53,7 +53,7 @@ def test_to_markdown_and_to_latex_are_the_written_tables(reference, written):
 
 
 def test_unknown_table_or_format(reference):
-    from analysis.tables_survey import render_table
+    from analysis.survey.tables import render_table
 
     with pytest.raises(ValueError, match="unknown table 'table6'"):
         reference.to_markdown(["table6"])

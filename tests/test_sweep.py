@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.sweep_design import (SweepSpec, check_spec, cohort, morris_design, parse_factors, sobol_design,
+from analysis.sweep.design import (SweepSpec, check_spec, cohort, morris_design, parse_factors, sobol_design,
                                    whatif_of)
 from pedas.whatif import FACTORS, WhatIf
 from study.errors import UserError
@@ -225,7 +225,8 @@ def test_kill_9_then_resume(pooled, tmp_path):
 def test_committed_sweep_first_point_still_simulates_to_its_values(tmp_path):
     """data/sweep is the committed sweep the report analyses: its first design point, driven again with the
     committed sizes, gives the committed KPIs (so a change of the simulation that makes it stale fails)."""
-    from analysis.sweep import KPIS, read_run, simulate_points, spec_of
+    from analysis.sweep.design import KPIS
+    from analysis.sweep.run import read_run, simulate_points, spec_of
 
     design, points, meta = read_run(REPO / "data" / "sweep")
     spec = spec_of(meta)

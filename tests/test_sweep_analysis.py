@@ -7,8 +7,8 @@ import pytest
 from SALib.sample import morris as morris_sample
 from SALib.sample import sobol as sobol_sample
 
-from analysis.sweep import BANDS, KPIS
-from analysis.sweep_analysis import morris_indices, region, region_lines, sobol_indices, top_factors
+from analysis.sweep.design import BANDS, KPIS
+from analysis.sweep.sensitivity import morris_indices, region, region_lines, sobol_indices, top_factors
 
 FACTORS = (("a", 0.0, 1.0), ("b", 0.0, 2.0), ("c", 0.0, 1.0))
 PROBLEM = {"num_vars": 3, "names": ["a", "b", "c"], "bounds": [[0.0, 1.0], [0.0, 2.0], [0.0, 1.0]]}

@@ -8,10 +8,10 @@ from pathlib import Path
 
 import pandas as pd
 
-from analysis.report import ReportConfig, skipped_reason, sweep_step
-from analysis.savings import BAND_HIGHWAY, BAND_OVERALL, BAND_RED, BAND_VIOLATION
-from analysis.sweep import read_run
-from analysis.sweep_analysis import indices, region
+from analysis.report.build import ReportConfig, skipped_reason, sweep_step
+from analysis.drives.savings import BAND_HIGHWAY, BAND_OVERALL, BAND_RED, BAND_VIOLATION
+from analysis.sweep.run import read_run
+from analysis.sweep.sensitivity import indices, region
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -50,7 +50,7 @@ def test_sweep_step_recomputes_from_the_points_and_sets_the_bands_beside(tmp_pat
 def _csv(df: pd.DataFrame):
     import io
 
-    from analysis.sweep import CSV
+    from analysis.sweep.run import CSV
 
     buf = io.StringIO()
     df.to_csv(buf, **CSV)

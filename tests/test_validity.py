@@ -6,7 +6,7 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-from analysis.validity import composite_correlations, fornell_larcker, htmt, pearson_p, stars
+from analysis.survey.validity import composite_correlations, fornell_larcker, htmt, pearson_p, stars
 
 
 def test_pearson_p_equals_scipy():

@@ -22,7 +22,8 @@ from scipy import stats
 from analysis.paper import grim
 from analysis.paper import published as P
 from analysis.render import markdown_table, md_cell
-from analysis.validity import stars
+from analysis.survey.reliability import alpha_from_cov
+from analysis.survey.validity import stars
 
 N_TEXT = 41          # Section 4.2 / 5.2.1 text: "N=41" surveys
 N_CANDIDATES = (40, 41)
@@ -118,13 +119,6 @@ def cr_ave(loadings: np.ndarray) -> tuple[float, float]:
     lam = np.asarray(loadings, float)
     s = lam.sum() ** 2
     return float(s / (s + (1 - lam ** 2).sum())), float((lam ** 2).mean())
-
-
-def alpha_from_cov(cov: np.ndarray) -> float:
-    """Cronbach's α from an item covariance (or correlation) matrix: k/(k-1) (1 - tr Σ / 1'Σ1)."""
-    cov = np.asarray(cov, float)
-    k = cov.shape[0]
-    return float(k / (k - 1) * (1 - np.trace(cov) / cov.sum()))
 
 
 def implied_item_cov(sd: np.ndarray, loadings: np.ndarray, scale: float = 1.0) -> np.ndarray:

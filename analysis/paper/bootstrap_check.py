@@ -62,7 +62,7 @@ def seed_intervals(x: np.ndarray, y: np.ndarray, n_boot: int = N_BOOT, n_seeds: 
 
 def reference_composites(survey: pd.DataFrame | None = None) -> pd.DataFrame:
     """Composites (mean of retained scored items) of the reference survey (default data/reference/survey.csv)."""
-    from analysis.scoring import composites, score_responses
+    from analysis.survey.scoring import composites, score_responses
     from pedas.paths import REFERENCE_DIR
 
     study = P.paper_study()

@@ -5,7 +5,7 @@ correlation matrix R of the k items (unit diagonal, positive semi-definite) yiel
 extraction and, with the printed item SDs, exactly the printed Cα. CR and AVE are Hair's functions of λ
 (:func:`analysis.paper.audit.cr_ave`), so they are checked on the printed λ.
 
-The key fact: for each extraction of :mod:`analysis.extraction`, "λ is the solution for R" is a set of k *linear*
+The key fact: for each extraction of :mod:`analysis.survey.extraction`, "λ is the solution for R" is a set of k *linear*
 equations in the k(k-1)/2 off-diagonal correlations (plus "the eigenvalue is the largest"):
 
 * pca: R v = μ v with v = λ/√μ, μ = Σλ²:           Σ_{j≠i} r_ij λ_j = λ_i (μ - 1)
@@ -40,10 +40,10 @@ import numpy as np
 import pandas as pd
 from scipy import optimize
 
-from analysis import extraction as X
-from analysis.paper import audit as A
 from analysis.paper import grim
 from analysis.paper import published as P
+from analysis.survey import extraction as X
+from analysis.survey.reliability import alpha_from_cov
 
 METHODS = ("pca", "paf", "ml")
 METHOD_NAMES = {"pca": "principal components (SPSS FACTOR default)", "paf": "principal axis factoring",
@@ -131,7 +131,7 @@ def is_solution(R: np.ndarray, lam: np.ndarray, method: str, tol: float = 1e-6) 
 
 
 def _alpha(R: np.ndarray, sd: np.ndarray, sub: list[int]) -> float:
-    return A.alpha_from_cov((np.outer(sd, sd) * R)[np.ix_(sub, sub)])
+    return alpha_from_cov((np.outer(sd, sd) * R)[np.ix_(sub, sub)])
 
 
 def _boxes(values: np.ndarray, decimals: np.ndarray, mode: str) -> list[tuple[float, float]]:

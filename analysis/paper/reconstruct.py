@@ -34,9 +34,9 @@ import numpy as np
 import pandas as pd
 
 from analysis.paper import audit as A
-from analysis.paper import grim
-from analysis.paper import procedure
+from analysis.paper import grim, procedure
 from analysis.paper import published as P
+from analysis.survey.reliability import alpha_from_cov
 
 N_IMPLIED = 40
 DEFAULT_SEED = 20240
@@ -496,7 +496,7 @@ class Reconstruction:
         tc = P.table3_constructs(pub).set_index("construct")
         for c in CONSTRUCTS:
             cov = sc[t.retained[c]].cov().values
-            rows.append(("alpha", c, float(tc.loc[c, "alpha"]), A.alpha_from_cov(cov)))
+            rows.append(("alpha", c, float(tc.loc[c, "alpha"]), alpha_from_cov(cov)))
         reg = regression_table(comp)
         co = P.table5_coefficients(pub)
         st = P.table5_steps(pub)

@@ -142,7 +142,7 @@ def computed_values(analysis) -> dict[tuple[str, str, str, str], float]:
 def paper_procedure_values(analysis) -> dict[tuple[str, str, str, str], float]:
     """The values of :data:`PROCEDURE_QUANTITIES` from an analysis run with ``loadings="pca"``: λ from the extraction
     of all of a construct's items (``initial`` stage), CR/AVE/√AVE from the retained items' λ (Hair)."""
-    from analysis.reliability import average_variance_extracted, composite_reliability
+    from analysis.survey.reliability import average_variance_extracted, composite_reliability
 
     L = analysis.loadings
     ini = L[L["stage"] == "initial"].set_index("item")["loading"]
@@ -168,7 +168,7 @@ def _classify(value: float, r, decimals: int, tol: float) -> str:
 
 def reproduce(analysis, published: pd.DataFrame | None = None, audit: pd.DataFrame | None = None,
               paper_procedure=None) -> pd.DataFrame:
-    """Compare a :class:`analysis.acceptance.SurveyAnalysis` with every published value of Tables 3-5.
+    """Compare a :class:`analysis.survey.acceptance.SurveyAnalysis` with every published value of Tables 3-5.
 
     ``paper_procedure``: the same data analysed with ``loadings="pca"``; when given, λ, CR, AVE and √AVE are
     compared under the paper's procedure (module docstring).
@@ -279,7 +279,7 @@ def write_reproduction(table: pd.DataFrame, out_dir: str | Path, source: str = "
 def reproduce_files(responses: str | Path | None, out_dir: str | Path, n_boot: int = 2000, seed: int = 1) -> pd.DataFrame:
     """Analyse a survey CSV (default: the shipped reconstruction) with our CFA and with the paper's procedure
     (principal components, no bootstrap: only Table 3 differs) and write the comparison into ``out_dir``."""
-    from analysis.acceptance import analyze_survey
+    from analysis.survey.acceptance import analyze_survey
     from pedas.paths import REFERENCE_DIR
 
     path = Path(responses) if responses else REFERENCE_DIR / "survey.csv"

@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.paper.published import paper_study
-from analysis.testing import simulate_study_responses
+from analysis.survey.testing import simulate_study_responses
 
 FACTORS = ("PU", "PEoU", "ATT", "PBC", "SN", "BI")
 # Latent correlations loosely shaped like the paper's Table 4.
@@ -31,6 +31,6 @@ THRESHOLDS = np.array([-1.8, -1.0, -0.2, 0.9])
 
 def simulate_paper_responses(n: int = 40, seed: int = 1, loading: float = 0.8) -> pd.DataFrame:
     """Wide survey frame (participant_id P001.. + every scaled item of the paper's codebook, raw 1-5) of `n`
-    synthetic participants (:func:`analysis.testing.simulate_study_responses` with the module's population)."""
+    synthetic participants (:func:`analysis.survey.testing.simulate_study_responses` with the module's population)."""
     return simulate_study_responses(paper_study(), n, seed, loading=loading, phi=PHI, signals=SIGNALS,
                                     thresholds=THRESHOLDS)

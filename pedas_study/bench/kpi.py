@@ -7,8 +7,8 @@ every drive stops, speeds and crosses lights; ``s`` the exact integral of the no
 (50 km/h), highway second half (100 km/h); a light every 500 samples with a 90 s cycle; a simple road-load battery
 power; an extra channel ``lat_pos`` (lateral position in the lane, m: a slow sway plus noise). Besides the built-in
 KPIs one user KPI is timed, the SDLP ``stddev_samp(lat_pos)`` per segment and drive (:data:`BENCH_SQL_KPIS`).
-The pandas peer is :func:`analysis.testing.kpis_pandas`, the independent implementation of the same definitions that
-the tests check the SQL against, plus the SDLP by a pandas group-by (:func:`sdlp_pandas`).
+The pandas peer is :func:`analysis.drives.testing.kpis_pandas`, the independent implementation of the same definitions
+that the tests check the SQL against, plus the SDLP by a pandas group-by (:func:`sdlp_pandas`).
 """
 from __future__ import annotations
 
@@ -21,12 +21,11 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
-
 import pandas as pd
 
-from analysis.kpi_spec import SqlKpi
-from analysis.kpis import KPI_FIELDS, kpis_from_relation
-from analysis.testing import kpis_pandas
+from study.kpi_spec import SqlKpi
+from analysis.drives.kpis import KPI_FIELDS, kpis_from_relation
+from analysis.drives.testing import kpis_pandas
 
 FULL_ROWS = 100_000_000
 SAMPLES_PER_DRIVE = 10_000
@@ -36,7 +35,7 @@ BENCH_SQL_KPIS = (SqlKpi("sdlp", "stddev_samp(lat_pos)", per_segment=True, unit=
 
 
 def sdlp_pandas(samples: pd.DataFrame, kpis: pd.DataFrame) -> pd.DataFrame:
-    """``kpis`` (rows drive_id, segment as :func:`analysis.testing.kpis_pandas` returns them) with the column
+    """``kpis`` (rows drive_id, segment as :func:`analysis.drives.testing.kpis_pandas` returns them) with the column
     sdlp: the sample standard deviation of ``lat_pos`` per drive and segment, and per drive for ``overall``."""
     per_seg = samples.groupby(["drive_id", "segment"], sort=False)["lat_pos"].std(ddof=1)
     per_drive = samples.groupby("drive_id", sort=False)["lat_pos"].std(ddof=1)

@@ -1,4 +1,4 @@
-"""Time of `analysis.acceptance.analyze_survey` on synthetic answers, and of its stacked bootstrap against a
+"""Time of `analysis.survey.acceptance.analyze_survey` on synthetic answers, and of its stacked bootstrap against a
 statsmodels loop (`pedas-study bench survey`)."""
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from pedas_study.extras import require
 def bench_survey(n: int = 40, n_boot: int = 2000, repeats: int = 3, seed: int = 1) -> dict:
     """Median wall time of `analyze_survey` on `n` synthetic rows of the paper's study with `n_boot` resamples, and
     the share of it the bootstrap takes (ratio to the same run with n_boot = 0)."""
-    from analysis.acceptance import analyze_survey
+    from analysis.survey.acceptance import analyze_survey
     from analysis.paper.published import paper_study
     from analysis.paper.synthetic import simulate_paper_responses
 
@@ -33,12 +33,12 @@ def bench_survey(n: int = 40, n_boot: int = 2000, repeats: int = 3, seed: int = 
 
 
 def bench_bootstrap(n: int = 40, k: int = 3, n_boot: int = 2000, repeats: int = 5, seed: int = 1) -> dict:
-    """Median time of the stacked bootstrap (`analysis.regression.bootstrap_coefs`) vs the peer it replaces,
+    """Median time of the stacked bootstrap (`analysis.survey.regression.bootstrap_coefs`) vs the peer it replaces,
     one statsmodels OLS fit per resample, on the same resample indices; also checks they agree."""
     require("statsmodels", "bench", "the statsmodels peer of bench survey")
     import statsmodels.api as sm
 
-    from analysis.regression import bootstrap_coefs
+    from analysis.survey.regression import bootstrap_coefs
 
     rng = np.random.default_rng(seed)
     X = rng.standard_normal((n, k))

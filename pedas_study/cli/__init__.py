@@ -116,7 +116,8 @@ def build_cli() -> Cli:
     """The registry with every command module registered."""
     parser = Parser(
         prog="pedas-study",
-        description="Driving-simulator user studies of the pEDAS eco-driving assistance system.",
+        description="Driving-simulator user studies: participants and protocol, drive logs, questionnaires, their "
+                    "analysis and the report, for the study a store serves (docs/study_folder.md).",
     )
     parser.add_argument("--db", metavar="PATH", default=None,
                         help=f"study store (DuckDB file); default $PEDAS_STUDY_DB or {DEFAULT_DB}")

@@ -1,5 +1,5 @@
 """`pedas-study analyze survey | drives`: the acceptance statistics and the objective KPIs of the study data.
-Handlers are thin; the work is in `analysis.acceptance` and `analysis.kpis_report`."""
+Handlers are thin; the work is in `analysis.survey.acceptance` and `analysis.drives.analyze`."""
 from __future__ import annotations
 
 from pedas_study.cli.common import db_path, open_store
@@ -19,7 +19,7 @@ def _read_csv(path_text: str, what: str):
 def _survey(args) -> int:
     from pathlib import Path
 
-    from analysis.acceptance import analyze_store, analyze_survey, attributes_from_store, covariates_of
+    from analysis.survey.acceptance import analyze_store, analyze_survey, attributes_from_store, covariates_of
 
     if args.bootstrap < 0:
         raise ValueError("--bootstrap must be >= 0")
@@ -75,7 +75,7 @@ def _survey(args) -> int:
 
 
 def _drives(args) -> int:
-    from analysis.kpis_report import analyze_drives
+    from analysis.drives.analyze import analyze_drives
 
     db = db_path(args)
     if not db.exists():
@@ -89,8 +89,8 @@ def _drives(args) -> int:
 def _extended(args) -> int:
     import time
 
-    from analysis.acceptance import attributes_from_store, responses_from_store
-    from analysis.extended import analyze_extended
+    from analysis.survey.acceptance import attributes_from_store, responses_from_store
+    from analysis.survey.extended import analyze_extended
 
     if args.bootstrap < 0:
         raise ValueError("--bootstrap must be >= 0")
@@ -146,8 +146,8 @@ def _extended(args) -> int:
 def register(cli) -> None:
     """Declare the `analyze` group."""
     g = cli.group("analyze", "analyses of the study data")
-    p = g.command("survey", "acceptance statistics of the study's survey (Tables 3-5 of the paper's study): "
-                  "descriptives, CFA, reliability, validity, hierarchical regressions, hypotheses", _survey)
+    p = g.command("survey", "statistics of the study's survey as its model file declares them: descriptives, CFA, "
+                  "reliability, validity, hierarchical regressions, hypotheses", _survey)
     p.add_argument("--responses", metavar="CSV", default=None,
                    help="wide survey CSV (participant_id + item columns, raw answers); default: the store")
     p.add_argument("--study", metavar="DIR", default=None,
@@ -169,11 +169,12 @@ def register(cli) -> None:
                    help="loadings of Table 3 and CR/AVE: cfa (standardized CFA loadings, default), pca (first "
                         "principal component per construct, SPSS FACTOR's default) or paf (principal axis factoring)")
 
-    p = g.command("drives", "objective KPIs per drive and driving style, effects of pEDAS, reproduction bands and "
-                  "Figs. 9-12", _drives)
+    p = g.command("drives", "the drive KPIs the study declares, per drive and by group; with a declared comparison the "
+                  "effects of the treatment, reproduction bands and figures", _drives)
     p.add_argument("--out", metavar="DIR", required=True, help="output directory (tables, figures/, objective.md)")
-    p.add_argument("--participant", default="P006", metavar="ID",
-                   help="participant of Figs. 11 and 12 (default P006, as in the paper)")
+    p.add_argument("--participant", default=None, metavar="ID",
+                   help="participant whose drives the single-participant figures and the replay page show "
+                        "(default: the study's [comparison] participant in kpis.toml; none: not drawn)")
 
     p = g.command("extended", "extended acceptance statistics: ordinal CFA and omega, HTMT2, bootstrap CIs (BCa) of "
                   "alpha/omega/HTMT, the structural model as one SEM with indirect effects, VIF, full-collinearity "

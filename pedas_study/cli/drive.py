@@ -58,14 +58,14 @@ def _simulate(args) -> None:
 
 
 def _replay(args) -> None:
-    from analysis.replay import write_replay
+    from analysis.drives.replay import write_replay
 
     with open_store(args, read_only=True) as st:
         out = args.out or f"replay_{args.id}_{args.condition}.html"
         path = write_replay(st, args.id, args.condition, out, others=not args.only)
     print(f"{args.id} {args.condition}: replay written to {path}")
     if args.serve:
-        from analysis.replay import serve_file
+        from analysis.drives.replay import serve_file
 
         serve_file(path, args.host, args.port)
 

@@ -1,6 +1,6 @@
 """`pedas-study plan power`: sample size for the next study from this one (or a given population), by
 Monte-Carlo simulation per hypothesis and by the RMSEA tests for the measurement model. The work is in
-`analysis.sample_size` (docs/power.md)."""
+`analysis.survey.sample_size` (docs/power.md)."""
 from __future__ import annotations
 
 from pedas_study.cli.common import db_path, open_store
@@ -28,7 +28,7 @@ def _power(args) -> int:
 
     import pandas as pd
 
-    from analysis import sample_size as ss
+    from analysis.survey import sample_size as ss
     from pedas_study.cli.analyze import _read_csv
 
     if not 0 < args.power < 1:
@@ -56,7 +56,7 @@ def _power(args) -> int:
         db = db_path(args)
         if not db.exists():
             raise FileNotFoundError(f"store not found: {db} (run `pedas-study init`, or pass --responses/--population)")
-        from analysis.acceptance import attributes_from_store, responses_from_store
+        from analysis.survey.acceptance import attributes_from_store, responses_from_store
         from study.studies import definition
 
         with open_store(args, read_only=True) as st:

@@ -1,7 +1,7 @@
 """`pedas-study report`: regenerate every table and figure, the audit and the reproduction verdict, and the report
-document `index.html` for the store's study (`analysis.report`, `analysis.document`). Parts the study or its store
-does not have are skipped with a reason (printed, and shown in the document). Exit code 3 when published values are
-missed."""
+document `index.html` for the store's study (`analysis.report`, `analysis.report.document`). Parts the study or its
+store does not have are skipped with a reason (printed, and shown in the document). Exit code 3 when published values
+are missed."""
 from __future__ import annotations
 
 import os
@@ -13,8 +13,8 @@ from study.errors import UserError
 
 
 def _report(args) -> int:
-    from analysis.pipeline import StepFailed
-    from analysis.report import ReportConfig, run_report
+    from analysis.report.build import ReportConfig, run_report
+    from analysis.report.pipeline import StepFailed
     from pedas_study.extras import require
 
     lab_store = bool(args.db or os.environ.get("PEDAS_STUDY_DB"))
@@ -53,7 +53,7 @@ def _report(args) -> int:
 
 
 def _bundle(cfg, path: Path) -> None:
-    from analysis.bundle import write_bundle
+    from analysis.report.bundle import write_bundle
     from study.store import Store
 
     settings = {"seed": cfg.seed, "n_boot": cfg.n_boot, "reference": cfg.reference,

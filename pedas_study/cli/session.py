@@ -93,7 +93,7 @@ def _close(status: str):
 
 
 def _assign(args) -> None:
-    from study.scheduling import assign_order
+    from study.orders import assign_order
 
     with open_store(args) as st:
         print(f"{args.id}: order {assign_order(st, args.id)}")

@@ -35,11 +35,11 @@ def _cohort(args) -> None:
 
 
 def _sweep(args) -> None:
-    """Thin layer over analysis.sweep.run_sweep (docs/sweep.md)."""
+    """Thin layer over analysis.sweep.run.run_sweep (docs/sweep.md)."""
     from pathlib import Path
 
-    from analysis.sweep import run_sweep
-    from analysis.sweep_design import SweepSpec, parse_factors
+    from analysis.sweep.run import run_sweep
+    from analysis.sweep.design import SweepSpec, parse_factors
     from pedas_study.extras import require
 
     if args.workers is not None and args.workers < 1:

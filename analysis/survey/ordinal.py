@@ -1,0 +1,354 @@
+"""Ordinal treatment of Likert items: thresholds, polychoric correlations, a CFA on them (ULS or DWLS) and
+ordinal omega.
+
+* Bivariate normal probabilities (:func:`bvn_upper`): Drezner & Wesolowsky (1990) as refined by Genz (2004), with
+  Gauss-Legendre quadrature (20 nodes), accurate to ~1e-15; deterministic (no Monte Carlo).
+* Thresholds of an item with observed categories c_1 < ... < c_m: tau_j = Phi^-1(share of answers <= c_j),
+  j = 1..m-1 (empty categories are not categories, as in lavaan).
+* Polychoric correlation (two-step, Olsson 1979, lavaan's ``lavCor(ordered=)``): thresholds fixed at their
+  univariate estimates, rho maximises sum_ab n_ab log P_ab(rho), P_ab the bivariate normal probability of the cell
+  rectangle; Brent's bounded search on (-1, 1) to 1e-10. The asymptotic variance of each rho (the DWLS weights)
+  follows Muthen (1984) as lavaan computes it (:func:`_avar`): the empirical variance of its influence function,
+  with the thresholds' sampling error carried through, from outer products of the case-wise scores.
+* Ordinal CFA, delta parameterisation: rho_ij = lambda_i lambda_j phi_{c(i)c(j)} for i < j (standardized loadings
+  lambda, factor correlations phi), error variance 1 - lambda_i^2; estimated by least squares on the p(p-1)/2
+  polychoric correlations, ``ULS`` (unit weights; the point estimates of lavaan ``estimator="ULSMV"``) or ``DWLS``
+  (weights 1/avar(rho_ij), lavaan's diagonal WLS.V; the point estimates of lavaan ``estimator="WLSMV"``).
+  The scaled-shifted test statistic of WLSMV is not computed; the fit reported is the weighted discrepancy and
+  the SRMR of the polychoric residuals.
+* Ordinal omega (Green & Yang 2009; semTools ``compRelSEM(ord.scale=TRUE)``):
+  omega = sum_jj' [sum_cc' Phi2(tau_jc, tau_j'c'; r*_jj') - Phi(tau_jc)Phi(tau_j'c')] /
+          sum_jj' [sum_cc' Phi2(tau_jc, tau_j'c'; rho_jj') - Phi(tau_jc)Phi(tau_j'c')],
+  r* = Lambda Phi Lambda' (the common part; diagonal lambda_j^2) and rho the sample polychoric matrix (unit
+  diagonal): the reliability of the sum of the *observed* ordinal answers.
+
+semopy (2.3) has a polychoric correlation (``semopy.polycorr.polychoric_corr``, same two-step estimator, bounded
+search to ~1e-5) but its ``DWLS``/``WLS`` objectives weight by the fourth moments of the raw data treated as
+continuous, not by the sampling variance of polychoric correlations, so the CFA here is estimated directly.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from itertools import combinations
+
+import numpy as np
+import pandas as pd
+from scipy import optimize
+from scipy.special import ndtr, ndtri
+
+_GL_X, _GL_W = np.polynomial.legendre.leggauss(20)
+TWO_PI = 2.0 * np.pi
+BIG = 1e3
+
+
+def _sf(x):
+    return ndtr(-np.asarray(x, float))
+
+
+def bvn_upper(h, k, r) -> np.ndarray:
+    """P(X > h, Y > k) for standard bivariate normal X, Y with correlation r (arrays broadcast; +-inf allowed).
+
+    Examples
+    --------
+    >>> from analysis.survey.ordinal import bvn_upper
+    >>> round(float(bvn_upper(0.0, 0.0, 0.5)), 12)          # 1/4 + asin(r)/(2 pi) = 1/3
+    0.333333333333
+    >>> round(float(bvn_upper(0.0, 0.0, -0.95)), 12)        # 1/4 + asin(-.95)/(2 pi)
+    0.050541312052
+    """
+    h, k, r = np.broadcast_arrays(np.asarray(h, float), np.asarray(k, float), np.asarray(r, float))
+    shape = h.shape
+    # +-inf as +-BIG: every term then under/overflows to the exact limit (Phi(-BIG) = 0, exp(-BIG^2) = 0)
+    h = np.clip(h.ravel(), -BIG, BIG)
+    k = np.clip(k.ravel(), -BIG, BIG)
+    r = np.clip(r.ravel(), -1.0, 1.0)
+    out = np.empty(h.shape)
+    sf = _sf
+    lo = np.abs(r) < 0.925
+    one = r >= 1.0
+    mone = r <= -1.0
+    hi = ~lo & ~one & ~mone
+    with np.errstate(over="ignore", under="ignore", divide="ignore", invalid="ignore"):
+        if lo.any():
+            hh, kk, rr = h[lo], k[lo], r[lo]
+            hk = hh * kk
+            hs = (hh * hh + kk * kk) / 2.0
+            asr = np.arcsin(rr)
+            sn = np.sin(asr[:, None] * (_GL_X[None, :] + 1.0) / 2.0)
+            s = np.sum(_GL_W * np.exp((sn * hk[:, None] - hs[:, None]) / (1.0 - sn * sn)), axis=1)
+            out[lo] = s * asr / (2.0 * TWO_PI) + sf(hh) * sf(kk)
+        out[one] = sf(np.maximum(h[one], k[one]))
+        out[mone] = np.maximum(0.0, sf(h[mone]) - ndtr(k[mone]))
+        if hi.any():
+            hh, rr = h[hi], r[hi]
+            neg = rr < 0
+            kk = np.where(neg, -k[hi], k[hi])
+            hk = hh * kk
+            a2 = (1.0 - rr) * (1.0 + rr)
+            a = np.sqrt(a2)
+            bs = (hh - kk) ** 2
+            c = (4.0 - hk) / 8.0
+            d = (12.0 - hk) / 16.0
+            bvn = a * np.exp(-(bs / a2 + hk) / 2.0) * (1.0 - c * (bs - a2) * (1.0 - d * bs / 5.0) / 3.0
+                                                      + c * d * a2 * a2 / 5.0)
+            b = np.sqrt(bs)
+            corr = np.exp(-hk / 2.0) * np.sqrt(TWO_PI) * ndtr(-b / a) * b * (1.0 - c * bs * (1.0 - d * bs / 5.0) / 3.0)
+            bvn = bvn - np.where(hk > -160.0, np.nan_to_num(corr), 0.0)
+            half = a / 2.0
+            xs = (half[:, None] * (_GL_X[None, :] + 1.0)) ** 2
+            rs = np.sqrt(1.0 - xs)
+            terms = np.exp(-bs[:, None] / (2.0 * xs) - hk[:, None] / (1.0 + rs)) / rs \
+                - np.exp(-(bs[:, None] / xs + hk[:, None]) / 2.0) * (1.0 + c[:, None] * xs * (1.0 + d[:, None] * xs))
+            bvn = bvn + np.sum(half[:, None] * _GL_W * terms, axis=1)
+            bvn = -bvn / TWO_PI
+            pos_v = bvn + sf(np.maximum(hh, kk))
+            lower = np.where(hh < 0, ndtr(kk) - ndtr(hh), sf(hh) - sf(kk))
+            neg_v = -bvn + np.where(kk > hh, lower, 0.0)
+            out[hi] = np.where(neg, neg_v, pos_v)
+    return np.clip(out, 0.0, 1.0).reshape(shape)
+
+
+def bvn_cdf(h, k, r) -> np.ndarray:
+    """P(X <= h, Y <= k) = P(X > -h, Y > -k) for the standard bivariate normal with correlation r.
+
+    Examples
+    --------
+    >>> from analysis.survey.ordinal import bvn_cdf
+    >>> round(float(bvn_cdf(1.0, 1.0, 1.0)), 12), round(float(bvn_cdf(0.0, 0.0, 0.0)), 12)
+    (0.841344746069, 0.25)
+    """
+    return bvn_upper(-np.asarray(h, float), -np.asarray(k, float), r)
+
+
+def codes(x: pd.Series) -> tuple[np.ndarray, np.ndarray]:
+    """(category index 0..m-1 of each answer, thresholds tau_1..tau_{m-1}) of one item (observed categories only).
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> from analysis.survey.ordinal import codes
+    >>> c, tau = codes(pd.Series([1, 1, 3, 3, 3, 5]))       # shares <= 1: 2/6, <= 3: 5/6
+    >>> c.tolist(), tau.round(4).tolist()
+    ([0, 0, 1, 1, 1, 2], [-0.4307, 0.9674])
+    """
+    v = np.asarray(x, float)
+    levels = np.unique(v)
+    c = np.searchsorted(levels, v)
+    counts = np.bincount(c, minlength=len(levels))
+    cum = np.cumsum(counts)[:-1] / len(v)
+    return c, ndtri(cum)
+
+
+def _cells(tx, ty, rho):
+    """(m_x, m_y) matrix of cell probabilities for thresholds tx, ty and correlation rho."""
+    ex = np.concatenate([[-np.inf], tx, [np.inf]])
+    ey = np.concatenate([[-np.inf], ty, [np.inf]])
+    F = bvn_cdf(ex[:, None], ey[None, :], rho)
+    return F[1:, 1:] - F[:-1, 1:] - F[1:, :-1] + F[:-1, :-1]
+
+
+def _univariate(t):
+    e = np.concatenate([[-np.inf], t, [np.inf]])
+    return np.diff(ndtr(e))
+
+
+def polychoric_pair(cx: np.ndarray, cy: np.ndarray, tx: np.ndarray, ty: np.ndarray) -> float:
+    """Two-step ML polychoric correlation of two coded items (thresholds fixed); ValueError if the search fails."""
+    n = np.zeros((len(tx) + 1, len(ty) + 1))
+    np.add.at(n, (cx, cy), 1.0)
+
+    def nll(r):
+        p = _cells(tx, ty, r)
+        with np.errstate(divide="ignore"):
+            return -float(np.sum(n[n > 0] * np.log(np.clip(p[n > 0], 1e-300, None))))
+
+    res = optimize.minimize_scalar(nll, bounds=(-0.999999, 0.999999), method="bounded",
+                                   options={"xatol": 1e-10, "maxiter": 500})
+    if not res.success or not np.isfinite(res.x):
+        raise ValueError(f"polychoric correlation: search did not converge ({res.message})")
+    return float(res.x)
+
+
+@dataclass
+class Polychoric:
+    """items; R: polychoric correlation matrix (DataFrame, unit diagonal); thresholds: item -> tau array;
+    avar: asymptotic variance of each rho_ij (DataFrame, NaN diagonal) as N x var; n."""
+
+    items: list[str]
+    R: pd.DataFrame
+    thresholds: dict[str, np.ndarray]
+    avar: pd.DataFrame
+    n: int
+
+
+def polychoric(data: pd.DataFrame, items: list[str], *, acov: bool = True) -> Polychoric:
+    """Polychoric correlations of `items` (complete rows of integer answers), with the influence-function
+    asymptotic variances of the module docstring when `acov`.
+
+    Raises ValueError when an item has a single observed category.
+    """
+    x = data[items].dropna()
+    n = len(x)
+    cod, thr = {}, {}
+    for it in items:
+        c, t = codes(x[it])
+        if len(t) == 0:
+            raise ValueError(f"ordinal CFA: item {it} has a single observed answer category")
+        cod[it], thr[it] = c, t
+    p = len(items)
+    R = np.eye(p)
+    V = np.full((p, p), np.nan)
+    for i, j in combinations(range(p), 2):
+        a, b = items[i], items[j]
+        r = polychoric_pair(cod[a], cod[b], thr[a], thr[b])
+        R[i, j] = R[j, i] = r
+        if acov:
+            V[i, j] = V[j, i] = _avar(cod[a], cod[b], thr[a], thr[b], r)
+    return Polychoric(items=list(items), R=pd.DataFrame(R, index=items, columns=items), thresholds=thr,
+                      avar=pd.DataFrame(V, index=items, columns=items), n=n)
+
+
+def _uni_scores(c: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """(n, m-1) scores d log P(c_i) / d tau_m of the univariate threshold model."""
+    e = np.concatenate([[-np.inf], t, [np.inf]])
+    P = np.diff(ndtr(e))
+    m = np.arange(len(t))
+    dens = np.exp(-t * t / 2.0) / np.sqrt(TWO_PI)
+    return dens[None, :] * ((c[:, None] == m[None, :]).astype(float)
+                            - (c[:, None] == m[None, :] + 1).astype(float)) / P[c][:, None]
+
+
+def _avar(cx, cy, tx, ty, rho, eps: float = 1e-6) -> float:
+    """N x asymptotic variance of the two-step rho (Muthen 1984, as lavaan's ``lav_muthen1984``): the mean squared
+    influence value IF_i = [s_i - sum_{x,y} E(s s_tau,biv') B_tau^-1 s_tau,uni,i] / E(s^2), with s_i the score of
+    rho, s_tau,biv the scores of the bivariate likelihood in the thresholds, s_tau,uni the univariate threshold
+    scores and B_tau = E(s_tau,uni s_tau,uni'); every expectation the sample mean of cross-products (outer-product
+    information), the scores of the bivariate likelihood by central differences."""
+    def logl(tx_, ty_, r):
+        return np.log(_cells(tx_, ty_, r)[cx, cy])
+
+    s = (logl(tx, ty, rho + eps) - logl(tx, ty, rho - eps)) / (2 * eps)
+    infl = s.copy()
+    for which, t, c in (("x", tx, cx), ("y", ty, cy)):
+        su = _uni_scores(c, t)
+        if_t = su @ np.linalg.inv(su.T @ su / len(c))
+        sb = np.empty((len(c), len(t)))
+        for m in range(len(t)):
+            up, dn = t.copy(), t.copy()
+            up[m] += eps
+            dn[m] -= eps
+            sb[:, m] = ((logl(up, ty, rho) - logl(dn, ty, rho)) if which == "x"
+                        else (logl(tx, up, rho) - logl(tx, dn, rho))) / (2 * eps)
+        infl = infl - if_t @ (s[:, None] * sb).mean(axis=0)
+    return float(np.mean((infl / np.mean(s ** 2)) ** 2))
+
+
+@dataclass
+class OrdinalCFA:
+    """loadings: construct, item, loading (standardized, delta parameterisation), error_var (1 - loading^2);
+    latent_corr; fit: estimator, n, f_min (weighted residual sum of squares), srmr (RMS of the off-diagonal
+    residual correlations), n_params, df; poly: the Polychoric input; converged; warnings."""
+
+    constructs: dict[str, list[str]]
+    estimator: str
+    loadings: pd.DataFrame
+    latent_corr: pd.DataFrame
+    fit: dict
+    poly: Polychoric
+    converged: bool
+    warnings: list[str] = field(default_factory=list)
+
+
+def fit_ordinal_cfa(data: pd.DataFrame, constructs: dict[str, list[str]], *, estimator: str = "DWLS",
+                    poly: Polychoric | None = None) -> OrdinalCFA:
+    """Correlated-factors CFA on polychoric correlations (module docstring), estimator "DWLS" or "ULS".
+
+    Raises ValueError on an unknown estimator, a construct with fewer than 2 items, or a failed optimisation.
+    """
+    if estimator not in ("DWLS", "ULS"):
+        raise ValueError(f"ordinal CFA: unknown estimator {estimator!r} (DWLS or ULS)")
+    for c, its in constructs.items():
+        if len(its) < 2:
+            raise ValueError(f"ordinal CFA: construct {c} needs at least 2 items, has {len(its)}")
+    items = [i for its in constructs.values() for i in its]
+    poly = poly if poly is not None else polychoric(data, items, acov=estimator == "DWLS")
+    R = poly.R.loc[items, items].to_numpy()
+    p, names = len(items), list(constructs)
+    k = len(names)
+    fac = np.array([names.index(c) for c, its in constructs.items() for _ in its])
+    iu = np.triu_indices(p, 1)
+    r_obs = R[iu]
+    if estimator == "DWLS":
+        v = poly.avar.loc[items, items].to_numpy()[iu]
+        if not np.all(np.isfinite(v) & (v > 0)):
+            raise ValueError("ordinal CFA: the polychoric correlations' sampling variances are not all positive")
+        w = 1.0 / v
+    else:
+        w = np.ones_like(r_obs)
+    sw = np.sqrt(w)
+    ku = np.triu_indices(k, 1)
+
+    def implied(theta):
+        lam = theta[:p]
+        phi = np.eye(k)
+        phi[ku] = theta[p:]
+        phi[(ku[1], ku[0])] = theta[p:]
+        return np.outer(lam, lam) * phi[np.ix_(fac, fac)], phi
+
+    def resid(theta):
+        return sw * (r_obs - implied(theta)[0][iu])
+
+    start = np.concatenate([np.full(p, 0.7), np.full(len(ku[0]), 0.3)])
+    res = optimize.least_squares(resid, start, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=20000)
+    warn: list[str] = []
+    grad = res.jac.T @ res.fun
+    converged = bool(res.status > 0 and np.all(np.isfinite(res.x)) and np.max(np.abs(grad)) < 1e-6)
+    if not converged:
+        warn.append(f"ordinal CFA ({estimator}): did not converge ({res.message}); estimates are unreliable")
+    theta = res.x.copy()
+    # a factor's sign is not identified: make each factor's first loading positive
+    for j in range(k):
+        sel = np.where(fac == j)[0]
+        if theta[sel[0]] < 0:
+            theta[sel] *= -1
+            for m, (a, b) in enumerate(zip(*ku)):
+                if a == j or b == j:
+                    theta[p + m] *= -1
+    sigma, phi = implied(theta)
+    lam = theta[:p]
+    rows = [{"construct": names[fac[i]], "item": it, "loading": float(lam[i]), "error_var": float(1 - lam[i] ** 2)}
+            for i, it in enumerate(items)]
+    loadings = pd.DataFrame(rows)
+    for r in rows:
+        if r["error_var"] <= 0:
+            warn.append(f"ordinal CFA ({estimator}): Heywood case: error variance of {r['item']} = "
+                        f"{r['error_var']:.4g} (<= 0)")
+    resid_corr = r_obs - sigma[iu]
+    n_params = p + len(ku[0])
+    fit = {"estimator": estimator, "n": poly.n, "f_min": float(np.sum(w * resid_corr ** 2)),
+           "srmr": float(np.sqrt(np.mean(resid_corr ** 2))), "n_params": n_params,
+           "df": int(len(r_obs) - n_params)}
+    return OrdinalCFA(constructs=dict(constructs), estimator=estimator, loadings=loadings,
+                      latent_corr=pd.DataFrame(phi, index=names, columns=names), fit=fit, poly=poly,
+                      converged=converged, warnings=warn)
+
+
+def ordinal_omega(cfa: OrdinalCFA) -> pd.DataFrame:
+    """Ordinal omega per construct of a fitted :class:`OrdinalCFA` (module docstring; Green & Yang 2009).
+
+    Returns construct, omega_ordinal, n_items.
+    """
+    rows = []
+    for c, its in cfa.constructs.items():
+        lam = cfa.loadings.set_index("item").loc[its, "loading"].to_numpy()
+        common = np.outer(lam, lam)               # phi_cc = 1
+        total = cfa.poly.R.loc[its, its].to_numpy()
+        num = den = 0.0
+        for a in range(len(its)):
+            for b in range(len(its)):
+                t1, t2 = cfa.poly.thresholds[its[a]], cfa.poly.thresholds[its[b]]
+                marg = ndtr(t1).sum() * ndtr(t2).sum()
+                num += bvn_cdf(t1[:, None], t2[None, :], common[a, b]).sum() - marg
+                den += bvn_cdf(t1[:, None], t2[None, :], total[a, b]).sum() - marg
+        rows.append({"construct": c, "omega_ordinal": float(num / den), "n_items": len(its)})
+    return pd.DataFrame(rows, columns=["construct", "omega_ordinal", "n_items"])
