@@ -56,6 +56,7 @@ test: $(STAMP)
 	$(BIN)/python -m pytest -n 2 --dist loadgroup $(PYTEST_ARGS)
 
 bench: $(STAMP)
+	$(BIN)/pedas-study bench cli
 	$(BIN)/pedas-study bench mpc
 	$(BIN)/pedas-study bench drive
 	$(BIN)/pedas-study bench kpi

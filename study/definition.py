@@ -10,7 +10,8 @@
 :func:`read_folder` reads the declared files as text; :func:`parse` turns those texts into a
 :class:`StudyDefinition` and collects *every* problem (file, line, field, message) instead of stopping at the first;
 :func:`load` raises a :class:`StudyError` naming the first problem and how many there are. The store keeps the texts
-(table ``study_definitions``), so a stored study is re-parsed from exactly what was checked in, never from the folder.
+(table ``study_definitions``), so a stored study is re-parsed from exactly what was checked in, never from the folder;
+:func:`from_stored` reads it back without checking it again, its declared files parsed when first used.
 """
 from __future__ import annotations
 
@@ -255,6 +256,8 @@ class StudyDefinition:
 
     @cached_property
     def model(self) -> AnalysisModel | None:
+        """The model file parsed on first use (:func:`parse_model`, which imports semopy's lavaan parser); None when
+        the study declares none. A stored study is only parsed here, by the commands that use its model."""
         text = self.text("model")
         return None if text is None else parse_model(text, self.paths["model"], Problems(), strict=True)
 
@@ -319,9 +322,22 @@ def check(folder: str | Path) -> list[Problem]:
 
 
 def from_files(files: dict[str, str]) -> StudyDefinition:
-    """Parse stored or read texts; any problem -> StudyError."""
+    """Parse stored or read texts and check every declared file; any problem -> StudyError."""
     problems = Problems()
     study = _parse(files, problems)
+    if problems:
+        raise StudyError(list(problems))
+    return study
+
+
+def from_stored(files: dict[str, str]) -> StudyDefinition:
+    """A study as the store holds it: texts that :func:`from_files` checked when they were stored (the stored hash
+    names exactly those texts), so they are not checked again. Only study.toml is parsed here; each declared file
+    (codebook, protocols, model) is parsed by the property that returns it, on first use, by the same parser as
+    the check. Reading a stored study thus loads no model or KPI parser unless a command uses them. A problem of
+    study.toml -> StudyError."""
+    problems = Problems()
+    study = _parse(files, problems, check_files=False)
     if problems:
         raise StudyError(list(problems))
     return study
@@ -344,7 +360,8 @@ def _toml_field(text: str, line: int) -> str:
     return ".".join(x for x in (table, key) if x) or "toml"
 
 
-def _parse(files: dict[str, str], problems: Problems) -> StudyDefinition | None:
+def _parse(files: dict[str, str], problems: Problems, check_files: bool = True) -> StudyDefinition | None:
+    """study.toml and, with `check_files`, the checks of its SQL rules and of every declared file."""
     text = files.get(STUDY_FILE, "")
     try:
         data = tomllib.loads(text)
@@ -419,7 +436,8 @@ def _parse(files: dict[str, str], problems: Problems) -> StudyDefinition | None:
             problems.add(STUDY_FILE, line_of(text, "", "checks", k), f"checks[{k}]", "needs sql and message")
             continue
         checks.append(Check(raw["sql"], raw["message"]))
-    _check_sql(checks, attributes, text, problems)
+    if check_files:
+        _check_sql(checks, attributes, text, problems)
 
     paths = data.get("files", {})
     if not isinstance(paths, dict):
@@ -461,7 +479,8 @@ def _parse(files: dict[str, str], problems: Problems) -> StudyDefinition | None:
                             checks=tuple(checks), settings=settings,
                             files={k: v for k, v in files.items() if k == STUDY_FILE or k in _declared(clean)},
                             paths=clean)
-    _check_files(study, problems)
+    if check_files:
+        _check_files(study, problems)
     return study
 
 

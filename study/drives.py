@@ -19,15 +19,22 @@ energy_model``); otherwise ``p_batt`` stays NULL. ``drives.meta`` records ``ener
 An import is one transaction: the ``drives`` row (audited) and all its samples are stored together or not
 at all. Re-importing the same content is a no-op; different content for a (participant, condition) that
 already has a drive needs ``replace=True`` (audited as delete + insert).
+
+Memory: a canonical CSV or Parquet log is never held whole. It is read in chunks of :data:`CHUNK_ROWS` rows twice,
+first to check it (:func:`_prepare_file`: the problem reported is the one the whole log gives), then inside the
+transaction to store it, its rows streamed into ``drive_samples`` by one INSERT while DuckDB's memory is held to
+:data:`IMPORT_MEMORY`. A mapped log, a SUMO FCD file and a DataFrame are checked whole (:func:`_prepare`) and stored
+the same way.
 """
 from __future__ import annotations
 
 import hashlib
 import json
 import time
+from contextlib import closing
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Iterator
 
 import numpy as np
 import pandas as pd
@@ -63,6 +70,12 @@ _UNIT_MIXUPS = ((3.6, "a speed in km/h read as m/s"), (1 / 3.6, "a speed in m/s 
                 (2.2369363, "a speed in mph read as m/s"), (1 / 2.2369363, "a speed in m/s read as mph"),
                 (1000.0, "a time in ms read as s"), (0.001, "a time in s read as ms"),
                 (3.2808399, "a position in m read as ft"), (1 / 3.2808399, "a position in ft read as m"))
+#: rows per chunk of a canonical CSV or Parquet log imported in chunks (a few tens of MB of memory per chunk, the
+#: computed columns and the Arrow copy included)
+CHUNK_ROWS = 50_000
+#: DuckDB's memory limit while an import writes its samples (:mod:`study.duck_memory`): the rows stream to the file
+IMPORT_MEMORY = "128MB"
+_CSV_TYPES = {"tl_id": "string", "segment": "string", "tl_state": "string", "controller": "string"}
 _TRUE = {"true", "1", "t", "yes", "y", "1.0"}
 _FALSE = {"false", "0", "f", "no", "n", "0.0"}
 
@@ -90,11 +103,32 @@ class DriveImport:
 
 
 @dataclass(frozen=True)
+class LogSummary:
+    """What storing a validated log needs before its samples: ``n`` samples, the validated ``columns`` (canonical
+    order), the first and last ``t`` (s) and ``s`` (m), and whether ``p_batt`` has a value anywhere
+    (``has_power``)."""
+
+    n: int
+    columns: tuple[str, ...]
+    t: tuple[float, float]
+    s: tuple[float, float]
+    has_power: bool
+
+    @classmethod
+    def of(cls, frame: pd.DataFrame) -> "LogSummary":
+        t, s = frame["t"].to_numpy(dtype="float64"), frame["s"].to_numpy(dtype="float64")
+        return cls(len(frame), tuple(frame.columns), (t[0], t[-1]), (s[0], s[-1]),
+                   "p_batt" in frame.columns and bool(frame["p_batt"].notna().any()))
+
+
+@dataclass(frozen=True)
 class PreparedDrive:
-    """A log ready to be stored: mapped, joined to the study's route, validated and checked (:func:`_prepare`).
+    """A log ready to be stored: mapped, joined to the study's route, validated and checked (:func:`_prepare`,
+    :func:`_prepare_file`).
 
     * ``frame``: the validated drive log, the known columns in canonical order (:data:`COLUMNS`) in SI units
-      (t s, s m, v and speed_limit m/s, a m/s², ft and fb N, p_batt W, grade rad, d_tl and leader_gap m).
+      (t s, s m, v and speed_limit m/s, a m/s², ft and fb N, p_batt W, grade rad, d_tl and leader_gap m); None for a
+      log file validated in chunks, which ``stream`` reads and validates again while it is stored.
     * ``extras``: the extra channels of the log mapping, one float column each in its stored unit
       (:attr:`study.logmap.Channel.stored_unit`), row for row with ``frame``; None without a mapping.
     * ``labels``: canonical column -> how messages name it (e.g. ``"v (column speed_kmh, km/h)"``); empty without a
@@ -105,9 +139,13 @@ class PreparedDrive:
     * ``overridden``: the plausibility problems imported anyway (``force``), one line each.
     * ``channels``: the extra channels (:class:`study.logmap.Channel`) whose values ``extras`` holds; () without a
       mapping.
+    * ``summary``: length, columns and ends of the validated log (:class:`LogSummary`; taken from ``frame`` when
+      not given).
+    * ``stream``: for a log validated in chunks, a function that yields the validated log again in consecutive
+      chunks (same columns as ``summary.columns``); None when ``frame`` holds the log.
     """
 
-    frame: pd.DataFrame
+    frame: pd.DataFrame | None
     extras: pd.DataFrame | None
     labels: dict[str, str]
     ignored: tuple[str, ...]
@@ -115,6 +153,16 @@ class PreparedDrive:
     s_integrated: bool
     overridden: tuple[str, ...]
     channels: tuple = ()
+    summary: LogSummary | None = None
+    stream: Callable[[], Iterator[pd.DataFrame]] | None = None
+
+    def __post_init__(self) -> None:
+        if self.summary is None:
+            object.__setattr__(self, "summary", LogSummary.of(self.frame))
+
+    def chunks(self) -> Iterator[pd.DataFrame]:
+        """The validated log in consecutive chunks: ``frame`` as the only one, or the chunks of ``stream``."""
+        return iter([self.frame]) if self.stream is None else self.stream()
 
 
 @dataclass(frozen=True)
@@ -155,8 +203,23 @@ def _row(i: int) -> int:
     return int(i) + 1
 
 
-def _numeric(df: pd.DataFrame, col: str, name: str | None = None) -> np.ndarray:
-    """Column as float64; a non-number names column (`name`, default "column <col>") and row."""
+class _Problem(UserError):
+    """A problem :func:`validate_drive` reports, with the position of its check in the order of the checks
+    (`check`): a log validated in chunks reports the problem of the earliest check that fails in any chunk, at the
+    first chunk where it fails, which is what the whole log validated at once reports."""
+
+    def __init__(self, message: str, check: int) -> None:
+        super().__init__(message)
+        self.check = check
+
+
+#: positions in the order of the checks of the problems outside the rows' values
+CHECK_ROUTE, CHECK_HEADER, CHECK_LENGTH = -1, 0, 1
+
+
+def _numeric(df: pd.DataFrame, col: str, name: str | None = None, first_row: int = 0) -> np.ndarray:
+    """Column as float64; a non-number names column (`name`, default "column <col>") and row (`first_row`: the
+    log's 0-based row of the frame's first row)."""
     name = name or f"column {col}"
     s = df[col]
     if pd.api.types.is_bool_dtype(s) or not (pd.api.types.is_numeric_dtype(s) or s.dtype == object
@@ -168,7 +231,7 @@ def _numeric(df: pd.DataFrame, col: str, name: str | None = None) -> np.ndarray:
     bad = conv.isna() & s.notna() & (s.astype("string").str.strip() != "")
     if bad.any():
         i = int(np.flatnonzero(bad.to_numpy())[0])
-        raise UserError(f"{name} row {_row(i)}: {s.iloc[i]!r} is not a number")
+        raise UserError(f"{name} row {_row(first_row + i)}: {s.iloc[i]!r} is not a number")
     return conv.to_numpy(dtype="float64", na_value=np.nan)
 
 
@@ -178,7 +241,7 @@ def _first(mask: np.ndarray) -> int | None:
 
 
 def _text(df: pd.DataFrame, col: str, allowed: tuple[str, ...] | None, required: bool, name: str | None = None,
-          max_length: int | None = None) -> pd.Categorical:
+          max_length: int | None = None, first_row: int = 0) -> pd.Categorical:
     """Column as a categorical of stripped text (NaN = missing), checked against `allowed` (and `max_length`).
 
     Works on the distinct values (pd.factorize) because logs have millions of rows but a handful of values.
@@ -192,25 +255,26 @@ def _text(df: pd.DataFrame, col: str, allowed: tuple[str, ...] | None, required:
         bad_missing = (codes == -1) | np.isin(codes, missing)
         i = _first(bad_missing)
         if i is not None:
-            raise UserError(f"{name} row {_row(i)}: missing value")
+            raise UserError(f"{name} row {_row(first_row + i)}: missing value")
     if allowed is not None:
         bad = [k for k, u in enumerate(labels[:-1]) if u is not None and u not in allowed]
         if bad:
             i = _first(np.isin(codes, bad))
-            raise UserError(f"{name} row {_row(i)}: {labels[codes[i]]!r} is not one of {'|'.join(allowed)}")
+            raise UserError(f"{name} row {_row(first_row + i)}: {labels[codes[i]]!r} is not one of "
+                            f"{'|'.join(allowed)}")
     if max_length is not None:
         bad = [k for k, u in enumerate(labels[:-1]) if u is not None and len(u) > max_length]
         if bad:
             i = _first(np.isin(codes, bad))
-            raise UserError(f"{name} row {_row(i)}: {labels[codes[i]][:20]!r}... is longer than {max_length} "
-                            f"characters")
+            raise UserError(f"{name} row {_row(first_row + i)}: {labels[codes[i]][:20]!r}... is longer than "
+                            f"{max_length} characters")
     # a categorical keeps the few distinct strings once (DuckDB stores it as text on insert)
     cats = sorted({u for u in labels[:-1] if u is not None})
     pos = np.array([cats.index(u) if u is not None else -1 for u in labels[:-1]] + [-1], dtype=np.int64)
     return pd.Categorical.from_codes(pos[codes], categories=cats)
 
 
-def _bool(df: pd.DataFrame, col: str, name: str | None = None) -> pd.arrays.BooleanArray:
+def _bool(df: pd.DataFrame, col: str, name: str | None = None, first_row: int = 0) -> pd.arrays.BooleanArray:
     name = name or f"column {col}"
     s = df[col]
     if pd.api.types.is_bool_dtype(s):
@@ -226,7 +290,7 @@ def _bool(df: pd.DataFrame, col: str, name: str | None = None) -> pd.arrays.Bool
     bad = ~np.isnan(vals) & ~np.isin(vals, (0.0, 1.0))
     if bad.any():
         i = _first(bad)
-        raise UserError(f"{name} row {_row(i)}: {s.iloc[i]!r} is not a boolean (0/1, true/false)")
+        raise UserError(f"{name} row {_row(first_row + i)}: {s.iloc[i]!r} is not a boolean (0/1, true/false)")
     mask = np.isnan(vals)
     return pd.arrays.BooleanArray(np.where(mask, False, vals == 1.0), mask)
 
@@ -242,9 +306,22 @@ def validate_drive(df: pd.DataFrame, labels: dict[str, str] | None = None,
     (tl_state green|yellow|red, controller rt|cf|none, hud_arrow -1|0|1, hud_in_band/warning boolean, the rest
     numbers) — missing values allowed there. `labels` names mapped channels in messages (default "column <c>").
     """
+    return _validate(df, labels, segments)
+
+
+def _validate(df: pd.DataFrame, labels: dict[str, str] | None = None, segments: tuple[str, ...] | None = None,
+              first_row: int | None = None, carry: dict | None = None) -> tuple[pd.DataFrame, tuple[str, ...]]:
+    """:func:`validate_drive` of the whole log (`first_row` None) or of one chunk of it: `first_row` is the log's
+    0-based row of the chunk's first row (messages name the log's rows; the length is checked for the whole log by
+    the caller); `carry` holds the last t and s of the previous chunk (``carry["t"]``, ``carry["s"]``, None for the
+    first) for the checks across the chunks' border and receives this chunk's. Problems raise :class:`_Problem`."""
     if not isinstance(df, pd.DataFrame):
-        raise UserError("a drive log must be a table")
+        raise _Problem("a drive log must be a table", CHECK_HEADER)
     labels = labels or {}
+    whole, row0 = first_row is None, first_row or 0
+    carry = {} if carry is None else carry
+    before = (carry.get("t"), carry.get("s"))
+    carry["t"] = carry["s"] = None  # until this chunk's t and s are numbers
 
     def lab(col: str) -> str:
         return f"channel {labels[col]}" if col in labels else f"column {col}"
@@ -253,60 +330,84 @@ def validate_drive(df: pd.DataFrame, labels: dict[str, str] | None = None,
     df.columns = [str(c).strip() for c in df.columns]
     dup = df.columns[df.columns.duplicated()].tolist()
     if dup:
-        raise UserError(f"column {dup[0]} appears twice")
+        raise _Problem(f"column {dup[0]} appears twice", CHECK_HEADER)
     for col in REQUIRED:
         if col not in df.columns:
-            raise UserError(f"missing required column {col!r} (required: {', '.join(REQUIRED)})")
-    if len(df) < 2:
-        raise UserError(f"a drive log needs at least 2 samples, this one has {len(df)}")
+            raise _Problem(f"missing required column {col!r} (required: {', '.join(REQUIRED)})", CHECK_HEADER)
+    if whole and len(df) < 2:
+        raise _Problem(f"a drive log needs at least 2 samples, this one has {len(df)}", CHECK_LENGTH)
+    step = CHECK_LENGTH  # each check below is the next one in the order
     out: dict[str, Any] = {}
-    for col in ("t", "s", "v", "speed_limit"):
-        x = _numeric(df, col, lab(col))
-        i = _first(~np.isfinite(x))
-        if i is not None:
-            what = "missing value (NaN)" if np.isnan(x[i]) else f"{x[i]} is not finite"
-            raise UserError(f"{lab(col)} row {_row(i)}: {what}")
-        out[col] = x
-    out["segment"] = _text(df, "segment", segments, required=True, name=lab("segment"), max_length=SEGMENT_MAX)
-    v = out["v"]
-    i = _first((v < 0) | (v > V_MAX))
-    if i is not None:
-        raise UserError(f"{lab('v')} row {_row(i)}: speed {v[i]:g} m/s outside 0..{V_MAX:g} m/s")
-    lim = out["speed_limit"]
-    i = _first((lim <= 0) | (lim > V_MAX))
-    if i is not None:
-        raise UserError(f"{lab('speed_limit')} row {_row(i)}: {lim[i]:g} m/s outside (0, {V_MAX:g}] m/s "
-                        f"(speed limits are in m/s, not km/h)")
-    dt = np.diff(out["t"])
-    i = _first(dt <= 0)
-    if i is not None:
-        raise UserError(f"{lab('t')} row {_row(i + 1)}: time step {dt[i]:g} s is not positive "
-                        f"(t={out['t'][i + 1]:g} after {out['t'][i]:g})")
-    ds = np.diff(out["s"])
-    i = _first(ds < 0)
-    if i is not None:
-        raise UserError(f"{lab('s')} row {_row(i + 1)}: distance decreases ({out['s'][i + 1]:g} m after "
-                        f"{out['s'][i]:g} m)")
-    for col in FLOAT_OPTIONAL:
-        if col in df.columns:
-            x = _numeric(df, col, lab(col))
-            i = _first(np.isinf(x))
+    try:
+        for col in ("t", "s", "v", "speed_limit"):
+            step += 1
+            x = _numeric(df, col, lab(col), row0)
+            step += 1
+            i = _first(~np.isfinite(x))
             if i is not None:
-                raise UserError(f"{lab(col)} row {_row(i)}: {x[i]} is not finite")
+                what = "missing value (NaN)" if np.isnan(x[i]) else f"{x[i]} is not finite"
+                raise UserError(f"{lab(col)} row {_row(row0 + i)}: {what}")
             out[col] = x
-    for col, allowed in TEXT_OPTIONAL.items():
-        if col in df.columns:
-            out[col] = _text(df, col, allowed, required=False, name=lab(col))
-    if "hud_arrow" in df.columns:
-        x = _numeric(df, "hud_arrow", lab("hud_arrow"))
-        i = _first(~np.isnan(x) & ~np.isin(x, (-1.0, 0.0, 1.0)))
+            if col == "s":
+                carry["t"], carry["s"] = (out["t"][-1], out["s"][-1]) if len(x) else before
+        step += 1
+        out["segment"] = _text(df, "segment", segments, required=True, name=lab("segment"),
+                               max_length=SEGMENT_MAX, first_row=row0)
+        step += 1
+        v = out["v"]
+        i = _first((v < 0) | (v > V_MAX))
         if i is not None:
-            raise UserError(f"{lab('hud_arrow')} row {_row(i)}: {x[i]:g} is not one of -1|0|1")
-        mask = np.isnan(x)
-        out["hud_arrow"] = pd.arrays.IntegerArray(np.where(mask, 0, x).astype(np.int8), mask)
-    for col in BOOL_OPTIONAL:
-        if col in df.columns:
-            out[col] = _bool(df, col, lab(col))
+            raise UserError(f"{lab('v')} row {_row(row0 + i)}: speed {v[i]:g} m/s outside 0..{V_MAX:g} m/s")
+        step += 1
+        lim = out["speed_limit"]
+        i = _first((lim <= 0) | (lim > V_MAX))
+        if i is not None:
+            raise UserError(f"{lab('speed_limit')} row {_row(row0 + i)}: {lim[i]:g} m/s outside (0, {V_MAX:g}] m/s "
+                            f"(speed limits are in m/s, not km/h)")
+        # the steps between rows, the one across the border to the previous chunk included
+        base = row0 - 1 if before[0] is not None else row0   # the log's row of t[0] below
+        t = out["t"] if before[0] is None else np.concatenate([[before[0]], out["t"]])
+        s = out["s"] if before[1] is None else np.concatenate([[before[1]], out["s"]])
+        step += 1
+        dt = np.diff(t)
+        i = _first(dt <= 0)
+        if i is not None:
+            raise UserError(f"{lab('t')} row {_row(base + i + 1)}: time step {dt[i]:g} s is not positive "
+                            f"(t={t[i + 1]:g} after {t[i]:g})")
+        step += 1
+        ds = np.diff(s)
+        i = _first(ds < 0)
+        if i is not None:
+            raise UserError(f"{lab('s')} row {_row(base + i + 1)}: distance decreases ({s[i + 1]:g} m after "
+                            f"{s[i]:g} m)")
+        for col in FLOAT_OPTIONAL:
+            step += 1
+            if col in df.columns:
+                x = _numeric(df, col, lab(col), row0)
+                i = _first(np.isinf(x))
+                if i is not None:
+                    raise UserError(f"{lab(col)} row {_row(row0 + i)}: {x[i]} is not finite")
+                out[col] = x
+        for col, allowed in TEXT_OPTIONAL.items():
+            step += 1
+            if col in df.columns:
+                out[col] = _text(df, col, allowed, required=False, name=lab(col), first_row=row0)
+        step += 1
+        if "hud_arrow" in df.columns:
+            x = _numeric(df, "hud_arrow", lab("hud_arrow"), row0)
+            i = _first(~np.isnan(x) & ~np.isin(x, (-1.0, 0.0, 1.0)))
+            if i is not None:
+                raise UserError(f"{lab('hud_arrow')} row {_row(row0 + i)}: {x[i]:g} is not one of -1|0|1")
+            mask = np.isnan(x)
+            out["hud_arrow"] = pd.arrays.IntegerArray(np.where(mask, 0, x).astype(np.int8), mask)
+        for col in BOOL_OPTIONAL:
+            step += 1
+            if col in df.columns:
+                out[col] = _bool(df, col, lab(col), row0)
+    except _Problem:
+        raise
+    except UserError as exc:
+        raise _Problem(str(exc), step) from None
     frame = pd.DataFrame({c: out[c] for c in COLUMNS if c in out})
     ignored = tuple(c for c in df.columns if c not in COLUMNS)
     return frame, ignored
@@ -342,8 +443,7 @@ def read_drive_file(path: str | Path, fmt: str | None = None, vehicle: str | Non
             return read_fcd(path, vehicle)
         if kind == "parquet":
             return pd.read_parquet(path)
-        return pd.read_csv(path, dtype={"tl_id": "string", "segment": "string", "tl_state": "string",
-                                        "controller": "string"}, low_memory=False)
+        return pd.read_csv(path, dtype=_CSV_TYPES, low_memory=False)
     except UserError:
         raise
     except Exception as exc:  # unreadable file: one line
@@ -420,53 +520,108 @@ def plausibility(frame: pd.DataFrame, labels: dict[str, str] | None = None, rate
       (relative) + 5 m, checked from the first 50 m on: a speed in km/h read as m/s is off by 3.6 at any speed;
       a log without s (integrated from v) must not be longer than the route.
     """
-    labels = labels or {}
+    check = Plausibility(labels, rate_hz, max_gap_s, tolerance, s_integrated, route_length)
+    check.add(frame)
+    return check.problems()
 
-    def lab(col: str) -> str:
-        return f"channel {labels[col]}" if col in labels else f"column {col}"
 
-    out = []
-    t, s, v = (frame[c].to_numpy(dtype="float64") for c in ("t", "s", "v"))
-    dt = np.diff(t)
-    if rate_hz is not None and dt.size:
-        med, want = float(np.median(dt)), 1.0 / rate_hz
-        if abs(med / want - 1.0) > RATE_TOLERANCE:
-            out.append(f"{lab('t')} rows 1-{len(t)}: median sampling interval {med:.6g} s, but the log mapping "
-                       f"declares {rate_hz:g} Hz ({want:.6g} s){_hint(med / want)}")
-    if dt.size and not out:  # the declared rate's message says more
-        med, (lo, hi) = float(np.median(dt)), SAMPLING_S
-        if not lo <= med <= hi:
-            unit = (": looks like a time in ms read as s" if lo <= med / 1000 <= hi else
-                    ": looks like a time in s read as ms" if lo <= med * 1000 <= hi else "")
-            out.append(f"{lab('t')} rows 1-{len(t)}: median sampling interval {med:.6g} s outside {lo:g}-{hi:g} s"
-                       f"{unit}")
-    for col, (bound, unit, what) in MAGNITUDES.items():
-        if col in frame.columns:
-            x = pd.to_numeric(frame[col], errors="coerce").to_numpy(dtype="float64", na_value=np.nan)
-            i = _first(np.abs(x) > bound)
-            if i is not None:
-                out.append(f"{lab(col)} row {_row(i)}: {what} {x[i]:g} {unit} beyond ±{bound:g} {unit} "
-                           f"(implausible for a passenger car)")
-    i = _first(dt > max_gap_s)
-    if i is not None:
-        out.append(f"{lab('t')} row {_row(i + 1)}: gap of {dt[i]:g} s after t = {t[i]:g} s (largest allowed "
-                   f"{max_gap_s:g} s, [log] max_gap_s of the log mapping)")
-    travelled = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * dt)])
-    if s_integrated:
-        if route_length is not None and travelled[-1] > route_length * (1 + tolerance) + DISTANCE_SLACK:
-            out.append(f"{lab('v')} row {len(v)}: the integral of v dt is {travelled[-1]:,.0f} m, longer than "
-                       f"the route ({route_length:,.0f} m){_hint(travelled[-1] / route_length)}")
+class Plausibility:
+    """:func:`plausibility` of a validated log given in consecutive chunks (:meth:`add`), with the same problems as
+    for the whole log (:meth:`problems`): the time steps are kept for their median (8 bytes a sample); the integral
+    of v dt runs on across the chunks in the same order of additions."""
+
+    def __init__(self, labels: dict[str, str] | None = None, rate_hz: float | None = None,
+                 max_gap_s: float = logmap.DEFAULT_MAX_GAP_S,
+                 tolerance: float = logmap.DEFAULT_DISTANCE_TOLERANCE, s_integrated: bool = False,
+                 route_length: float | None = None) -> None:
+        self.labels = labels or {}
+        self.rate_hz, self.max_gap_s, self.tolerance = rate_hz, max_gap_s, tolerance
+        self.s_integrated, self.route_length = s_integrated, route_length
+        self.n = 0
+        self.steps: list[np.ndarray] = []
+        self.last: tuple[float, float] | None = None       # t, v of the previous chunk's last row
+        self.s0: float | None = None
+        self.travelled = 0.0                               # integral of v dt up to the last row added (m)
+        self.magnitude: dict[str, str] = {}
+        self.gap: str | None = None
+        self.distance: str | None = None
+
+    def lab(self, col: str) -> str:
+        return f"channel {self.labels[col]}" if col in self.labels else f"column {col}"
+
+    def add(self, frame: pd.DataFrame) -> None:
+        if not len(frame):
+            return
+        row0 = self.n
+        t, s, v = (frame[c].to_numpy(dtype="float64") for c in ("t", "s", "v"))
+        for col, (bound, unit, what) in MAGNITUDES.items():
+            if col in frame.columns and col not in self.magnitude:
+                x = pd.to_numeric(frame[col], errors="coerce").to_numpy(dtype="float64", na_value=np.nan)
+                i = _first(np.abs(x) > bound)
+                if i is not None:
+                    self.magnitude[col] = (f"{self.lab(col)} row {_row(row0 + i)}: {what} {x[i]:g} {unit} beyond "
+                                           f"±{bound:g} {unit} (implausible for a passenger car)")
+        # with the previous chunk's last row in front, the steps are those of the whole log
+        base = row0 - 1 if self.last is not None else row0
+        if self.last is not None:
+            t, v = np.concatenate([[self.last[0]], t]), np.concatenate([[self.last[1]], v])
+        dt = np.diff(t)
+        self.steps.append(dt)
+        i = _first(dt > self.max_gap_s)
+        if i is not None and self.gap is None:
+            self.gap = (f"{self.lab('t')} row {_row(base + i + 1)}: gap of {dt[i]:g} s after t = {t[i]:g} s (largest "
+                        f"allowed {self.max_gap_s:g} s, [log] max_gap_s of the log mapping)")
+        # the running sum continues the previous chunk's in the same order of additions (np.cumsum is sequential)
+        travelled = np.cumsum(np.concatenate([[self.travelled], 0.5 * (v[1:] + v[:-1]) * dt]))
+        if self.last is None:
+            self.s0 = float(s[0])
+        else:
+            travelled = travelled[1:]
+        self.travelled = float(travelled[-1])
+        self.last = (float(t[-1]), float(v[-1]))
+        self.n += len(frame)
+        if self.s_integrated or self.distance is not None:
+            return
+        advanced = s - self.s0
+        big = np.maximum(travelled, advanced)
+        tol = self.tolerance
+        bad = (big >= MIN_CHECK_DISTANCE) & (np.abs(travelled - advanced) > tol * big + DISTANCE_SLACK)
+        i = _first(bad)
+        if i is not None:
+            ratio = travelled[i] / advanced[i] if advanced[i] > 0 else float("inf")
+            self.distance = (f"{self.lab('v')} row {_row(row0 + i)}: the integral of v dt since row 1 is "
+                             f"{travelled[i]:,.0f} m but {self.lab('s')} advanced {advanced[i]:,.0f} m (ratio "
+                             f"{ratio:.3g}, allowed 1 ± {tol:g}){_hint(ratio)}")
+
+    def problems(self) -> list[str]:
+        """The problems, in the order :func:`plausibility` lists them."""
+        out = []
+        dt = np.concatenate(self.steps) if self.steps else np.zeros(0)
+        self.steps = [dt]  # one array (the chunks' copies go), partitioned in place by the median: the steps of a
+        med = float(np.median(dt, overwrite_input=True)) if dt.size else float("nan")  # long log are 8 bytes/sample
+        if self.rate_hz is not None and dt.size:
+            want = 1.0 / self.rate_hz
+            if abs(med / want - 1.0) > RATE_TOLERANCE:
+                out.append(f"{self.lab('t')} rows 1-{self.n}: median sampling interval {med:.6g} s, but the log "
+                           f"mapping declares {self.rate_hz:g} Hz ({want:.6g} s){_hint(med / want)}")
+        if dt.size and not out:  # the declared rate's message says more
+            lo, hi = SAMPLING_S
+            if not lo <= med <= hi:
+                unit = (": looks like a time in ms read as s" if lo <= med / 1000 <= hi else
+                        ": looks like a time in s read as ms" if lo <= med * 1000 <= hi else "")
+                out.append(f"{self.lab('t')} rows 1-{self.n}: median sampling interval {med:.6g} s outside "
+                           f"{lo:g}-{hi:g} s{unit}")
+        out += [self.magnitude[c] for c in MAGNITUDES if c in self.magnitude]
+        if self.gap is not None:
+            out.append(self.gap)
+        if self.s_integrated:
+            length = self.route_length
+            if length is not None and self.n and self.travelled > length * (1 + self.tolerance) + DISTANCE_SLACK:
+                out.append(f"{self.lab('v')} row {self.n}: the integral of v dt is {self.travelled:,.0f} m, longer "
+                           f"than the route ({length:,.0f} m){_hint(self.travelled / length)}")
+        elif self.distance is not None:
+            out.append(self.distance)
         return out
-    advanced = s - s[0]
-    big = np.maximum(travelled, advanced)
-    bad = (big >= MIN_CHECK_DISTANCE) & (np.abs(travelled - advanced) > tolerance * big + DISTANCE_SLACK)
-    i = _first(bad)
-    if i is not None:
-        ratio = travelled[i] / advanced[i] if advanced[i] > 0 else float("inf")
-        out.append(f"{lab('v')} row {_row(i)}: the integral of v dt since row 1 is {travelled[i]:,.0f} m but "
-                   f"{lab('s')} advanced {advanced[i]:,.0f} m (ratio {ratio:.3g}, allowed 1 ± {tolerance:g})"
-                   f"{_hint(ratio)}")
-    return out
 
 
 def _hint(ratio: float) -> str:
@@ -496,9 +651,33 @@ def _fill(frame: pd.DataFrame, model: str | None) -> tuple[pd.DataFrame, tuple[s
     return filled[[c for c in COLUMNS if c in filled.columns]], new
 
 
-def _energy(frame: pd.DataFrame, study, source: str) -> tuple[str | None, str]:
-    """(model to fill with or None, energy_source for drives.meta)."""
-    has_power = "p_batt" in frame.columns and frame["p_batt"].notna().any()
+def _filled(chunks: Iterator[pd.DataFrame], model: str | None,
+            drop_power: bool) -> Iterator[tuple[pd.DataFrame, tuple[str, ...]]]:
+    """Each validated chunk with the absent computed columns (:func:`_fill`) and their names; `drop_power`: without
+    an empty ``p_batt``. Each chunk is computed together with the samples next to it, so that a (central
+    differences of v over t, np.gradient) is the one of the whole log, and the rest follows sample by sample."""
+    def fill(before, chunk, after):
+        parts = [p for p in (before, chunk, after) if p is not None]
+        if len(parts) == 1:
+            return _fill(chunk, model)
+        out, filled = _fill(pd.concat(parts, ignore_index=True), model)
+        lo = 0 if before is None else 1
+        return out.iloc[lo:lo + len(chunk)].reset_index(drop=True), filled
+
+    before = pending = None
+    for chunk in chunks:
+        if drop_power and "p_batt" in chunk.columns:
+            chunk = chunk.drop(columns="p_batt")
+        if pending is not None:
+            yield fill(before, pending, chunk.iloc[:1])
+            before = pending.iloc[-1:]
+        pending = chunk
+    if pending is not None:
+        yield fill(before, pending, None)
+
+
+def _energy(has_power: bool, study, source: str) -> tuple[str | None, str]:
+    """(model to fill with or None, energy_source for drives.meta); `has_power`: the log has a battery power."""
     model = energy_model(study)
     if has_power:
         return model, (ENERGY_MEASURED if source == "import" else ENERGY_SIMULATED)
@@ -524,29 +703,79 @@ def _store_channels(st, channels: tuple) -> None:
                             f"add to = \"{have}\" to its [channels.{ch.name}]")
 
 
+#: Arrow types of the columns of drive_samples that are not DOUBLE (the extra channels are DOUBLE)
+_ARROW_TYPES = {"drive_id": "int64", "idx": "int32", "segment": "string", "tl_id": "string", "tl_state": "string",
+                "controller": "string", "hud_arrow": "int8", "hud_in_band": "bool", "warning": "bool"}
+
+
+def _insert_samples(st, frames: Iterator[pd.DataFrame]) -> None:
+    """Insert the sample frames (drive_id, idx and the columns of drive_samples, the same in each) into
+    drive_samples with one INSERT that reads them as a stream of Arrow batches: DuckDB writes the rows as they come
+    (one statement's bulk path; many small INSERTs kept every chunk's rows in memory until the commit). A problem
+    raised while the frames are made (a file changed meanwhile) is raised as it is."""
+    import itertools
+
+    import duckdb
+    import pyarrow as pa
+
+    def arrow_type(col: str):
+        kind = _ARROW_TYPES.get(col, "double")
+        # text as a dictionary: the validated columns are categoricals of a few labels (5x faster than strings)
+        return pa.dictionary(pa.int32(), pa.string()) if kind == "string" else pa.type_for_alias(kind)
+
+    first = next(frames)
+    schema = pa.schema([(c, arrow_type(c)) for c in first.columns])
+    failed: list[BaseException] = []
+
+    def batches():
+        try:
+            for df in itertools.chain([first], frames):
+                yield from pa.Table.from_pandas(df, schema=schema, preserve_index=False).to_batches()
+        except BaseException as exc:  # DuckDB reports it as an Arrow stream error: keep the original
+            failed.append(exc)
+            raise
+
+    view = f"_samples_{id(first)}"
+    cols = ", ".join(f'"{c}"' for c in schema.names)
+    st.con.register(view, pa.RecordBatchReader.from_batches(schema, batches()))
+    try:
+        st._write(f'INSERT INTO drive_samples ({cols}) SELECT {cols} FROM "{view}"', [], "drive_samples")
+    except Exception:
+        if failed:
+            raise failed[0] from None
+        raise
+    finally:
+        try:
+            st.con.unregister(view)
+        except duckdb.Error:  # an aborted transaction refuses it; the name is not used again
+            pass
+
+
 def _store_drive(st, drive: DriveRecord) -> DriveImport:
-    """Store `drive` in one transaction (the audited ``drives`` row and all its samples), or find it stored."""
+    """Store `drive` in one transaction (the audited ``drives`` row and all its samples, written chunk by chunk), or
+    find it stored."""
     from study.participants import require
     from study.studies import definition
 
     participant_id, condition, checksum, source = drive.participant_id, drive.condition, drive.checksum, drive.source
     prep, progress, t0 = drive.prepared, drive.progress, drive.started
-    frame, extras, channels, ignored = prep.frame, prep.extras, prep.channels, prep.ignored
+    log, extras, channels, ignored = prep.summary, prep.extras, prep.channels, prep.ignored
     study = definition(st)
     study.check_condition(condition)
     check_choice("source", source, SOURCES)
-    if "p_batt" in frame.columns and frame["p_batt"].isna().all():
-        frame = frame.drop(columns="p_batt")  # an empty power column is no measurement
-    model, energy_source = _energy(frame, study, source)
+    # an empty power column is no measurement: it is dropped and the model (if any) fills it
+    model, energy_source = _energy(log.has_power, study, source)
     meta = dict(drive.meta or {})
     meta.setdefault("energy_source", energy_source)
+    from study.duck_memory import bounded
+
     try:
-        with st.transaction():
+        with bounded(st.con, IMPORT_MEMORY), st.transaction():
             require(st, participant_id)
             have = st.con.execute("SELECT drive_id, checksum, file_name FROM drives WHERE participant_id = ? "
                                   "AND condition = ?", [participant_id, condition]).fetchone()
             if have and have[1] == checksum:
-                return DriveImport(int(have[0]), participant_id, condition, "unchanged", len(frame), checksum,
+                return DriveImport(int(have[0]), participant_id, condition, "unchanged", log.n, checksum,
                                    time.perf_counter() - t0, ignored, energy_source=meta["energy_source"])
             if source == "import":
                 twin = st.con.execute("SELECT participant_id, condition FROM drives WHERE checksum = ?",
@@ -557,7 +786,6 @@ def _store_drive(st, drive: DriveRecord) -> DriveImport:
                 raise UserError(f"{participant_id} already has a {condition} drive"
                                 f"{' from ' + have[2] if have[2] else ''} with different content; "
                                 f"use --replace to replace it")
-            frame, filled = _fill(frame, model)
             if channels:
                 _store_channels(st, channels)
             status = "imported"
@@ -565,32 +793,36 @@ def _store_drive(st, drive: DriveRecord) -> DriveImport:
                 st.con.execute("DELETE FROM drive_samples WHERE drive_id = ?", [have[0]])
                 st.delete("drives", {"drive_id": int(have[0])})
                 status = "replaced"
-            t = frame["t"].to_numpy()
-            s = frame["s"].to_numpy()
             row = st.insert("drives", {
                 "participant_id": participant_id, "condition": condition, "source": source, "route": drive.route,
-                "checksum": checksum, "n_samples": len(frame), "file_name": drive.file_name,
-                "duration_s": float(t[-1] - t[0]), "distance_m": float(s[-1] - s[0]), "seed": drive.seed,
-                "meta": json.dumps(meta, sort_keys=True, default=str)})
+                "checksum": checksum, "n_samples": log.n, "file_name": drive.file_name,
+                "duration_s": float(log.t[1] - log.t[0]), "distance_m": float(log.s[1] - log.s[0]),
+                "seed": drive.seed, "meta": json.dumps(meta, sort_keys=True, default=str)})
             drive_id = int(row["drive_id"])
-            samples = frame.copy()
-            samples.insert(0, "idx", np.arange(len(frame), dtype=np.int32))
-            samples.insert(0, "drive_id", np.full(len(frame), drive_id, dtype=np.int64))
-            for ch in channels:
-                samples[ch.name] = extras[ch.name].to_numpy(dtype="float64")
             if progress:
-                progress(f"writing {len(frame)} samples of drive {drive_id} ({participant_id} {condition})")
-            # DuckDB scans an Arrow table faster than pandas' nullable/categorical columns (about 1.3x measured)
-            import pyarrow as pa
+                progress(f"writing {log.n} samples of drive {drive_id} ({participant_id} {condition})")
+            filled: list[tuple[str, ...]] = []
 
-            st.insert_df("drive_samples", pa.Table.from_pandas(samples, preserve_index=False))
+            def samples() -> Iterator[pd.DataFrame]:
+                done = 0
+                for chunk, computed in _filled(prep.chunks(), model, drop_power=not log.has_power):
+                    filled[:] = [computed]
+                    out = chunk.copy()
+                    out.insert(0, "idx", np.arange(done, done + len(chunk), dtype=np.int32))
+                    out.insert(0, "drive_id", np.full(len(chunk), drive_id, dtype=np.int64))
+                    for ch in channels:
+                        out[ch.name] = extras[ch.name].to_numpy(dtype="float64")[done:done + len(chunk)]
+                    done += len(chunk)
+                    yield out
+
+            _insert_samples(st, samples())
             if progress:
                 progress("committing")
     finally:
         if channels:  # a rolled-back ALTER TABLE leaves a stale cached column list otherwise
             st._columns.pop("drive_samples", None)
-    return DriveImport(drive_id, participant_id, condition, status, len(frame), checksum,
-                       time.perf_counter() - t0, ignored, filled, tuple(ch.name for ch in channels),
+    return DriveImport(drive_id, participant_id, condition, status, log.n, checksum,
+                       time.perf_counter() - t0, ignored, filled[0], tuple(ch.name for ch in channels),
                        meta["energy_source"], prep.overridden)
 
 
@@ -664,6 +896,112 @@ def _prepare(raw: pd.DataFrame, mapping: logmap.Mapping | None, route: route_fil
                          channels=mapping.extras if mapping is not None else ())
 
 
+# ---------------------------------------------------------------------------------------------- streamed import
+class _Unreadable(UserError):
+    """The file cannot be read as a table (reported as it is, without the file name in front twice)."""
+
+
+def _read_chunks(path: Path, kind: str) -> Iterator[pd.DataFrame]:
+    """A canonical CSV or Parquet log in consecutive chunks of :data:`CHUNK_ROWS` rows, each typed as
+    :func:`read_drive_file` types the whole file (pandas' CSV reader, Parquet's own types), at least one chunk (empty
+    for a file without rows); an unreadable file -> UserError."""
+    try:
+        if kind == "parquet":
+            import pyarrow.parquet as pq
+
+            f = pq.ParquetFile(path)
+            empty = True
+            for batch in f.iter_batches(batch_size=CHUNK_ROWS):
+                if batch.num_rows:
+                    empty = False
+                    yield batch.to_pandas()
+            if empty:
+                yield f.schema_arrow.empty_table().to_pandas()
+            return
+        with pd.read_csv(path, dtype=_CSV_TYPES, low_memory=False, chunksize=CHUNK_ROWS) as reader:
+            yield from reader
+    except UserError:
+        raise
+    except Exception as exc:  # unreadable file: one line
+        raise _Unreadable(f"cannot read {path.name}: {' '.join(str(exc).split())}") from exc
+
+
+def _log_chunks(path: Path, kind: str, route: route_file.RouteFile | None) -> Iterator[tuple]:
+    """Each chunk of a canonical log file joined to the route (speed_limit and segment where absent) and validated
+    (:func:`_validate` with the rows counted across the chunks): (rows, validated chunk or None, its problem
+    (:class:`_Problem`) or None, ignored columns, columns joined from the route)."""
+    carry: dict = {}
+    row0 = 0
+    for raw in _read_chunks(path, kind):
+        valid, problem, ignored, joined = None, None, (), ()
+        try:
+            frame = raw
+            if route is not None and "s" in raw.columns:
+                frame, joined = route.join(raw, "column s", lights=False, first_row=row0)
+            valid, ignored = _validate(frame, None, route.segments if route is not None else None, row0, carry)
+        except _Problem as exc:
+            problem = exc
+        except UserError as exc:  # the route's: a position off the route, checked before the values
+            problem = _Problem(str(exc), CHECK_ROUTE)
+        yield len(raw), valid, problem, ignored, joined
+        row0 += len(raw)
+
+
+def _prepare_file(path: Path, kind: str, route: route_file.RouteFile | None, force: str | None) -> PreparedDrive:
+    """:func:`_prepare` of a canonical CSV or Parquet log file read in chunks (memory for a few chunks, not for the
+    log): every check of :func:`validate_drive` and :func:`plausibility`, with the problem the whole log would
+    give. The samples are not kept: the prepared drive reads and validates the file again while it is stored."""
+    best: _Problem | None = None
+    check = Plausibility(route_length=route.length if route is not None else None)
+    n, columns, ignored, joined, has_power = 0, (), (), (), False
+    t, s = [None, None], [None, None]
+    with closing(_log_chunks(path, kind, route)) as chunks:
+        for rows, valid, problem, ign, jn in chunks:
+            if n == 0:
+                ignored, joined = ign, jn
+            n += rows
+            if problem is not None and (best is None or problem.check < best.check):
+                best = problem
+                if best.check == CHECK_ROUTE:  # nothing comes before it
+                    break
+            if best is not None or valid is None or not len(valid):
+                continue
+            columns = tuple(valid.columns)
+            if t[0] is None:
+                t[0], s[0] = valid["t"].iloc[0], valid["s"].iloc[0]
+            t[1], s[1] = valid["t"].iloc[-1], valid["s"].iloc[-1]
+            has_power = has_power or ("p_batt" in valid.columns and bool(valid["p_batt"].notna().any()))
+            check.add(valid)
+    if n < 2 and (best is None or best.check > CHECK_LENGTH):
+        best = _Problem(f"a drive log needs at least 2 samples, this one has {n}", CHECK_LENGTH)
+    if best is not None:
+        raise best
+    problems = check.problems()
+    if problems and not force:
+        raise UserError(f"{problems[0]} (if this is right, import with --force REASON)")
+    summary = LogSummary(n, columns, (t[0], t[1]), (s[0], s[1]), has_power)
+    return PreparedDrive(frame=None, extras=None, labels={}, ignored=ignored, joined=joined, s_integrated=False,
+                         overridden=tuple(problems), summary=summary,
+                         stream=lambda: _validated_again(path, kind, route, summary))
+
+
+def _validated_again(path: Path, kind: str, route: route_file.RouteFile | None,
+                     summary: LogSummary) -> Iterator[pd.DataFrame]:
+    """The validated chunks of a log file that :func:`_prepare_file` found valid; a file that has changed since
+    -> UserError (the import's transaction then stores nothing)."""
+    n, last = 0, None
+    with closing(_log_chunks(path, kind, route)) as chunks:
+        for rows, valid, problem, _, _ in chunks:
+            n += rows
+            if problem is not None:
+                raise UserError(f"{path.name} changed while it was being imported: {problem}")
+            if len(valid):
+                last = (valid["t"].iloc[-1], valid["s"].iloc[-1])
+                yield valid
+    if n != summary.n or last != (summary.t[1], summary.s[1]):
+        raise UserError(f"{path.name} changed while it was being imported")
+
+
 def _force_reason(force: str | None) -> str | None:
     if force is None:
         return None
@@ -683,7 +1021,9 @@ def import_drive_file(st, participant_id: str, condition: str, path: str | Path,
     taken from the file name; `vehicle` picks the vehicle of an FCD file. `force` = a reason to import despite
     plausibility problems (recorded in drives.meta). `route` names the route stored with the drive (default: the
     study's route file's name). Checksum: sha256 of the file; of file, mapping and route when those were used.
-    Every problem of the log is one line starting with the file name.
+    Every problem of the log is one line starting with the file name. A canonical CSV or Parquet log (no mapping) is
+    read in chunks of :data:`CHUNK_ROWS` rows, twice (validated, then stored), so that its size does not bound the
+    memory; a mapped or SUMO FCD log is read whole.
     """
     from study.studies import definition
 
@@ -696,13 +1036,25 @@ def import_drive_file(st, participant_id: str, condition: str, path: str | Path,
     m = _mapping_for(study, path, kind, mapping)
     rfile = route_file.study_route(study)
     vehicle = vehicle or (m.vehicle if m is not None else None)
-    raw = read_drive_file(path, kind, vehicle)
-    if progress:
-        progress(f"read {len(raw)} rows from {path.name}")
-    try:
-        prep = _prepare(raw, m, rfile, "import", force)
-    except UserError as exc:
-        raise UserError(f"{path.name}: {exc}") from None
+    if m is None and kind in ("csv", "parquet"):  # a canonical log: read in chunks, never whole
+        if not path.exists():
+            raise UserError(f"no such file: {path}")
+        try:
+            prep = _prepare_file(path, kind, rfile, force)
+        except _Unreadable:
+            raise
+        except UserError as exc:
+            raise UserError(f"{path.name}: {exc}") from None
+        if progress:
+            progress(f"read {prep.summary.n} rows from {path.name}")
+    else:  # a mapped log (units, integrated positions, lights by position) or SUMO FCD: read whole
+        raw = read_drive_file(path, kind, vehicle)
+        if progress:
+            progress(f"read {len(raw)} rows from {path.name}")
+        try:
+            prep = _prepare(raw, m, rfile, "import", force)
+        except UserError as exc:
+            raise UserError(f"{path.name}: {exc}") from None
     checksum = file_checksum(path)
     if m is not None or prep.joined or prep.s_integrated:
         h = hashlib.sha256(f"file\0{checksum}\0".encode())

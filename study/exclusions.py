@@ -7,11 +7,12 @@ used), ``subjective`` only from the survey analyses. In the paper 44 volunteered
 """
 from __future__ import annotations
 
-from typing import Any
-
-import pandas as pd
+from typing import TYPE_CHECKING, Any
 
 from study.errors import UserError, check_choice
+
+if TYPE_CHECKING:  # pandas only in annotations: the CLI reads SCOPES and REASONS for its help
+    import pandas as pd
 
 SCOPES = ("all", "objective", "subjective")
 REASONS = ("motion_sickness", "technical_issue", "incomplete_survey", "withdrawn", "other")

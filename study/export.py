@@ -24,11 +24,20 @@ route name, free-text answers and resolutions, the reason given for a forced imp
 that leads back to the raw file); the audit log (which repeats exact values), the long attribute table,
 appointments, survey link tokens and drafts and any table this module does not know are left out (listed in the
 manifest). docs/store.md ("Exports") lists what stays and why.
+
+Streaming: a table is written by DuckDB as it reads it (``COPY (SELECT ...) TO file``, CSV or Parquet, DuckDB's
+memory held to :data:`EXPORT_MEMORY`), so an export of millions of drive samples needs DuckDB's buffers, not memory
+for the table; the de-identified columns are SQL expressions of the same SELECT (:func:`table_sql`). Only the small
+per-participant files are built as DataFrames (``participants`` with its typed attributes, the wide survey files,
+and ``drives`` when de-identified, whose JSON ``meta`` is rewritten in Python). A ``.sav`` file is written by
+pyreadstat from one whole DataFrame (pyreadstat cannot append), so a ``.sav`` export holds each table,
+``drive_samples`` included, in memory once.
 """
 from __future__ import annotations
 
 import json
 import re
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -132,6 +141,8 @@ IDENTIFYING_COLUMNS = ("note", "entered_by", "submitted_by", "resolved_by", "iss
                        "route", "text", "checksum")  # free text (--route, answers), a hash of the raw file
 RELATIVE = "_s"  # suffix of a timestamp column made relative to the participant's first event
 WIDE = "survey_wide_"  # file name prefix of the wide survey file of an instrument
+#: DuckDB's memory limit while a CSV or Parquet export runs: COPY streams within it, a sort spills to disk beyond it
+EXPORT_MEMORY = "400MB"
 _BAND = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*(?:-\s*(\d+(?:\.\d+)?)|(\+))\s*$")
 
 
@@ -140,6 +151,16 @@ class ExportResult:
     outdir: Path
     files: dict[str, int]          # file name -> rows
     skipped: tuple[str, ...]       # tables left out
+
+
+@dataclass(frozen=True)
+class Part:
+    """One file of an export: `name` (the file name without extension) and either `sql`, a SELECT over the store
+    that DuckDB writes as it reads it, or `frame`, a small DataFrame built in Python."""
+
+    name: str
+    sql: str | None = None
+    frame: pd.DataFrame | None = None
 
 
 @dataclass(frozen=True)
@@ -241,15 +262,85 @@ def participants_frame(st, study) -> pd.DataFrame:
     return attrs.merge(base, on="participant_id", how="left")[list(attrs.columns) + list(base.columns[1:])]
 
 
-def first_events(frames: dict[str, pd.DataFrame]) -> pd.Series:
-    """participant_id -> the earliest timestamp of any of the participant's rows in `frames` (the origin of the
-    relative times of a deidentified export)."""
-    parts = [df[["participant_id", c]].set_axis(["participant_id", "at"], axis=1)
-             for df in frames.values() if "participant_id" in df.columns
-             for c in df.columns if pd.api.types.is_datetime64_any_dtype(df[c])]
+def _columns(st, table: str) -> list[tuple[str, str]]:
+    """(name, DuckDB type) of each column of `table`, in order."""
+    return [(r[0], r[1]) for r in st.con.execute(
+        "SELECT column_name, data_type FROM duckdb_columns() WHERE table_name = ? AND schema_name = 'main' "
+        "ORDER BY column_index", [table]).fetchall()]
+
+
+def _is_time(sql_type: str) -> bool:
+    return sql_type.startswith("TIMESTAMP")
+
+
+def origins_sql(st, tables) -> str:
+    """SELECT participant_id, origin: each participant's first recorded event, the earliest timestamp of any of their
+    rows in `tables` (the origin of the relative times of a deidentified export)."""
+    parts = []
+    for t in tables:
+        cols = _columns(st, t)
+        if any(c == "participant_id" for c, _ in cols):
+            parts += [f'SELECT participant_id, "{c}" AS event_at FROM "{t}"' for c, typ in cols if _is_time(typ)]
     if not parts:
-        return pd.Series(dtype="datetime64[us]")
-    return pd.concat(parts).dropna().groupby("participant_id")["at"].min()
+        return "SELECT NULL::VARCHAR AS participant_id, NULL::TIMESTAMP AS origin WHERE false"
+    return ("SELECT participant_id, min(event_at) AS origin FROM (" + " UNION ALL ".join(parts) + ") "
+            "WHERE participant_id IS NOT NULL AND event_at IS NOT NULL GROUP BY participant_id")
+
+
+def first_events(st, tables) -> pd.Series:
+    """participant_id -> the first recorded event (:func:`origins_sql`), for the tables built in Python."""
+    return st.df(origins_sql(st, tables)).set_index("participant_id")["origin"]
+
+
+def _seconds_after(col: str) -> str:
+    """SQL of the seconds from the row's participant's origin (``o.origin``) to ``t.<col>``, the same double as
+    pandas' ``(t - origin).dt.total_seconds()``: whole seconds plus the microsecond residual / 1e6. The difference is
+    never negative (the origin is the earliest of these times), so integer division and remainder are floor ones."""
+    d = f'(epoch_us(t."{col}") - epoch_us(o.origin))'
+    return f"(CAST({d} // 1000000 AS DOUBLE) + CAST({d} % 1000000 AS DOUBLE) / 1e6)"
+
+
+def samples_in_order(st) -> bool:
+    """True when ``drive_samples`` is stored in (drive_id, idx) order, so that scanning it is that order: each drive's
+    rows are one run of row ids in sample order (idx = row id - the drive's first row id) and the runs follow each
+    other by drive_id. Imports and simulations store a drive in one append, so this holds unless two drives were
+    logged live at the same time; then the export sorts."""
+    return st.one("""
+        WITH r AS (SELECT drive_id, min(rowid) AS lo, max(rowid) AS hi, count(*) AS n FROM drive_samples
+                   GROUP BY drive_id)
+        SELECT (SELECT count(*) FROM drive_samples s JOIN r USING (drive_id) WHERE s.idx <> s.rowid - r.lo)
+             + (SELECT count(*) FROM r WHERE hi - lo + 1 <> n)
+             + (SELECT count(*) FROM (SELECT hi, lead(lo) OVER (ORDER BY drive_id) AS next_lo FROM r)
+                WHERE next_lo <= hi) = 0""")
+
+
+def table_sql(st, table: str, deidentify: bool = False, origins: str | None = None) -> str:
+    """The SELECT that exports `table`: every column as stored (``drive_samples`` ordered by drive and sample: the
+    stored order when :func:`samples_in_order`, else sorted); deidentified (:data:`IDENTIFYING_COLUMNS` left out,
+    each timestamp ``<col>`` of a participant's row as ``<col>_s`` seconds after the participant's first event from
+    `origins` (:func:`origins_sql`), other timestamps left out) in the table's row order."""
+    order = ""
+    if table == "drive_samples" and not samples_in_order(st):  # a sort of millions of rows: only when needed
+        order = ' ORDER BY t."drive_id", t."idx"'
+    if not deidentify:
+        return f'SELECT * FROM "{table}" t{order}'
+    cols = _columns(st, table)
+    per_person = any(c == "participant_id" for c, _ in cols)
+    select, relative = [], False
+    for c, typ in cols:
+        if c in IDENTIFYING_COLUMNS:
+            continue
+        if _is_time(typ):
+            if per_person and origins is not None:
+                select.append(f'{_seconds_after(c)} AS "{c}{RELATIVE}"')
+                relative = True
+            continue
+        select.append(f't."{c}"')
+    source = f'"{table}" t'
+    if relative:  # the join must not reorder the rows: they keep the table's order (its rowid)
+        source += f" LEFT JOIN ({origins}) o ON o.participant_id = t.participant_id"
+        order = order or (" ORDER BY t.rowid" if table != "drive_samples" else "")
+    return f"SELECT {', '.join(select) or 'NULL AS _empty'} FROM {source}{order}"
 
 
 def relative_times(df: pd.DataFrame, origins: pd.Series | None) -> pd.DataFrame:
@@ -299,26 +390,30 @@ def survey_wide(st, instrument: str) -> pd.DataFrame:
     return final_responses(st, instrument)
 
 
-def collect(st, deidentify: bool = False) -> tuple[dict[str, pd.DataFrame], tuple[str, ...]]:
-    """Frames to export: every table (or the deidentified set) and the wide survey file(s)."""
+def collect(st, deidentify: bool = False) -> tuple[list[Part], tuple[str, ...]]:
+    """The files to export, in order: every table (or the deidentified set) and the wide survey file(s), and the
+    tables left out. A table is a SQL part unless it needs Python (``participants`` with its attributes, a table
+    with ``meta`` when deidentified); the wide files are frames."""
     study = _study_of(st)
     bands = declared_bands(study) if (deidentify and study is not None) else []
-    frames: dict[str, pd.DataFrame] = {}
-    skipped = []
+    tables, skipped = [], []
     for table in st.tables():
-        if deidentify and table not in DEIDENTIFIED_TABLES:
-            skipped.append(table)
+        (skipped if deidentify and table not in DEIDENTIFIED_TABLES else tables).append(table)
+    origins = origins_sql(st, tables) if deidentify else None
+    text_attributes = tuple(a.name for a in study.attributes if a.type == "text") if study is not None else ()
+    parts: list[Part] = []
+    by_frame = None
+    for table in tables:
+        framed = table == "participants" or (deidentify and any(c == "meta" for c, _ in _columns(st, table)))
+        if not framed:
+            parts.append(Part(table, sql=table_sql(st, table, deidentify, origins)))
             continue
-        if table == "participants":
-            df = participants_frame(st, study)
-        else:
-            order = " ORDER BY drive_id, idx" if table == "drive_samples" else ""
-            df = st.df(f'SELECT * FROM "{table}"{order}')
-        frames[table] = df
-    if deidentify:
-        origins = first_events(frames)
-        text_attributes = tuple(a.name for a in study.attributes if a.type == "text") if study is not None else ()
-        frames = {t: deidentify_table(t, df, bands, origins, text_attributes) for t, df in frames.items()}
+        df = participants_frame(st, study) if table == "participants" else st.df(f'SELECT * FROM "{table}"')
+        if deidentify:
+            if by_frame is None:
+                by_frame = first_events(st, tables)
+            df = deidentify_table(table, df, bands, by_frame, text_attributes)
+        parts.append(Part(table, frame=df))
     instruments = [r[0] for r in st.con.execute("SELECT DISTINCT instrument FROM responses ORDER BY 1").fetchall()]
     if not instruments:
         instruments = [r[0] for r in st.con.execute("SELECT instrument FROM instruments ORDER BY 1").fetchall()]
@@ -334,8 +429,8 @@ def collect(st, deidentify: bool = False) -> tuple[dict[str, pd.DataFrame], tupl
             spec = instrument_of(st, ins)
             text_items = [i for i, kind in spec.items["response_type"].items() if kind == "text"]
             wide = wide.drop(columns=[c for c in list(attribute_items(spec)) + text_items if c in wide.columns])
-        frames[f"{WIDE}{ins}"] = wide
-    return frames, tuple(skipped)
+        parts.append(Part(f"{WIDE}{ins}", frame=wide))
+    return parts, tuple(skipped)
 
 
 # ---------------------------------------------------------------------------------------------- SPSS
@@ -443,27 +538,43 @@ def _sql_path(path: Path) -> str:
     return str(path).replace("'", "''")
 
 
-def _write(fmt: str, table: str, df: pd.DataFrame, path: Path, voc: Vocabulary | None) -> None:
-    if fmt == "csv":
-        # DuckDB's CSV writer is ~10x faster than pandas' on million-row drive logs
-        import duckdb
-
-        con = duckdb.connect()
-        try:
-            con.execute("SET TimeZone = 'UTC'")
-            con.register("frame", df)
-            con.execute(f"COPY frame TO '{_sql_path(path)}' (FORMAT csv, HEADER true)")
-        finally:
-            con.close()
-    elif fmt == "parquet":
-        df.to_parquet(path, index=False)
-    else:
+def _write(st, fmt: str, part: Part, path: Path, voc: Vocabulary | None) -> int:
+    """Write `part` to `path` as `fmt`; returns its rows. CSV and Parquet of a SQL part stream from the store; CSV
+    of a frame goes through the same DuckDB writer, Parquet of a frame through pandas (its pandas metadata keeps
+    nullable integer attributes nullable integers); .sav is one pyreadstat call on the whole frame."""
+    if fmt == "sav":
         import pyreadstat
 
-        instrument = table[len(WIDE):] if table.startswith(WIDE) else None
-        frame, var_labels, val_labels, measure = to_spss_frame(table, df, voc, instrument)
-        pyreadstat.write_sav(frame, str(path), file_label=f"{voc.title}: {table}"[:64], column_labels=var_labels,
+        df = part.frame if part.frame is not None else st.df(part.sql)
+        instrument = part.name[len(WIDE):] if part.name.startswith(WIDE) else None
+        frame, var_labels, val_labels, measure = to_spss_frame(part.name, df, voc, instrument)
+        pyreadstat.write_sav(frame, str(path), file_label=f"{voc.title}: {part.name}"[:64], column_labels=var_labels,
                              variable_value_labels=val_labels or None, variable_measure=measure or None)
+        return len(df)
+    if part.frame is not None and fmt == "parquet":
+        part.frame.to_parquet(path, index=False)
+        return len(part.frame)
+    options = "FORMAT csv, HEADER true" if fmt == "csv" else "FORMAT parquet"
+    if part.sql is not None:
+        return int(st.con.execute(f"COPY ({part.sql}) TO '{_sql_path(path)}' ({options})").fetchone()[0])
+    view = f"_export_{id(part.frame)}"
+    st.con.register(view, part.frame)
+    try:
+        st.con.execute(f'COPY "{view}" TO \'{_sql_path(path)}\' ({options})')
+    finally:
+        st.con.unregister(view)
+    return len(part.frame)
+
+
+@contextmanager
+def _snapshot(st, bounded: bool):
+    """Every file of one export from one snapshot of the store (a transaction: a drive stored meanwhile is in all
+    files or in none); `bounded`: DuckDB's memory held to :data:`EXPORT_MEMORY` (:mod:`study.duck_memory`; a .sav
+    export fetches whole tables, which a bound would refuse)."""
+    from study.duck_memory import bounded as held
+
+    with held(st.con, EXPORT_MEMORY if bounded else None), st.transaction():
+        yield
 
 
 def export(st, fmt: str, outdir: str | Path, deidentify: bool = False) -> ExportResult:
@@ -472,16 +583,16 @@ def export(st, fmt: str, outdir: str | Path, deidentify: bool = False) -> Export
     outdir = Path(outdir)
     if outdir.exists() and not outdir.is_dir():
         raise UserError(f"{outdir} exists and is not a directory")
-    frames, skipped = collect(st, deidentify)
-    voc = vocabulary(st) if fmt == "sav" else None
-    outdir.mkdir(parents=True, exist_ok=True)
     files: dict[str, int] = {}
-    for name, df in frames.items():
-        path = outdir / f"{name}.{fmt}"
-        tmp = path.with_name(path.name + ".partial")
-        _write(fmt, name, df, tmp, voc)
-        tmp.replace(path)  # a crash never leaves a half-written file under the final name
-        files[path.name] = int(len(df))
+    with _snapshot(st, bounded=fmt != "sav"):
+        parts, skipped = collect(st, deidentify)
+        voc = vocabulary(st) if fmt == "sav" else None
+        outdir.mkdir(parents=True, exist_ok=True)
+        for part in parts:
+            path = outdir / f"{part.name}.{fmt}"
+            tmp = path.with_name(path.name + ".partial")
+            files[path.name] = _write(st, fmt, part, tmp, voc)
+            tmp.replace(path)  # a crash never leaves a half-written file under the final name
     manifest = {"format": fmt, "deidentified": deidentify, "schema_version": st.schema_version,
                 "files": files, "left_out": list(skipped)}
     (outdir / "manifest.json").write_text(json.dumps(manifest, indent=2, sort_keys=True) + "\n", encoding="utf-8")

@@ -7,6 +7,9 @@
     [violations]  tolerance = "none" | "absolute" (km_h = 5) | "relative" (percent = 3) | "german"; min_event_s
     [stops]       v_stop, v_moving (m/s);  [red_stops] distance_m (m)
     [sql]         name = "aggregate expression" or {sql = "...", per_segment = true, unit = "m", label = "..."}
+                  or {query = "SELECT ... FROM samples ...", per_segment, unit, label}: a full read-only query
+    [events]      name = {from = "condition", to = "condition", statistic = "first" | "mean" | "max" | "count",
+                  per_segment, unit, label}: the time from a rising edge of `from` to the next sample where `to` holds
     [comparison]  control, treatment (conditions), bands; [comparison.columns] / .reductions / .pooled
 
 :func:`parse` turns the text into a :class:`KpiSpec` and reports every problem with file, line and field; the check
@@ -25,6 +28,7 @@ from typing import Any
 from pedas.constants import KMH
 from study.file_checks import register_file_check
 from study.kpi_fields import KPI_FIELDS, SAMPLE_COLUMNS, KpiParams
+from study.kpi_query import check_condition, check_query, trial_connection
 from study.problems import Problem, StudyError
 from study.toml_lines import line_of
 
@@ -42,18 +46,59 @@ TOLERANCES = ("none", "absolute", "relative", "german")
 ENERGY_MODELS = {"nissan_leaf": "modelled (Nissan Leaf parameters)", "none": None}
 _NAME = re.compile(r"^[a-z][a-z0-9_]*$")
 _RESERVED = {"participant_id", "condition", "drive_id", "segment", "n_intervals", "overall", "all"}
-_KEYS = {"builtins", "group_by", "channels", "violations", "stops", "red_stops", "sql", "comparison"}
+_KEYS = {"builtins", "group_by", "channels", "violations", "stops", "red_stops", "sql", "events", "comparison"}
+#: how an event KPI sums up several events of one drive (or segment); docs/kpis.md says why "first" is the default
+STATISTICS = ("first", "mean", "max", "count")
+
+
+def _heading(name: str, label: str, unit: str) -> str:
+    """'Label (unit)' of a declared KPI for rendered tables (the name when it has no label)."""
+    text = label or name
+    return f"{text} ({unit})" if unit else text
 
 
 @dataclass(frozen=True)
 class SqlKpi:
-    """A user KPI: a DuckDB aggregate over the samples of a drive (and of each segment when ``per_segment``)."""
+    """A user KPI over the samples of a drive (and of each segment when ``per_segment``): with ``query`` False,
+    ``sql`` is one DuckDB aggregate expression (computed in the built-ins' grouped pass); with ``query`` True, ``sql``
+    is a full read-only query over the relation ``samples`` (that drive's or segment's rows in idx order) returning
+    one row with one number (checked by :func:`study.kpi_query.check_query`)."""
 
     name: str
     sql: str
     per_segment: bool = False
     unit: str = ""
     label: str = ""
+    query: bool = False
+
+    @property
+    def heading(self) -> str:
+        return _heading(self.name, self.label, self.unit)
+
+
+@dataclass(frozen=True)
+class EventKpi:
+    """Time (s) from an event to the next response in a drive: ``start`` and ``end`` are conditions per sample
+    (a boolean or 0/1 channel, or a boolean SQL expression; checked by :func:`study.kpi_query.check_condition`).
+
+    An event is a rising edge of ``start``: a sample where it holds and held not at the sample before (the drive's
+    first sample is none: its onset was not logged). Its time is t(first sample at or after the edge where ``end``
+    holds) - t(edge), NULL when ``end`` never holds again. ``statistic``: ``first`` (the first event's time),
+    ``mean`` / ``max`` (over the events with a response) or ``count`` (the number of events). NULL without an event
+    (``count``: 0, and NULL where ``from`` is NULL at every sample: not logged). A NULL condition at a sample counts
+    as false. Per segment, an event belongs to the segment of its edge (the left-point rule of the intervals)."""
+
+    name: str
+    start: str
+    end: str
+    statistic: str = "first"
+    per_segment: bool = False
+    unit: str = "s"
+    label: str = ""
+
+    @property
+    def heading(self) -> str:
+        return _heading(self.name, self.label, self.unit)
 
 
 @dataclass(frozen=True)
@@ -100,12 +145,24 @@ class KpiSpec:
     sql: tuple[SqlKpi, ...] = ()
     comparison: Comparison | None = None
     attributes: tuple[str, ...] = field(default=())   # group_by without "condition"
+    events: tuple[EventKpi, ...] = ()
+
+    @property
+    def user_kpis(self) -> tuple:
+        """The study's own KPIs in output order: the [sql] ones, then the [events] ones."""
+        return (*self.sql, *self.events)
 
     @property
     def columns(self) -> tuple[str, ...]:
-        """Output KPI columns: the declared built-ins in the order of :data:`KPI_FIELDS`, then the SQL KPIs."""
+        """Output KPI columns: the declared built-ins in the order of :data:`KPI_FIELDS`, then the SQL KPIs, then
+        the event KPIs."""
         declared = {c for b in self.builtins for c in BUILTINS[b]}
-        return tuple(c for c in KPI_FIELDS if c in declared) + tuple(k.name for k in self.sql)
+        return tuple(c for c in KPI_FIELDS if c in declared) + tuple(k.name for k in self.user_kpis)
+
+    @property
+    def headings(self) -> dict[str, str]:
+        """Column -> how rendered tables name it: 'Label (unit)' for the study's own KPIs, the name for built-ins."""
+        return {k.name: k.heading for k in self.user_kpis}
 
     @property
     def params(self):
@@ -222,13 +279,15 @@ def parse(text: str, problems: KpiSpecProblems | None = None, attributes: dict[s
     spec["red_stop_dist"] = _number(red, "distance_m", 50.0, "red_stops", text, probs, lo=0.0)
 
     sql_kpis = _sql_kpis(_table(data, "sql", text, probs), text, probs, tuple(channels))
+    event_kpis = _event_kpis(_table(data, "events", text, probs), text, probs, tuple(channels),
+                             {k.name for k in sql_kpis})
     comparison = _comparison(_table(data, "comparison", text, probs), text, probs, conditions,
-                             tuple(b for b in builtins if b in BUILTINS), sql_kpis)
+                             tuple(b for b in builtins if b in BUILTINS), [*sql_kpis, *event_kpis])
     if len(probs) > n0:
         return None
     return KpiSpec(builtins=tuple(b for b in BUILTINS if b in builtins), group_by=tuple(group_by),
                    channels=tuple(channels), sql=tuple(sql_kpis), comparison=comparison,
-                   attributes=tuple(g for g in group_by if g != "condition"), **spec)
+                   attributes=tuple(g for g in group_by if g != "condition"), events=tuple(event_kpis), **spec)
 
 
 def _table(data: dict, key: str, text: str, probs: KpiSpecProblems) -> dict:
@@ -257,31 +316,90 @@ def _number(tbl: dict, key: str, default: float, section: str, text: str, probs:
     return float(v)
 
 
+def _entry_line(text: str, section: str, name: str, key: str | None = None) -> int | None:
+    """Line of KPI ``name`` of ``section``: its ``[section.name]`` table (its ``key`` line when given) or its
+    ``name = {...}`` line."""
+    if line_of(text, "", f"{section}.{name}") is not None:
+        return line_of(text, key, f"{section}.{name}") if key else line_of(text, "", f"{section}.{name}")
+    return line_of(text, name, section) or line_of(text, f'"{name}"', section)
+
+
+def _common(raw: dict, name: str, line, fld: str, probs: KpiSpecProblems, known: tuple[str, ...],
+            taken: set[str]) -> bool:
+    """The checks every user KPI shares (its keys, name, per_segment, unit and label); True when it may be used."""
+    bad = set(raw) - set(known)
+    if bad:
+        probs.add(line, fld, f"unknown key(s) {', '.join(sorted(bad))} (known: {', '.join(known)})")
+    if not _NAME.match(name) or name in _RESERVED or name in KPI_FIELDS:
+        probs.add(line, fld, "a KPI name is lower-case letters, digits and _, and not a built-in column")
+        return False
+    if name in taken:
+        probs.add(line, fld, "a KPI of this name is declared twice ([sql] and [events] share one namespace)")
+        return False
+    if not isinstance(raw.get("per_segment", False), bool):
+        probs.add(line, f"{fld}.per_segment", "must be true or false")
+        return False
+    for key in ("unit", "label"):
+        if key in raw and not isinstance(raw[key], str):
+            probs.add(line, f"{fld}.{key}", "must be a text")
+            return False
+    return True
+
+
 def _sql_kpis(tbl: dict, text: str, probs: KpiSpecProblems, channels: tuple[str, ...]) -> list[SqlKpi]:
     out = []
     for name, raw in tbl.items():
-        line = line_of(text, name, "sql")
+        line = _entry_line(text, "sql", name)
         fld = f"sql.{name}"
         if isinstance(raw, str):
             raw = {"sql": raw}
-        if not isinstance(raw, dict) or not isinstance(raw.get("sql"), str) or not raw["sql"].strip():
-            probs.add(line, fld, 'needs an aggregate expression, e.g. sdlp = "stddev_samp(lat_pos)"')
+        if not isinstance(raw, dict) or ("sql" in raw) == ("query" in raw):
+            probs.add(line, fld, 'needs either an aggregate expression (sql = "stddev_samp(lat_pos)") or a query '
+                                 '(query = "SELECT ... FROM samples")')
             continue
-        bad = set(raw) - {"sql", "per_segment", "unit", "label"}
-        if bad:
-            probs.add(line, fld, f"unknown key(s) {', '.join(sorted(bad))} (known: sql, per_segment, unit, label)")
-        if not _NAME.match(name) or name in _RESERVED or name in KPI_FIELDS:
-            probs.add(line, fld, "a KPI name is lower-case letters, digits and _, and not a built-in column")
+        key = "query" if "query" in raw else "sql"
+        if not isinstance(raw[key], str) or not raw[key].strip():
+            probs.add(line, fld, f"{key} must be a non-empty text")
             continue
-        if not isinstance(raw.get("per_segment", False), bool):
-            probs.add(line, f"{fld}.per_segment", "must be true or false")
+        if not _common(raw, name, line, fld, probs, (key, "per_segment", "unit", "label"), set()):
             continue
-        error = check_sql(raw["sql"], channels)
+        error = check_query(raw["query"], channels) if key == "query" else check_sql(raw["sql"], channels)
         if error:
-            probs.add(line, fld, error)
+            probs.add(_entry_line(text, "sql", name, key) or line, fld, error)
             continue
-        out.append(SqlKpi(name, raw["sql"].strip(), bool(raw.get("per_segment", False)), str(raw.get("unit", "")),
-                          str(raw.get("label", name))))
+        out.append(SqlKpi(name, raw[key].strip(), bool(raw.get("per_segment", False)), str(raw.get("unit", "")),
+                          str(raw.get("label", name)), query=key == "query"))
+    return out
+
+
+def _event_kpis(tbl: dict, text: str, probs: KpiSpecProblems, channels: tuple[str, ...],
+                taken: set[str]) -> list[EventKpi]:
+    out = []
+    for name, raw in tbl.items():
+        line = _entry_line(text, "events", name)
+        fld = f"events.{name}"
+        if not isinstance(raw, dict):
+            probs.add(line, fld, 'must be a table, e.g. {from = "takeover_request", to = "hands_on"}')
+            continue
+        if not _common(raw, name, line, fld, probs, ("from", "to", "statistic", "per_segment", "unit", "label"),
+                       taken):
+            continue
+        statistic = raw.get("statistic", "first")
+        if statistic not in STATISTICS:
+            probs.add(_entry_line(text, "events", name, "statistic") or line, f"{fld}.statistic",
+                      f"{statistic!r} is not one of {'|'.join(STATISTICS)}")
+            continue
+        ok = True
+        for key in ("from", "to"):
+            error = check_condition(raw.get(key), channels) if key in raw else \
+                f'needs a condition, e.g. {key} = "{"takeover_request" if key == "from" else "hands_on"}"'
+            if error:
+                probs.add(_entry_line(text, "events", name, key) or line, f"{fld}.{key}", error)
+                ok = False
+        if ok:
+            unit = raw.get("unit", "" if statistic == "count" else "s")
+            out.append(EventKpi(name, raw["from"].strip(), raw["to"].strip(), statistic,
+                                bool(raw.get("per_segment", False)), str(unit), str(raw.get("label", name))))
     return out
 
 
@@ -296,10 +414,8 @@ def check_sql(sql: str, channels: tuple[str, ...] = ()) -> str | None:
 
     if _FORBIDDEN.search(sql):
         return "must be one aggregate expression (no ;, comments, SELECT, FROM or window functions)"
-    cols = {**SAMPLE_COLUMNS, **{c: "DOUBLE" for c in channels}}
-    con = duckdb.connect()
+    con = trial_connection(channels)   # only `samples`, no file access
     try:
-        con.execute("CREATE TABLE samples (" + ", ".join(f'"{c}" {t}' for c, t in cols.items()) + ")")
         try:
             con.execute(f"SELECT drive_id, ({sql})::DOUBLE FROM samples GROUP BY drive_id").fetchall()
         except duckdb.Error as exc:

@@ -3,10 +3,13 @@
 The study (``definition(st)``) fixes the id pattern, the attributes (name, type, range or choices, required) and
 the ``[[checks]]`` over several attributes. A participant is one ``participants`` row (id, protocol, the study
 version it was registered under) plus one ``participant_attributes`` row per attribute with a value, stored as text
-and typed again by the declaration when read (:func:`participant_attributes`).
+and typed again by the declaration when read (:func:`participant_attributes`). One participant is registered by
+:func:`add_participant`, a roster of many in one transaction by :func:`import_roster`; both run the same checks
+(:func:`check_registration`).
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any, Mapping
 
 import pandas as pd
@@ -31,6 +34,42 @@ def _as_text(value: Any) -> str:
     return str(value)
 
 
+@dataclass(frozen=True)
+class Registration:
+    """A participant checked against the study and ready to store: id, protocol name and the typed value of every
+    declared attribute (None when not given)."""
+
+    participant_id: str
+    protocol: str
+    values: dict[str, Any]
+
+
+def check_registration(study, participant_id: str, attributes: Mapping[str, Any] | None = None,
+                       protocol: str | None = None) -> Registration:
+    """The checks of a registration that need no store (used by :func:`add_participant` and
+    :func:`import_roster`): the id against the study's pattern, each attribute against its declaration, the
+    required attributes, the study's [[checks]] and the protocol against the study's protocols (None = the first
+    declared). Any problem -> UserError (one line)."""
+    study.validate_id(participant_id)
+    values = typed_attributes(study, attributes)
+    return Registration(participant_id, study.protocol(protocol).name, values)
+
+
+def _registered(st, participant_id: str) -> bool:
+    return bool(st.one("SELECT 1 FROM participants WHERE participant_id = ?", [participant_id]))
+
+
+def _store(st, reg: Registration, study_version: int) -> dict[str, Any]:
+    """Insert a checked registration (the caller owns the transaction); returns the participants row."""
+    row = st.insert("participants", {"participant_id": reg.participant_id, "protocol": reg.protocol,
+                                     "study_version": study_version})
+    for name, value in reg.values.items():
+        if value is not None:
+            st.insert("participant_attributes", {"participant_id": reg.participant_id, "attribute": name,
+                                                 "value": _as_text(value)})
+    return row
+
+
 def add_participant(st, participant_id: str, attributes: Mapping[str, Any] | None = None,
                     protocol: str | None = None, **named: Any) -> dict[str, Any]:
     """Register a participant of the store's study (audited, one transaction); returns the participants row plus
@@ -44,8 +83,6 @@ def add_participant(st, participant_id: str, attributes: Mapping[str, Any] | Non
     """
     from study.studies import version
 
-    study = _study(st)
-    study.validate_id(participant_id)
     raw = dict(attributes or {})
     for name, value in named.items():
         if value is None:
@@ -53,18 +90,59 @@ def add_participant(st, participant_id: str, attributes: Mapping[str, Any] | Non
         if name in raw:
             raise UserError(f"attribute {name} given twice")
         raw[name] = value
-    values = typed_attributes(study, raw)
-    proto = study.protocol(protocol).name
+    reg = check_registration(_study(st), participant_id, raw, protocol)
     with st.transaction():
-        if st.one("SELECT 1 FROM participants WHERE participant_id = ?", [participant_id]):
+        if _registered(st, participant_id):
             raise UserError(f"participant {participant_id} already exists")
-        row = st.insert("participants", {"participant_id": participant_id, "protocol": proto,
-                                         "study_version": version(st)})
-        for name, value in values.items():
-            if value is not None:
-                st.insert("participant_attributes", {"participant_id": participant_id, "attribute": name,
-                                                     "value": _as_text(value)})
-    return {**row, **values}
+        row = _store(st, reg, version(st))
+    return {**row, **reg.values}
+
+
+def import_roster(st, frame: pd.DataFrame, source: str = "roster") -> int:
+    """Register every participant of a roster in one transaction (audited); returns how many.
+
+    `frame`: one row per participant, column ``participant_id``, optionally one column per declared attribute
+    (raw text or numbers; empty = not given) and ``protocol`` (empty = the first declared); its index names the row
+    in messages (:func:`study.bulk_rows.read_rows` sets it to the line in the file). A column that is neither ->
+    UserError naming the declared ones; a required attribute without a column -> UserError. Every row gets the
+    checks of :func:`add_participant` (:func:`check_registration`, then: not registered yet, and not twice in
+    the roster); if any row fails, :class:`study.bulk_rows.BadRows` (message ``SOURCE: N bad row(s)``) names
+    every bad row with its reason and nothing is stored.
+    """
+    from study.bulk_rows import BadRow, BadRows, cell, check_columns
+    from study.studies import version
+
+    study = _study(st)
+    names = [a.name for a in study.attributes]
+    check_columns(frame, source, ["participant_id"], [*names, "protocol"])
+    lacking = [a.name for a in study.attributes if a.required and a.name not in frame.columns]
+    if lacking:
+        raise UserError(f"{source}: no column for the required attribute(s) {', '.join(lacking)}")
+    given = [n for n in names if n in frame.columns]
+    bad: list[BadRow] = []
+    regs: list[Registration] = []
+    first: dict[str, Any] = {}  # id -> line of its first row
+    with st.transaction():  # the existence check and the inserts see the same store
+        known = set(st.df("SELECT participant_id FROM participants")["participant_id"])
+        for line, row in frame.iterrows():
+            pid = cell(row["participant_id"]) or ""
+            try:
+                reg = check_registration(study, pid, {n: row[n] for n in given},
+                                         cell(row["protocol"]) if "protocol" in frame.columns else None)
+                if pid in first:
+                    raise UserError(f"participant {pid} is also on line {first[pid]}")
+                if pid in known:
+                    raise UserError(f"participant {pid} already exists")
+                regs.append(reg)
+            except UserError as exc:
+                bad.append(BadRow(line, pid, str(exc)))
+            first.setdefault(pid, line)
+        if bad:
+            raise BadRows(source, bad)
+        study_version = version(st)
+        for reg in regs:
+            _store(st, reg, study_version)
+    return len(regs)
 
 
 def require(st, participant_id: str) -> None:

@@ -14,6 +14,8 @@ Semantics of the phase log (table ``phase_events``, one row per phase a particip
   unless excluded with scope ``all``: such a participant's protocol is closed.
 * :func:`complete` ends the phase in progress with outcome ``completed`` without starting another (the end of
   the last phase, or a stop after an aborted drive).
+
+:func:`apply_events` applies a file of such events (one row each, in file order) in one transaction, all or nothing.
 """
 from __future__ import annotations
 
@@ -23,7 +25,7 @@ from typing import Any
 import pandas as pd
 
 from study.audit_trail import not_in_future, utcnow
-from study.errors import UserError
+from study.errors import UserError, check_choice
 from study.orders import ensure_order, participant_protocol
 from study.protocol_file import Protocol
 from study.studies import definition
@@ -151,3 +153,97 @@ def status(st, participant_id: str) -> pd.DataFrame:
                          "ended_at": None, "minutes": None, "outcome": "skipped" if i < last_seq else "pending",
                          "note": None})
     return pd.DataFrame(rows)
+
+
+#: the actions of an events file (:func:`apply_events`), each the single command of that name
+ACTIONS = ("advance", "complete", "abort")
+#: the columns of an events file: participant_id and phase are required
+EVENT_COLUMNS = ("participant_id", "phase", "action", "at", "note", "reason")
+
+
+def _in_progress(st, participant_id: str) -> str | None:
+    return st.one("SELECT phase FROM phase_events WHERE participant_id = ? AND outcome = 'in_progress' "
+                  "ORDER BY seq DESC LIMIT 1", [participant_id])
+
+
+def _apply_one(st, pid: str, action: str, phase: str | None, at: str | None, note: str | None,
+               reason: str | None) -> dict[str, Any]:
+    """One row of an events file through the single-event function of its action."""
+    if not pid:
+        raise UserError("participant_id is empty")
+    check_choice("action", action, ACTIONS)
+    if reason is not None and action != "abort":
+        raise UserError(f"a reason goes with action abort, not {action} (use note)")
+    if action == "advance":
+        if phase is None:
+            raise UserError("advance needs a phase")
+        r = advance(st, pid, phase, note=note, at=at)
+        return {"phase": r["started"], "completed": r["completed"]}
+    if note is not None and action == "abort":
+        raise UserError("abort takes a reason, not a note")
+    current = _in_progress(st, pid) if phase is not None else None
+    if phase is not None and current is not None and current != phase:
+        raise UserError(f"{pid} is in {current}, not {phase}: {action} ends the phase in progress")
+    if action == "abort":
+        return {"phase": abort(st, pid, reason or "", at=at), "completed": None}
+    return {"phase": complete(st, pid, note=note, at=at), "completed": None}
+
+
+def _usable(st) -> bool:
+    """False when a refused statement aborted the store's transaction (only a rollback is possible then)."""
+    import duckdb
+
+    try:
+        st.con.execute("SELECT 1")
+        return True
+    except duckdb.Error:
+        return False
+
+
+def apply_events(st, frame: pd.DataFrame, source: str = "events") -> pd.DataFrame:
+    """Apply many phase events in file order in one transaction: what `session advance`, `session complete` and
+    `session abort` do one at a time, all or nothing.
+
+    `frame`: columns ``participant_id``, ``phase`` and optionally ``action`` (advance | complete | abort; empty =
+    advance), ``at`` (ISO 8601 as ``--at``; empty = now), ``note`` (advance, complete) and ``reason`` (abort,
+    required there); its index names the row in messages (:func:`study.bulk_rows.read_rows` sets it to the line in
+    the file). ``phase`` is the phase to start for advance; for complete and abort it may be empty, and when given
+    it must be the phase in progress. Each row gets the checks of its single command (protocol order, times not
+    going backwards nor in the future, exclusions, ...) against the store as the earlier rows left it, so one file
+    can walk a participant through several phases. After a bad row, the same participant's later rows are not
+    checked (each would fail for the first one). Any bad row -> :class:`study.bulk_rows.BadRows` naming each bad
+    and each unchecked row; nothing is stored then. Another column -> UserError naming the columns.
+
+    Returns one row per event: line (the frame's index), participant_id, action, phase (started for advance,
+    ended for complete and abort), completed (the phase an advance completed, else None).
+    """
+    from study.bulk_rows import BadRow, BadRows, cell, check_columns
+
+    check_columns(frame, source, EVENT_COLUMNS[:2], EVENT_COLUMNS[2:])
+    bad: list[BadRow] = []
+    unchecked: list[BadRow] = []
+    failed: dict[str, Any] = {}   # participant -> line of their first bad row
+    done = []
+    with st.transaction():
+        for line, row in frame.iterrows():
+            get = {c: cell(row[c]) if c in frame.columns else None for c in EVENT_COLUMNS}
+            pid, action = get["participant_id"] or "", get["action"] or "advance"
+            if not _usable(st):
+                unchecked.append(BadRow(line, pid, "not checked: the store refused an earlier row"))
+                continue
+            if pid in failed:
+                unchecked.append(BadRow(line, pid, f"not checked: follows the bad line {failed[pid]} of {pid}"))
+                continue
+            try:
+                r = _apply_one(st, pid, action, get["phase"], get["at"], get["note"], get["reason"])
+            except UserError as exc:
+                bad.append(BadRow(line, pid, str(exc)))
+                if pid:
+                    failed[pid] = line
+                continue
+            done.append({"line": line, "participant_id": pid, "action": action, **r})
+        if bad:
+            raise BadRows(source, bad, unchecked)
+    cols = ["line", "participant_id", "action", "phase", "completed"]
+    # object columns: `completed` keeps None (not NaN) where an event completed nothing
+    return pd.DataFrame({c: pd.Series([d[c] for d in done], dtype=None if c == "line" else object) for c in cols})

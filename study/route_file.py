@@ -72,11 +72,12 @@ class RouteFile:
         """The segment labels in order of first appearance along the route."""
         return tuple(dict.fromkeys(self.segment))
 
-    def join(self, frame: pd.DataFrame, label: str = "column s", lights: bool = True) -> tuple[pd.DataFrame,
-                                                                                        tuple[str, ...]]:
+    def join(self, frame: pd.DataFrame, label: str = "column s", lights: bool = True,
+             first_row: int = 0) -> tuple[pd.DataFrame, tuple[str, ...]]:
         """`frame` (with s in m) with speed_limit and segment added from the route where absent, and (`lights`)
         tl_id and d_tl when the log has no traffic-light column at all; returns (frame, added columns).
-        A sample outside the route -> UserError naming its row (`label` names the position column)."""
+        A sample outside the route -> UserError naming its row (`label` names the position column; `first_row` is
+        the 0-based row of the log that `frame` starts with, when it is a chunk of a log)."""
         wanted = [c for c in ("speed_limit", "segment") if c not in frame.columns]
         lights = lights and bool(self.lights) and not {"tl_id", "tl_state", "d_tl"} & set(frame.columns)
         if not wanted and not lights:
@@ -86,7 +87,7 @@ class RouteFile:
         bad = ~np.isfinite(s) | (((s < -EPS) | (s > self.length + EPS)) if wanted else False)
         if bad.any():
             i = int(np.flatnonzero(bad)[0])
-            raise UserError(f"{label} row {i + 1}: position {s[i]:g} m is outside route {self.name} "
+            raise UserError(f"{label} row {first_row + i + 1}: position {s[i]:g} m is outside route {self.name} "
                             f"(0–{self.length:g} m){' (missing value)' if not np.isfinite(s[i]) else ''}")
         out = frame.copy()
         k = np.clip(np.searchsorted(self.s_from, s, side="right") - 1, 0, len(self.s_from) - 1)

@@ -5,7 +5,7 @@ export writes them as floating local times (RFC 5545 §3.3.5), so a calendar sho
 
 A slot lasts the planned duration of the participant's protocol (sum of its phases' ``planned_minutes``, as the
 study's protocol file declares them) plus a buffer (default
-:data:`DEFAULT_BUFFER_MINUTES`) for set-up, briefing and cleaning the simulator. Two booked slots on the same
+:data:`study.defaults.DEFAULT_BUFFER_MINUTES`) for set-up, briefing and cleaning the simulator. Two booked slots on the same
 simulator must not overlap; a participant holds at most one booked slot; excluded participants are not booked.
 
 Booking a participant of a protocol with several ``orders`` assigns their order (balanced: :mod:`study.orders`).
@@ -18,13 +18,12 @@ from typing import Any
 
 import pandas as pd
 
+from study.defaults import DEFAULT_BUFFER_MINUTES, DEFAULT_SIMULATOR
 from study.errors import UserError
 from study.orders import ensure_order, exclusion_of, participant_row
 from study.protocol import load_protocol, status
 from study.protocol_file import planned_minutes
 
-DEFAULT_SIMULATOR = "sim1"
-DEFAULT_BUFFER_MINUTES = 15.0
 ACTIVE = "booked"
 
 

@@ -6,7 +6,9 @@ again with the same files changes nothing; with changed files it is refused whil
 re-interpreted: every stored participant still matches the id pattern and has valid attribute values, every stored
 condition and protocol is still declared, and a survey instrument whose name is already in use has exactly the
 same items (a changed wording, scale or reverse flag needs a new instrument version, e.g. ``..._v2``).
-Every command reads the newest stored version (:func:`definition`), never the folder.
+Every command reads the newest stored version (:func:`definition`), never the folder. It was checked when it was
+stored and is not checked again on reading (:func:`study.definition.from_stored`): its model file, for one, is
+parsed only by the commands that use the model.
 """
 from __future__ import annotations
 
@@ -17,7 +19,7 @@ import pandas as pd
 
 from study import audit_trail
 from study.attributes import run_checks
-from study.definition import StudyDefinition, from_files, load
+from study.definition import StudyDefinition, from_stored, load
 from study.errors import UserError
 from study.protocol_file import protocol_orders
 
@@ -31,7 +33,8 @@ def current(st) -> dict | None:
 
 
 def definition(st) -> StudyDefinition:
-    """The store's study (newest version); a store without one -> UserError saying how to add it."""
+    """The store's study (newest version), not checked again (:func:`study.definition.from_stored`); a store without
+    one -> UserError saying how to add it."""
     cached = getattr(st, "_study_definition", None)
     if cached is not None:
         return cached
@@ -41,7 +44,7 @@ def definition(st) -> StudyDefinition:
                         f"(e.g. studies/pedas_paper)")
     study = _CACHE.get(row["hash"])
     if study is None:
-        study = _CACHE[row["hash"]] = from_files(json.loads(row["files"]))
+        study = _CACHE[row["hash"]] = from_stored(json.loads(row["files"]))
     st._study_definition = study
     return study
 
@@ -50,19 +53,21 @@ def version(st) -> int | None:
     return st.one("SELECT max(version) FROM study_definitions")
 
 
-def register(st, folder: str | Path, new_version: bool = False) -> tuple[str, int]:
-    """Store the study of `folder` (checked); returns (what happened, version).
+def register(st, folder: str | Path, new_version: bool = False,
+             study: StudyDefinition | None = None) -> tuple[str, int]:
+    """Store the study of `folder` (checked); returns (what happened, version). `study`: the folder already loaded
+    (:func:`study.definition.load`), so that it is not read and checked again while the store is open.
 
     what: 'stored' (first definition), 'unchanged' (same hash), 'new version'. A changed definition of a store
     in use without `new_version`, or one that would re-interpret stored data, -> UserError; the store is unchanged.
     """
-    study = load(folder)
+    study = load(folder) if study is None else study
     with st.transaction():
         row = current(st)
         if row is not None and row["hash"] == study.hash:
             return "unchanged", int(row["version"])
         if row is not None:
-            old = from_files(json.loads(row["files"]))
+            old = from_stored(json.loads(row["files"]))
             if old.study_id != study.study_id:
                 raise UserError(f"store {st.path} serves study {old.study_id!r}, not {study.study_id!r}: "
                                 f"use a new store for another study")

@@ -113,7 +113,8 @@ def test_server_and_cli_share_the_store(paper_db, tmp_path):
     server_waits = _waits(server_log)
     lat = sorted(s for _, s in web_results)
     print(f"\nconcurrency: wall {wall:.2f} s (web part {web_wall:.2f} s); {len(web_results)} HTTP requests, "
-          f"latency median {lat[len(lat) // 2] * 1000:.0f} ms, max {lat[-1] * 1000:.0f} ms; "
+          f"latency median {lat[len(lat) // 2] * 1000:.0f} ms, p95 {lat[int(0.95 * (len(lat) - 1))] * 1000:.0f} ms, "
+          f"max {lat[-1] * 1000:.0f} ms; "
           f"{len(cli_results)} CLI commands, each {min(r[3] for r in cli_results):.2f}-"
           f"{max(r[3] for r in cli_results):.2f} s; CLI opens that waited: {len(cli_waits)}, "
           f"max wait {max([s for s, _ in cli_waits], default=0):.3f} s, retries {sum(n for _, n in cli_waits)}; "

@@ -37,7 +37,7 @@ def paper_scored():
 def test_docstring_examples(module):
     import importlib
 
-    res = doctest.testmod(importlib.import_module(f"analysis.{module}"), optionflags=doctest.NORMALIZE_WHITESPACE)
+    res = doctest.testmod(importlib.import_module(f"analysis.survey.{module}"), optionflags=doctest.NORMALIZE_WHITESPACE)
     assert res.failed == 0 and res.attempted > 0
 
 

@@ -13,7 +13,7 @@ from pedas_study.extras import require
 from study.errors import UserError
 
 REPO = Path(__file__).resolve().parents[1]
-OPTIONAL = {"pingouin": "test", "statsmodels": "bench", "cvxpy": "bench", "clarabel": "bench", "dask": "dask"}
+OPTIONAL = {"cvxpy": "bench", "clarabel": "bench", "dask": "dask"}
 
 
 def test_optional_packages_are_extras_not_runtime_dependencies():
@@ -27,7 +27,8 @@ def test_optional_packages_are_extras_not_runtime_dependencies():
 
 
 @pytest.mark.parametrize("package", ["pedas", "study", "analysis", "pedas_study"])
-def test_optional_packages_are_imported_lazily(package):
+def test_optional_and_heavy_packages_are_imported_lazily(package):
+    # pingouin and statsmodels are runtime dependencies (within-subjects comparisons) but slow to import
     top_level = re.compile(r"^(?:from|import)\s+(pingouin|statsmodels|cvxpy|clarabel|dask|distributed)\b", re.M)
     found = [str(p.relative_to(REPO)) for p in (REPO / package).rglob("*.py") if top_level.search(p.read_text())]
     assert found == []

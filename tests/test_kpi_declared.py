@@ -104,7 +104,7 @@ def test_analyze_drives_without_comparison_has_no_savings_or_bands(lk_store, cli
     assert {"kpis.csv", "summary.csv", "kpi_table.md", "kpi_table.tex", "objective.md"} <= names
     assert not names & {"bands.csv", "per_participant.csv", "style_table.md", "band_diagnostics.csv"}
     assert "saving" not in r.out and "Reproduction bands" not in r.out
-    assert "sdlp mean (SD)" in r.out
+    assert "SDLP (m) mean (SD)" in r.out   # the declared label and unit head the table
     # the paper's figures compare a treatment with a control: without a comparison they are not mentioned at all
     assert "fig" not in r.out and "## Figures" not in (tmp_path / "o" / "objective.md").read_text()
     kpis = pd.read_csv(tmp_path / "o" / "kpis.csv")

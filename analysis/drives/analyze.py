@@ -31,7 +31,7 @@ class DrivesReport:
         if comparison is None:
             lines = [f"objective analysis: {r.n} participants with drives ({len(r.excluded)} excluded)"]
             t = kpi_summary_table(r.summary)
-            h, rows = _summary_cells(t)
+            h, rows = _summary_cells(t, r.spec)
             lines.append(kpi_markdown(h, rows, "KPIs per drive, mean (SD)",
                                       text_columns=list(t.columns).index("n")).rstrip())
         else:

@@ -33,6 +33,10 @@ Definitions (units SI unless the column name says otherwise; see docs/kpis.md fo
 * user KPIs (:class:`study.kpi_spec.SqlKpi`): a DuckDB aggregate over the samples, computed in the same
   GROUP BY (grouping sets: per segment and per whole drive), so a non-additive statistic such as a standard
   deviation is exact for the whole drive too.
+* query KPIs (``SqlKpi`` with ``query``): a read-only query over the relation ``samples``, run once per drive (and
+  per segment) against a temporary view that holds that drive's (segment's) rows in idx order (:func:`query_kpis`).
+* event KPIs (:class:`study.kpi_spec.EventKpi`): the time from a rising edge of one condition to the next sample
+  where another holds, all drives in one window pass and an ASOF join (:func:`event_kpis`).
 """
 from __future__ import annotations
 
@@ -40,7 +44,8 @@ import numpy as np
 import pandas as pd
 
 from study.kpi_fields import KPI_COLUMNS, KPI_FIELDS, SAMPLE_COLUMNS, KpiParams  # noqa: F401
-from study.kpi_spec import study_spec
+from study.kpi_spec import EventKpi, study_spec
+from analysis.drives.user_kpis import event_kpis, is_aggregate, place, query_kpis
 from pedas.vocabulary import SEGMENTS as ROUTE_SEGMENTS
 
 # the simulator's route segments and the whole drive: the row order of the pandas peer (analysis.survey.testing), which
@@ -224,9 +229,10 @@ def kpi_sql(src: str = "drive_samples", mode: str = "sorted", chunk: bool = Fals
     windows ``PARTITION BY drive_id ORDER BY idx`` (any row order); ``mode="stream"`` reads neighbours in the
     relation's own order, which must be grouped by drive and ascending in idx (:func:`in_drive_order`). ``chunk``:
     only the drives with ``$lo <= drive_id < $hi`` (a filter keeps the rows' order, so a chunk of a relation in
-    drive order is in drive order). ``sql_kpis``: user KPIs (:class:`study.kpi_spec.SqlKpi`, checked by
-    :func:`study.kpi_spec.check_sql`), one more column each after :data:`KPI_FIELDS`; ``columns``: the
-    columns of ``src`` (default: the standard drive-log columns), so that the columns they read are carried."""
+    drive order is in drive order). ``sql_kpis``: user KPIs that are aggregate expressions
+    (:class:`study.kpi_spec.SqlKpi` without ``query``, checked by :func:`study.kpi_spec.check_sql`), one more column
+    each after :data:`KPI_FIELDS`; ``columns``: the columns of ``src`` (default: the standard drive-log columns), so
+    that the columns they read are carried."""
     if mode == "sorted":
         w, window = "w", "WINDOW w AS (PARTITION BY drive_id ORDER BY idx)"
     elif mode == "stream":
@@ -283,6 +289,8 @@ def kpis_from_relation(con, src: str, params: KpiParams | None = None, mode: str
     of the samples in relation ``src`` on the DuckDB connection ``con``. NULL ``p_batt`` -> NULL energy, NULL ``a``
     -> no jerk/|a| contribution; a user KPI not declared per segment is NULL in the segment rows.
     ``mode="auto"`` streams when the relation is already in drive order (one cheap check scan), else sorts.
+    ``sql_kpis`` may mix aggregate expressions (computed in the built-ins' pass), query KPIs (:func:`query_kpis`)
+    and event KPIs (:func:`event_kpis`); the latter two read every column of ``src``.
 
     ``workers`` > 1 splits the drives into that many chunks of about equal rows and runs them at once, each on its
     own cursor: the streaming window is one thread per query, so this is what puts more cores to work. The
@@ -291,6 +299,8 @@ def kpis_from_relation(con, src: str, params: KpiParams | None = None, mode: str
     from concurrent.futures import ThreadPoolExecutor
 
     params = params or KpiParams()
+    user = tuple(sql_kpis)
+    sql_kpis = tuple(k for k in user if is_aggregate(k))
     chunks = _drive_chunks(con, src, workers) if workers > 1 else [None]
     columns = [d[0] for d in con.execute(f"SELECT * FROM {_check_name(src)} LIMIT 0").description] if sql_kpis \
         else None
@@ -311,7 +321,14 @@ def kpis_from_relation(con, src: str, params: KpiParams | None = None, mode: str
     else:
         with ThreadPoolExecutor(len(chunks)) as pool:
             parts = list(pool.map(run, chunks))
-    return pd.concat(parts, ignore_index=True)[[*KPI_FIELDS, *(k.name for k in sql_kpis)]]
+    out = pd.concat(parts, ignore_index=True)
+    events = [k for k in user if isinstance(k, EventKpi)]
+    queries = [k for k in user if not is_aggregate(k) and not isinstance(k, EventKpi)]
+    if events:
+        out = place(out, event_kpis(con, src, events), events)
+    if queries:
+        out = place(out, query_kpis(con, src, out[["drive_id", "segment"]], queries), queries)
+    return out[[*KPI_FIELDS, *(k.name for k in user)]]
 
 
 def _drive_chunks(con, src: str, n: int) -> list[tuple[int, int] | None]:
@@ -415,9 +432,13 @@ def store_kpis_with_sources(st, drive_ids=None, params: KpiParams | None = None,
         con.execute("CREATE OR REPLACE TEMP TABLE kpi_drive_sel AS SELECT unnest($ids) AS drive_id", {"ids": ids})
         where = " WHERE drive_id IN (SELECT drive_id FROM kpi_drive_sel)"
     have = [d[0] for d in con.execute("SELECT * FROM drive_samples LIMIT 0").description]
-    extra = sql_columns(spec.sql, have)
+    user = spec.user_kpis
+    if all(is_aggregate(k) for k in user):
+        extra = sql_columns(spec.sql, have)
+    else:   # a query or event KPI reads `samples` as the study declares it: every column and declared channel
+        extra = [c for c in have if c in spec.channels or (c in SAMPLE_COLUMNS and c not in ("drive_id", "idx"))]
     missing_channels = sorted({c for c in spec.channels if c not in have}
-                              & {w for k in spec.sql for w in _words(k.sql)})
+                              & {w for k in user for w in _words(_kpi_text(k))})
     if missing_channels:
         from study.errors import UserError
 
@@ -455,9 +476,14 @@ def store_kpis_with_sources(st, drive_ids=None, params: KpiParams | None = None,
         SELECT r.drive_id, r.idx, r.t, r.s, r.v, r.segment, r.speed_limit, {a_expr} AS a,
                {p_expr} AS p_batt, r.tl_id, r.tl_state, r.d_tl{rest}
         FROM kpi_src_raw r {join} ORDER BY r.drive_id, r.idx""")
-    k = kpis_from_relation(con, "kpi_src", params, sql_kpis=spec.sql)
+    k = kpis_from_relation(con, "kpi_src", params, sql_kpis=user)
     drives = con.execute("SELECT drive_id, participant_id, condition FROM drives").df()
     return drives.merge(k, on="drive_id", how="inner")[out_cols], sources
+
+
+def _kpi_text(kpi) -> str:
+    """The SQL a user KPI runs (its conditions for an event KPI)."""
+    return f"{kpi.start} {kpi.end}" if isinstance(kpi, EventKpi) else kpi.sql
 
 
 def _words(sql: str) -> set[str]:

@@ -156,7 +156,7 @@ def summarise_drives(kpis: pd.DataFrame, spec, levels: dict[str, list], conditio
             for seg in segs:
                 gs = g[g["segment"] == seg]
                 for m in spec.columns:
-                    if seg != "overall" and any(k.name == m and not k.per_segment for k in spec.sql):
+                    if seg != "overall" and any(k.name == m and not k.per_segment for k in spec.user_kpis):
                         continue
                     rows.append({**({"condition": cond} if by_cond else {}), **labels, "segment": seg,
                                  "metric": m, **_stats(gs[m])})

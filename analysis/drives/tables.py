@@ -129,10 +129,13 @@ def kpi_summary_table(summary: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def _summary_cells(t: pd.DataFrame) -> tuple[list[str], list[list[str]]]:
+def _summary_cells(t: pd.DataFrame, spec=None) -> tuple[list[str], list[list[str]]]:
+    """Header and cells of :func:`kpi_summary_table`: "mean (SD)" per KPI; a KPI the study declares itself is
+    headed "Label (unit)" (``spec``: its :class:`study.kpi_spec.KpiSpec`), a built-in by its column name."""
     metrics = [c[:-5] for c in t.columns if c.endswith("_mean")]
     keys = [c for c in t.columns if c != "n" and not c.endswith(("_mean", "_sd"))]
-    header = [k.capitalize() for k in keys] + ["n"] + [f"{m} mean (SD)" for m in metrics]
+    headings = spec.headings if spec is not None else {}
+    header = [k.capitalize() for k in keys] + ["n"] + [f"{headings.get(m, m)} mean (SD)" for m in metrics]
     rows = [[str(r[k]) for k in keys] + [str(int(r["n"]))]
             + [f"{_fmt(r[f'{m}_mean'], 3)} ({_fmt(r[f'{m}_sd'], 3)})" for m in metrics] for _, r in t.iterrows()]
     return header, rows
@@ -165,7 +168,7 @@ def write_tables(result, out_dir: str | Path) -> list[Path]:
             df.to_csv(out / name, index=False)
             written.append(out / name)
         summary = kpi_summary_table(result.summary)
-        table("kpi_table", summary, _summary_cells,
+        table("kpi_table", summary, lambda t: _summary_cells(t, result.spec),
               f"Objective KPIs per drive, mean (SD) (N = {result.n} participants)", "tab:kpis",
               text_columns=list(summary.columns).index("n"))
         return written

@@ -178,9 +178,9 @@ def survey_step(cfg: ReportConfig) -> None:
         if reason is None:
             res, responses = analyze_store(st, n_boot=cfg.n_boot, seed=cfg.seed or 20240101)
             # Table 3 the way SPSS FACTOR reports it (first principal component per construct), beside our CFA;
-            # only the loadings differ, so no bootstrap
-            pca, _ = analyze_store(st, n_boot=0, seed=cfg.seed or 20240101, loadings="pca")
-            ext, ext_reason = _extended_survey(st, definition(st), responses, cfg)
+            # only the loadings differ, so no bootstrap, and the CFA fits are the ones above
+            pca, _ = analyze_store(st, n_boot=0, seed=cfg.seed or 20240101, loadings="pca", reuse=res)
+            ext, ext_reason = _extended_survey(st, definition(st), responses, cfg, res)
     with _fresh_dir(cfg.out / "survey") as out:
         if reason is not None:
             (out / SKIPPED).write_text(reason + "\n", encoding="utf-8")
@@ -209,15 +209,16 @@ def write_table3_pca(pca, out: Path) -> None:
         (out / f"table3.{fmt}").write_text(render_table(pca, "table3", fmt), encoding="utf-8")
 
 
-def _extended_survey(st, study, responses, cfg):
-    """(ExtendedAnalysis, None) of the store's answers, or (None, the one-line reason it could not run)."""
+def _extended_survey(st, study, responses, cfg, survey=None):
+    """(ExtendedAnalysis, None) of the store's answers, or (None, the one-line reason it could not run); it
+    builds on the `survey` analysis of the same answers (its CFA) when given."""
     from analysis.survey.acceptance import attributes_from_store
     from analysis.survey.extended import analyze_extended
 
     try:
         # one process: the report holds the store open, and forking beside it buys ~1 s at most
         return analyze_extended(responses, study, attributes=attributes_from_store(st), n_boot=cfg.n_boot,
-                                seed=cfg.seed or 20240101, workers=1), None
+                                seed=cfg.seed or 20240101, workers=1, survey=survey), None
     except ValueError as exc:
         return None, f"extended statistics: {exc}"
 

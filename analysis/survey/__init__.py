@@ -26,4 +26,5 @@ __all__, __getattr__, __dir__ = lazy_exports(__name__, __path__, {
     "bootstrap": ("BootResult", "interval"),
     "sample_size": ("study_plan", "mc_power", "required_n", "f2_power", "rmsea_power", "rmsea_n"),
     "tables": ("render_table", "render_all"),
+    "within": ("WithinComparison", "compare_within"),
 })

@@ -145,6 +145,8 @@ class SurveyAnalysis:
     n_input: int
     settings: dict = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+    # the fitted models behind the tables, for other analyses of the same answers (not written; None when read)
+    fits: "SurveyFits | None" = field(default=None, repr=False, compare=False)
 
     def tables(self) -> dict[str, pd.DataFrame]:
         """name -> frame of every CSV `write` produces."""
@@ -246,9 +248,36 @@ class SurveyAnalysis:
                    warnings=lines)
 
 
+@dataclass(frozen=True, eq=False)
+class SurveyFits:
+    """The fitted models of one survey analysis that another analysis of the same answers reuses instead of fitting
+    them again (:func:`analyze_survey` with ``reuse=``, :func:`analysis.survey.extended.analyze_extended` with
+    ``survey=``).
+
+    scored: the scored answers the models were fitted to; listwise: whether incomplete participants were left out;
+    initial, final: the CFA of both stages (standardized CFA loadings, before any SPSS-style extraction).
+    """
+
+    scored: pd.DataFrame
+    listwise: bool
+    initial: "_cfa.CFAResult"
+    final: "_cfa.CFAResult"
+
+    def check(self, scored: pd.DataFrame, listwise: bool, retained: dict, constructs: dict | None = None) -> None:
+        """ValueError unless these fits are of the same answers (`scored`, `listwise`) and measurement models (the
+        final stage's `retained`; the initial stage's `constructs` when given)."""
+        if listwise != self.listwise or not scored.equals(self.scored):
+            raise ValueError("the survey analysis to reuse was fitted to other answers (another instrument, "
+                             "deletion or participants)")
+        if dict(retained) != self.final.constructs or (constructs is not None
+                                                       and dict(constructs) != self.initial.constructs):
+            raise ValueError("the survey analysis to reuse was fitted to another measurement model")
+
+
 def analyze_survey(responses: pd.DataFrame, study, *, attributes: pd.DataFrame | None = None, instrument=None,
                    model=None, n_boot: int = 2000, seed: int = 20240101, listwise: bool = True,
-                   boot_method: str = "percentile", loadings: str = "cfa") -> SurveyAnalysis:
+                   boot_method: str = "percentile", loadings: str = "cfa",
+                   reuse: SurveyAnalysis | None = None) -> SurveyAnalysis:
     """Run the whole acceptance analysis of `study` on a wide survey frame (docs/contracts.md "Survey CSV").
 
     Parameters
@@ -276,13 +305,20 @@ def analyze_survey(responses: pd.DataFrame, study, *, attributes: pd.DataFrame |
         loadings of the CFA), or SPSS FACTOR's extractions per construct, "pca" (first principal component) or
         "paf" (principal axis factoring) - to compare with papers that report those (:mod:`analysis.survey.extraction`).
         The CFA is fitted either way (fit indices, latent correlations, omega).
+    reuse : SurveyAnalysis, optional
+        An analysis of the same answers (same instrument, deletion and measurement models) whose CFA fits
+        (``reuse.fits``) this one takes instead of fitting them again, e.g. the CFA-loadings analysis when the PCA
+        loadings are wanted beside it; the results are those of a fresh fit. ValueError when it was fitted to other
+        answers or models, or has no fits (read from files).
 
     Raises ValueError (one line) on bad input.
     """
+    if reuse is not None and reuse.fits is None:
+        raise ValueError("the survey analysis to reuse has no fitted models (it was read from files)")
     with _single_threaded_blas():
         return _analyze(responses, _study(study), attributes=attributes, instrument=instrument, model=model,
                         n_boot=n_boot, seed=seed, listwise=listwise, boot_method=boot_method,
-                        loading_method=loadings)
+                        loading_method=loadings, fits=reuse.fits if reuse is not None else None)
 
 
 def _study(study):
@@ -470,7 +506,7 @@ def _single_threaded_blas():
 
 
 def _analyze(responses, study, *, attributes, instrument, model, n_boot, seed, listwise, boot_method,
-             loading_method="cfa") -> SurveyAnalysis:
+             loading_method="cfa", fits: SurveyFits | None = None) -> SurveyAnalysis:
     if loading_method not in LOADING_METHODS:
         raise ValueError(f"unknown loadings {loading_method!r} (one of {', '.join(LOADING_METHODS)})")
     if boot_method not in ("percentile", "bca"):
@@ -504,8 +540,12 @@ def _analyze(responses, study, *, attributes, instrument, model, n_boot, seed, l
 
     descriptives = _ordered(item_descriptives(scored, sample.raw, constructs, sample.reverse_items), "descriptives")
 
-    initial = _cfa.fit_cfa(scored, constructs, label="initial")
-    final = _cfa.fit_cfa(scored, retained, label="final")
+    if fits is None:
+        fits = SurveyFits(scored=scored, listwise=listwise, initial=_cfa.fit_cfa(scored, constructs, label="initial"),
+                          final=_cfa.fit_cfa(scored, retained, label="final"))
+    else:
+        fits.check(scored, listwise, retained, constructs)
+    initial, final = fits.initial, fits.final
     warn += initial.warnings + final.warnings
     if loading_method != "cfa":
         initial, final = (_with_extraction(r, scored, loading_method, warn, stage)
@@ -556,7 +596,7 @@ def _analyze(responses, study, *, attributes, instrument, model, n_boot, seed, l
     return SurveyAnalysis(descriptives=descriptives, loadings=loadings, fit=fit, reliability=reliability,
                           correlations=correlations, fornell_larcker=fl, htmt=ht, regressions=regressions,
                           hypotheses=hyp, composites=comp, latent_correlations=final.latent_corr, n=sample.n,
-                          n_input=sample.n_input, settings=settings, warnings=warn)
+                          n_input=sample.n_input, settings=settings, warnings=warn, fits=fits)
 
 
 LOADING_METHODS = ("cfa", "pca", "paf")

@@ -152,13 +152,18 @@ def group_series(attributes: pd.DataFrame | None, name: str) -> pd.Series:
 
 def analyze_extended(responses: pd.DataFrame, study, *, attributes: pd.DataFrame | None = None, instrument=None,
                      model=None, n_boot: int = 2000, seed: int = 20240101, group: str | None = None,
-                     groups: pd.Series | None = None, level: float = 0.95, workers: int = 2) -> ExtendedAnalysis:
+                     groups: pd.Series | None = None, level: float = 0.95, workers: int = 2,
+                     survey=None) -> ExtendedAnalysis:
     """Run the extended statistics (module docstring) on a wide survey frame of `study`.
 
     `group` names a participant attribute (of `attributes`) for the invariance steps; `groups` gives the grouping
     directly (participant_id -> group, e.g. a driving style derived from the drives). Raises ValueError (one line)
     on bad input, before any slow step: a too-small group refuses the whole call. ``workers`` = 2 computes the
     polychoric correlations in a second process while the bootstrap runs (same results with 1).
+
+    `survey`: the :class:`analysis.survey.acceptance.SurveyAnalysis` of the same answers (listwise, the same
+    final measurement model) this builds on; its final-stage ML CFA is taken instead of fitting it again (the
+    results are those of a fresh fit). ValueError when it was fitted to other answers or another model.
     """
     from analysis.survey.acceptance import _model, _study, covariate_frame, survey_plan
     from analysis.survey.scoring import check_not_constant, resolve_instrument, score_responses
@@ -176,6 +181,12 @@ def analyze_extended(responses: pd.DataFrame, study, *, attributes: pd.DataFrame
     retained = plan.retained
     items = [i for v in retained.values() for i in v]
     check_not_constant(scored[items])
+    ml = None
+    if survey is not None:
+        if survey.fits is None:
+            raise ValueError("the survey analysis to build on has no fitted models (it was read from files)")
+        survey.fits.check(scored, True, retained)
+        ml = survey.fits.final
     warn: list[str] = []
     group_var = group
     if group is not None and groups is None:
@@ -204,7 +215,7 @@ def analyze_extended(responses: pd.DataFrame, study, *, attributes: pd.DataFrame
         # the polychoric correlations run beside the bootstrap in a second process when there is a second core
         pending = pool.submit(_ordinal_part, scored, retained) if pool else None
         return _run(pending, scored, retained, items, study, inst, amodel, plan, sample, covars, cov_cols, paths,
-                    paths_cols, groups, group_var, n_boot, seed, level, warn, timings, t_all)
+                    paths_cols, groups, group_var, n_boot, seed, level, warn, timings, t_all, ml)
     finally:
         if pool:
             pool.shutdown(cancel_futures=True)
@@ -223,7 +234,7 @@ def _ordinal_part(scored, retained):
 
 
 def _run(pending, scored, retained, items, study, inst, amodel, plan, sample, covars, cov_cols, paths, paths_cols,
-         groups, group_var, n_boot, seed, level, warn, timings, t_all):
+         groups, group_var, n_boot, seed, level, warn, timings, t_all, ml=None):
     from analysis.survey.acceptance import _single_threaded_blas
     from analysis.survey.hypotheses import judge_hypotheses
     from analysis.survey.regression import ModelSpec, run_models
@@ -231,7 +242,8 @@ def _run(pending, scored, retained, items, study, inst, amodel, plan, sample, co
 
     with _single_threaded_blas():
         t = time.perf_counter()
-        ml = _cfa.fit_cfa(scored, retained, label="final")
+        if ml is None:  # not given by the survey analysis this builds on
+            ml = _cfa.fit_cfa(scored, retained, label="final")
         warn += ml.warnings
         timings["ml_cfa"] = time.perf_counter() - t
 

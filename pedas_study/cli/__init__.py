@@ -4,7 +4,10 @@ One module per top-level command word, listed in `COMMAND_MODULES` in the order 
 ``register(cli: Cli)`` and declares its command with :meth:`Cli.command` (``pedas-study init``) or its group with
 :meth:`Cli.group` (``pedas-study bench mpc``), once: a second declaration of a name is an error. Handlers take the
 parsed ``argparse.Namespace`` and return an exit code (``None`` means 0). Heavy imports stay inside the handlers
-so that ``--help`` and small commands start fast.
+so that ``--help`` and small commands start fast: building the parser loads no numeric, statistics, units or
+plotting library (tests/test_cli_imports.py), and defaults a help text shows come from light modules
+(``study.defaults``). A handler opens the store after its imports and closes it before printing
+(:func:`pedas_study.cli.common.open_store`).
 
 Errors: an exception reaching :func:`main` is printed as one line ``pedas-study: error: ...``. Bad input exits 2:
 ``ValueError`` (with ``study.errors.UserError``), the file-system errors of a bad path (missing, a directory, no

@@ -19,6 +19,30 @@ def _import(args) -> None:
           f"({r.peer_rows_per_s:,.0f} rows/s); ratio {r.ratio:.1f}x")
 
 
+# ---------------------------------------------------------------------------------------------- bench cli
+def _cli(args) -> None:
+    import json
+
+    from pedas_study.bench.cli import bench_cli
+
+    r = bench_cli(repeats=args.repeats)
+    print(json.dumps(r.as_dict(), indent=1) if args.json else r.to_text())
+
+
+# ---------------------------------------------------------------------------------------------- bench export
+def _export(args) -> None:
+    import json
+    import sys
+
+    from pedas_study.bench.store_export import bench_export, to_text
+
+    if args.samples < 2 or args.log_rows < 2:
+        raise ValueError("--samples and --log-rows must be >= 2")
+    r = bench_export(samples=args.samples, log_rows=args.log_rows, peers=not args.no_peers,
+                     progress=None if args.json else lambda msg: print(msg, file=sys.stderr, flush=True))
+    print(json.dumps(r.as_dict(), indent=1) if args.json else to_text(r))
+
+
 # ---------------------------------------------------------------------------------------------- bench mpc
 def _mpc(args) -> int:
     import json
@@ -197,10 +221,26 @@ def register(cli) -> None:
     from pedas.vocabulary import CONDITIONS, STYLES
 
     g = cli.group("bench", "benchmarks")
+    p = g.command("cli", "median wall time of everyday commands, each a fresh process, on a store with 100 "
+                  "participants (--help, listing, add, advance, drive import, roster import, plan power, analyze) vs "
+                  "the bare interpreter start", _cli)
+    p.add_argument("--repeats", type=int, default=5, metavar="N", help="runs of each command (default 5)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+
     p = g.command("import", "throughput of drive-log import (rows/s) vs a plain DuckDB load", _import)
     p.add_argument("--rows", type=int, default=1_000_000)
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--json", action="store_true")
+
+    p = g.command("export", "time and peak memory of exports (parquet, csv, csv --deidentify) of a store of "
+                  "synthetic drive samples and of a large CSV drive import, each in its own process, vs plain DuckDB",
+                  _export)
+    p.add_argument("--samples", type=int, default=10_000_000, metavar="N", help="drive samples in the store "
+                   "(default 10000000)")
+    p.add_argument("--log-rows", type=int, default=5_000_000, metavar="N", help="rows of the imported CSV log "
+                   "(default 5000000)")
+    p.add_argument("--no-peers", action="store_true", help="skip the DuckDB floors and the DataFrame peer")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
 
     p = g.command("mpc", "controller-step time and accuracy of the MPCs with each QP backend (DAQP, OSQP) on a "
                   "drive-like sequence vs cvxpy + Clarabel", _mpc)

@@ -32,7 +32,13 @@ def db_path(args: argparse.Namespace) -> Path:
 
 def open_store(args: argparse.Namespace, must_exist: bool = True, read_only: bool = False):
     """The store of :func:`db_path`, opened as ``--actor``; UserError "no store at ..." when it does not exist
-    (unless ``must_exist=False``, which creates it)."""
+    (unless ``must_exist=False``, which creates it).
+
+    Another process (the survey server, another command) cannot open the store while a command holds it, so a
+    handler imports what it uses before it calls this and closes the store before it formats and prints its
+    output. This imports what nearly every command uses once the store is open, the reader of the stored study
+    (:func:`study.studies.definition`, with pandas for query results), before opening it."""
+    import study.studies  # noqa: F401 - loaded before the store is held, not while
     from study.store import Store
 
     path = db_path(args)

@@ -9,6 +9,9 @@ from pedas_study.cli.common import (DRIVE_CACHE_HELP, add_format_option, add_sce
 
 def _import(args) -> None:
     from study.drives import import_drive_file
+    from study.units import units
+
+    units()  # built before the store is held (about a second): the study's route and log mapping read units with it
 
     def progress(msg: str) -> None:
         print(msg, file=sys.stderr, flush=True)
@@ -32,14 +35,16 @@ def _list(args) -> None:
     from study.drives import list_drives
 
     with open_store(args) as st:
-        print(format_frame(list_drives(st), args.format))
+        df = list_drives(st)
+    print(format_frame(df, args.format))
 
 
 def _channels(args) -> None:
     from study.drives import list_channels
 
     with open_store(args, read_only=True) as st:
-        print(format_frame(list_channels(st), args.format))
+        df = list_channels(st)
+    print(format_frame(df, args.format))
 
 
 def _simulate(args) -> None:

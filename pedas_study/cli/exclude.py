@@ -6,17 +6,17 @@ from study.errors import UserError
 
 
 def _exclude(args) -> None:
-    from study.exclusions import exclude, revoke
+    from study.exclusions import REASONS, exclude, revoke
 
+    if not args.revoke and not args.reason:  # refused before the store is opened
+        raise UserError(f"--reason is required ({'|'.join(REASONS)})")
     with open_store(args) as st:
         if args.revoke:
             revoke(st, args.id, args.scope)
-            print(f"{args.id}: exclusion ({args.scope}) revoked")
-            return
-        if not args.reason:
-            raise UserError("--reason is required (motion_sickness|technical_issue|incomplete_survey|withdrawn|other)")
-        exclude(st, args.id, args.scope, args.reason, note=args.note)
-    print(f"{args.id}: excluded ({args.scope}, {args.reason})")
+        else:
+            exclude(st, args.id, args.scope, args.reason, note=args.note)
+    print(f"{args.id}: exclusion ({args.scope}) revoked" if args.revoke else
+          f"{args.id}: excluded ({args.scope}, {args.reason})")
 
 
 def register(cli) -> None:

@@ -7,6 +7,16 @@ from pedas_study.cli.common import open_store
 def _export(args) -> None:
     from study.export import export
 
+    # what the writers load, loaded before the store is held: pyreadstat and the unit registry (a study's route names
+    # the segments a .sav labels), pyarrow's Parquet writer
+    if args.format == "sav":
+        import pyreadstat  # noqa: F401
+        import study.route_file  # noqa: F401
+        from study.units import units
+
+        units()
+    elif args.format == "parquet":
+        import pyarrow.parquet  # noqa: F401
     with open_store(args) as st:
         r = export(st, args.format, args.outdir, deidentify=args.deidentify)
     total = sum(r.files.values())

@@ -13,19 +13,22 @@ def _init(args) -> None:
 
         raise UserError("a new store needs its study: pedas-study init --study DIR (e.g. studies/pedas_paper; "
                         "`pedas-study study new DIR` writes a template)")
-    if args.study:  # a folder with problems is refused before a new store is created
+    study = None
+    if args.study:  # a folder with problems is refused before a new store is created (and checked only once)
         from study.definition import load
 
-        load(args.study)
+        study = load(args.study)
+    lines = []  # printed once the store is closed again
     with open_store(args, must_exist=False) as st:
         what = "created" if not existed else "upgraded" if st.applied else "up to date"
-        print(f"store {st.path} {what} (schema v{st.schema_version})")
+        lines.append(f"store {st.path} {what} (schema v{st.schema_version})")
         if args.study:
-            done, ver = register(st, args.study, new_version=args.new_version)
-            print(f"study {st.one('SELECT study_id FROM study_definitions WHERE version = ?', [ver])} "
-                  f"version {ver} {done}")
+            done, ver = register(st, args.study, new_version=args.new_version, study=study)
+            lines.append(f"study {st.one('SELECT study_id FROM study_definitions WHERE version = ?', [ver])} "
+                         f"version {ver} {done}")
         elif version(st) is None:
-            print("the store has no study yet: run pedas-study init --study DIR")
+            lines.append("the store has no study yet: run pedas-study init --study DIR")
+    print("\n".join(lines))
 
 
 def register(cli) -> None:

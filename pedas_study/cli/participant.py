@@ -1,5 +1,5 @@
-"""`pedas-study participant add | list | completeness`: register and list participants of the store's study, and
-what data each still lacks."""
+"""`pedas-study participant add | import | list | completeness`: register (one, or a roster) and list participants of
+the store's study, and what data each still lacks."""
 from __future__ import annotations
 
 from pedas_study.cli.common import add_format_option, format_frame, open_store
@@ -45,18 +45,38 @@ def _add(args) -> None:
     print(f"participant {row['participant_id']} added (protocol {row['protocol']})")
 
 
+def _import(args) -> int | None:
+    from pathlib import Path
+
+    from pedas_study.cli.bulk import refused
+    from study.bulk_rows import BadRows, read_rows
+    from study.participants import import_roster
+
+    path = Path(args.roster)
+    try:
+        frame = read_rows(path)
+        with open_store(args) as st:
+            n = import_roster(st, frame, source=path.name)
+    except BadRows as exc:
+        return refused(exc)
+    print(f"registered {n} participants from {args.roster}")
+    return None
+
+
 def _list(args) -> None:
     from study.participants import list_participants
 
     with open_store(args) as st:
-        print(format_frame(list_participants(st), args.format))
+        df = list_participants(st)
+    print(format_frame(df, args.format))  # formatted after closing: the store is held only while read
 
 
 def _completeness(args) -> None:
     from study.completeness import completeness
 
     with open_store(args, read_only=True) as st:
-        print(format_frame(completeness(st, args.instrument), args.format))
+        df = completeness(st, args.instrument)
+    print(format_frame(df, args.format))
 
 
 def register(cli) -> None:
@@ -74,6 +94,9 @@ def register(cli) -> None:
     p.add_argument("--style", help="same as --attr style=STYLE (self-reported driving style)")
     p.add_argument("--eco-familiarity", dest="eco_familiarity", metavar="N",
                    help="same as --attr eco_familiarity=N")
+    p = g.command("import", "register the participants of a roster CSV, all or nothing (participant_id, the "
+                            "study's attribute columns, optionally protocol)", _import)
+    p.add_argument("roster", metavar="ROSTER.csv")
     p = g.command("list", "list participants with their attributes, protocol position and exclusions", _list)
     add_format_option(p)
     p = g.command("completeness", "per participant: the protocol phases, drives and survey answers still missing",

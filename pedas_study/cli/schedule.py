@@ -8,7 +8,8 @@ def _day(args) -> None:
     from study.scheduling import day_agenda
 
     with open_store(args, read_only=True) as st:
-        print(format_frame(day_agenda(st, args.date, args.simulator), args.format))
+        df = day_agenda(st, args.date, args.simulator)
+    print(format_frame(df, args.format))
 
 
 def _export(args) -> None:
@@ -23,7 +24,8 @@ def _durations(args) -> None:
     from study.scheduling import phase_durations
 
     with open_store(args, read_only=True) as st:
-        print(format_frame(phase_durations(st, args.id), args.format))
+        df = phase_durations(st, args.id)
+    print(format_frame(df, args.format))
 
 
 def register(cli) -> None:

@@ -8,13 +8,37 @@ from pedas_study.cli.common import add_format_option, format_frame, open_store
 
 
 # ---------------------------------------------------------------------------------------------- protocol phases
-def _advance(args) -> None:
+def _advance(args) -> int | None:
+    if args.events is not None:
+        if args.id is not None or args.note is not None or args.at is not None:
+            args.usage_error("--from takes every event from the file: give no ID, PHASE, --note or --at with it")
+        return _advance_from(args)
+    if args.phase is None:  # ID and PHASE are optional only for --from
+        args.usage_error(f"the following arguments are required: {'PHASE' if args.id else 'ID, PHASE'}")
     from study.protocol import advance
 
     with open_store(args) as st:
         r = advance(st, args.id, args.phase, note=args.note, at=args.at)
     done = f" ({r['completed']} completed)" if r["completed"] else ""
     print(f"{args.id}: {r['started']} started{done}")
+
+
+def _advance_from(args) -> int | None:
+    from pathlib import Path
+
+    from pedas_study.cli.bulk import refused
+    from study.bulk_rows import BadRows, read_rows
+    from study.protocol import apply_events
+
+    path = Path(args.events)
+    try:
+        frame = read_rows(path)
+        with open_store(args) as st:
+            done = apply_events(st, frame, source=path.name)
+    except BadRows as exc:
+        return refused(exc)
+    print(f"applied {len(done)} events for {done['participant_id'].nunique()} participants from {args.events}")
+    return None
 
 
 def _abort(args) -> None:
@@ -96,7 +120,8 @@ def _assign(args) -> None:
     from study.orders import assign_order
 
     with open_store(args) as st:
-        print(f"{args.id}: order {assign_order(st, args.id)}")
+        order = assign_order(st, args.id)
+    print(f"{args.id}: order {order}")
 
 
 def _add_time(p: argparse.ArgumentParser) -> None:
@@ -106,15 +131,20 @@ def _add_time(p: argparse.ArgumentParser) -> None:
 
 def register(cli) -> None:
     """Declare the `session` group."""
-    from study.scheduling import DEFAULT_BUFFER_MINUTES, DEFAULT_SIMULATOR
+    from study.defaults import DEFAULT_BUFFER_MINUTES, DEFAULT_SIMULATOR
 
     g = cli.group("session", "walk a participant through the protocol phases")
-    p = g.command("advance", "start the next protocol phase (completes the one in progress)", _advance)
-    p.add_argument("id", metavar="ID")
-    p.add_argument("phase", metavar="PHASE", help="the next phase of the participant's protocol (the study's "
-                                                   "protocol file; `session status ID` lists them in order)")
+    p = g.command("advance", "start the next protocol phase (completes the one in progress); --from: many events "
+                             "from a CSV, all or nothing", _advance)
+    p.add_argument("id", metavar="ID", nargs="?")
+    p.add_argument("phase", metavar="PHASE", nargs="?", help="the next phase of the participant's protocol (the "
+                   "study's protocol file; `session status ID` lists them in order)")
     p.add_argument("--note", default=None)
     _add_time(p)
+    p.add_argument("--from", dest="events", metavar="EVENTS.csv", default=None,
+                   help="apply the file's events in order instead (columns participant_id, phase and optionally "
+                        "action advance|complete|abort, at, note, reason), all or nothing")
+    p.set_defaults(usage_error=p.error)
     p = g.command("abort", "abort the phase in progress (e.g. motion sickness)", _abort)
     p.add_argument("id", metavar="ID")
     p.add_argument("--reason", required=True)

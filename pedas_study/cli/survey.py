@@ -37,14 +37,16 @@ def _status(args):
     from study import survey as sv
 
     with open_store(args, read_only=True) as st:
-        print(format_frame(sv.survey_status(st, args.instrument), args.format))
+        df = sv.survey_status(st, args.instrument)
+    print(format_frame(df, args.format))
 
 
 def _discrepancies(args):
     from study import survey as sv
 
     with open_store(args, read_only=True) as st:
-        print(format_frame(sv.discrepancies(st, args.instrument), args.format))
+        df = sv.discrepancies(st, args.instrument)
+    print(format_frame(df, args.format))
 
 
 def _resolve(args):

@@ -263,7 +263,9 @@ def revoke_link(pid: str):
 @researcher
 def upload_drive(pid: str):
     """A drive-log upload, imported exactly as `drive import` does (format from the file name or chosen, the study's
-    log mapping, plausibility checks, `force` with a reason, `replace`)."""
+    log mapping, plausibility checks, `force` with a reason, `replace`). Memory stays small for a large log: the web
+    server spools the body to disk beyond 500 KB, it is copied to a temporary file, and a canonical CSV or Parquet
+    log is imported from there in chunks (docs/store.md, "Drive logs")."""
     from study.drives import import_drive_file
 
     f = request.form
