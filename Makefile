@@ -61,6 +61,7 @@ bench: $(STAMP)
 	$(BIN)/pedas-study bench drive
 	$(BIN)/pedas-study bench kpi
 	$(BIN)/pedas-study bench import
+	$(BIN)/pedas-study bench export
 	$(BIN)/pedas-study bench survey
 
 serve: $(STAMP)

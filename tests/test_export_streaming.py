@@ -171,3 +171,15 @@ def test_size_bytes():
 
     assert (size_bytes("400MB"), size_bytes("18.5 GiB"), size_bytes("128 bytes")) == (4e8, 18.5 * 2 ** 30, 128)
     assert size_bytes("lots") is None and size_bytes("") is None
+
+
+def test_bench_export_on_a_small_store(cli):
+    """`bench export` end to end on a tiny store: every operation ran in its own process and counted its rows (the
+    export's files: the samples plus the other tables' rows; the import: the log's rows); no timing is asserted."""
+    r = cli("bench", "export", "--samples", "3000", "--log-rows", "500", "--no-peers", "--json", db=None)
+    assert r.code == 0, r.err
+    res = json.loads(r.out)
+    assert sorted(res["runs"]) == ["drive import csv", "export csv", "export csv --deidentify", "export parquet"]
+    assert res["runs"]["drive import csv"]["rows"] == 500
+    assert res["runs"]["export parquet"]["rows"] == res["runs"]["export csv"]["rows"] > 3000
+    assert all(run["peak_mb"] > 0 and run["growth_mb"] >= 0 for run in res["runs"].values())

@@ -80,8 +80,6 @@ def bench_cli(repeats: int = 5) -> CliBench:
         roster = tmp / "roster.csv"
         roster.write_text(_roster([f"P{k:03d}" for k in range(1, 101)]), encoding="utf-8")
         _timed([*cli, "participant", "import", str(roster)], env)
-        log = tmp / "log.parquet"
-        synthetic_log(9000, seed=1).to_parquet(log)
         runs: dict[str, list[float]] = {name: [] for name in TARGETS}
         python = []
         for i in range(repeats):
@@ -94,6 +92,8 @@ def bench_cli(repeats: int = 5) -> CliBench:
                                                    "--attr", "style=normal", "--attr", "eco_familiarity=3"], env))
             runs["session advance"].append(_timed([*cli, "session", "advance", pid, "familiarisation"], env))
             _timed([*cli, "session", "advance", pid, "baseline_drive"], env)
+            log = tmp / f"log{i}.parquet"     # another log each time: the same log twice is refused as stored
+            synthetic_log(9000, seed=1 + i).to_parquet(log)
             runs["drive import (9,000 samples)"].append(_timed([*cli, "drive", "import", pid, "baseline", str(log)],
                                                                 env))
             fresh = tmp / f"roster{i}.duckdb"
