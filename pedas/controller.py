@@ -25,6 +25,7 @@ these stages in order:
 from __future__ import annotations
 
 import dataclasses
+import math
 from bisect import bisect_left
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -57,7 +58,8 @@ class Advisory:
     controller 'rt'|'cf'; mode 'green_wave'|'dp'|'stop'|'follow'; ft, fb: first planned forces (N);
     hud_arrow -1|0|1, arrow_len 0..1, hud_in_band, warning, tl_countdown (s or None), icon; solve_status (QP
     status text, 'speed_correction' or 'fallback:<status>'), fallback flag, plan_v: N predicted speeds v_1..v_N;
-    speed_limit: m/s at the vehicle's position (shown on the HUD).
+    speed_limit: m/s at the vehicle's position (shown on the HUD); tl_phase: the phase of the counted-down light;
+    tone: the HUD's warning tone (pedas.hud.advisory: a slow-down advice not followed).
     """
 
     v_advice: float
@@ -75,6 +77,36 @@ class Advisory:
     fallback: bool
     plan_v: tuple
     speed_limit: float | None = None
+    tl_phase: str | None = None
+    tone: bool = False
+
+
+class RefusedMeasurement(ValueError):
+    """A measurement handed to :meth:`PedasController.step` is not a finite number; no advice was computed and the
+    controller is unchanged. ``status``: ``refused:<field>`` for the first bad field of t, s, v, leader_gap,
+    leader_v (the message names it and its value)."""
+
+    def __init__(self, status: str, message: str) -> None:
+        super().__init__(message)
+        self.status = status
+
+    @classmethod
+    def of(cls, t, s, v, leader) -> RefusedMeasurement:
+        """The refusal naming the first non-finite field (t s, s m, v m/s, leader gap m, leader speed m/s)."""
+        fields = [("t", t, "s"), ("s", s, "m"), ("v", v, "m/s")]
+        if leader is not None:
+            fields += [("leader_gap", leader[0], "m"), ("leader_v", leader[1], "m/s")]
+        name, value, unit = next(f for f in fields if not _isfinite(f[1]))
+        return cls(f"refused:{name}", f"refused measurement: {name} = {value!r} {unit} is not a finite number "
+                                      "(no advice computed, controller state unchanged)")
+
+
+def _isfinite(x) -> bool:
+    """x is a finite real number (False for NaN, +-inf, None and anything that is no number)."""
+    try:
+        return math.isfinite(x)
+    except TypeError:
+        return False
 
 
 class _Prediction(NamedTuple):
@@ -222,7 +254,11 @@ class PedasController:
     # ------------------------------------------------------------------------------------------------------
     def step(self, t: float, s: float, v: float, leader: tuple[float, float] | None = None) -> Advisory:
         """Advice for the measured state: time t (s), route position s (m), speed v (m/s), leader = (gap d_rel m,
-        its speed v_p m/s) or None."""
+        its speed v_p m/s) or None. A measurement that is not a finite number raises :class:`RefusedMeasurement`
+        before anything changes (no advice, no state: the next finite step is as if this one never came)."""
+        if not (_isfinite(t) and _isfinite(s) and _isfinite(v)) or (
+                leader is not None and not (_isfinite(leader[0]) and _isfinite(leader[1]))):
+            raise RefusedMeasurement.of(t, s, v, leader)
         v = max(float(v), 0.0)
         self.stats["steps"] += 1
         a_meas, dt_real = self._measure(t, v)
@@ -239,7 +275,8 @@ class PedasController:
                         fb=max(float(plan.fb[0]), 0.0),
                         hud_arrow=hud.hud_arrow, arrow_len=hud.arrow_len, hud_in_band=hud.hud_in_band,
                         warning=hud.warning, tl_countdown=hud.tl_countdown, icon=hud.icon, solve_status=status,
-                        fallback=sol.fallback, plan_v=plan_v, speed_limit=hud.speed_limit)
+                        fallback=sol.fallback, plan_v=plan_v, speed_limit=hud.speed_limit,
+                        tl_phase=hud.tl_phase, tone=hud.tone)
 
     # ---- stages of step, in order ---------------------------------------------------------------------------
     def _measure(self, t: float, v: float) -> tuple[float, float]:
@@ -481,7 +518,8 @@ class PedasController:
             if j < self._curve_s.size and self._curve_v[j] < v:
                 curve_d = float(self._curve_s[j] - s)
         ctx = HudContext(mode=sol.mode, tl_distance=obj.d_tl, tl_remaining=obj.tl_remaining, stop_distance=obj.d_ss,
-                         curve_distance=curve_d, psi=sol.psi, speed_limit=pred.limit)
+                         curve_distance=curve_d, psi=sol.psi, speed_limit=pred.limit,
+                         tl_state=obj.tl.state_at(self._t_prev) if obj.tl_remaining is not None else None)
         hud = advisory(HudState(v=v, a=a_meas, slow_unfollowed=self._unfollowed), plan_v, ctx, **self._hud_kw)
         self._last_arrow = hud.hud_arrow
         return hud

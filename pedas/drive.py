@@ -16,6 +16,11 @@ while nothing holds it (no red or yellow light and no vehicle within LIVENESS_RE
 light on a free road drives off. Every error of a drive is a :class:`DriveError` whose message starts with the
 drive (condition, participant seed, style, traffic seed) and whose ``kind`` names the failure.
 
+What the HUD displayed: a pEDAS drive whose advice the loop computes itself (no ``controller`` given) carries, after
+the drive-log columns, the HUD channels :data:`HUD_LOG_COLUMNS` (:data:`pedas.hud_log.HUD_CHANNELS`): per sample
+:func:`pedas.hud_log.channel_values` of the frame :func:`pedas.hud_frame.hud_frame` draws for the measured speed and
+the advice, so that a stored drive replays exactly what was shown. A baseline drive shows no advice and carries none.
+
 Time: the log's `t` counts from the ego's insertion; the controller and the signal programs use SUMO time.
 """
 from __future__ import annotations
@@ -31,6 +36,8 @@ import pandas as pd
 
 from pedas.constants import DT
 from pedas.drivers import DriverParams, HumanDriver, Perception, sample_driver
+from pedas.hud_frame import hud_frame
+from pedas.hud_log import HUD_CHANNELS, channel_values
 from pedas.network import build_network
 from pedas.params import CONTROLLER
 from pedas.route_study import study_route
@@ -41,6 +48,8 @@ from pedas.whatif import WhatIf
 
 LOG_COLUMNS = ("t", "s", "v", "segment", "speed_limit", "a", "grade", "ft", "fb", "p_batt", "tl_id", "tl_state",
                "d_tl", "leader_gap", "leader_v", "v_advice", "controller", "hud_arrow", "hud_in_band", "warning")
+#: the HUD channels a pEDAS drive carries after LOG_COLUMNS (what the HUD displayed, pedas.hud_log)
+HUD_LOG_COLUMNS = tuple(name for name, _, _ in HUD_CHANNELS)
 HALT_CHECK = 0.1  # m/s, standing still for the stop-sign invariant
 STOP_CHECK_BAND = 10.0  # m, the halt must happen this close before the stop line
 MAX_DURATION = 3600.0  # s of simulated driving after which a drive is declared stuck
@@ -187,7 +196,8 @@ def study_route_and_reference(scenario: str | None = None):
 def drive(participant_seed: int, style: str, condition: str, *, traffic_seed: int | None = None,
           driver: DriverParams | None = None, net_file: str | Path | None = None,
           max_duration: float = MAX_DURATION, settings=None, controller=None,
-          scenario: str | None = None, whatif: WhatIf | None = None) -> pd.DataFrame:
+          scenario: str | None = None, whatif: WhatIf | None = None,
+          hud_channels: bool | None = None) -> pd.DataFrame:
     """Drive the study route once; the drive log (docs/contracts.md columns, every DT s) as a DataFrame.
 
     participant_seed: the virtual person (driver parameters, :func:`pedas.drivers.sample_driver`); style:
@@ -199,7 +209,10 @@ def drive(participant_seed: int, style: str, condition: str, *, traffic_seed: in
     :class:`pedas.live_client.RemoteController`). scenario: the traffic scenario (:mod:`pedas.scenario`, default
     :data:`pedas.scenario.DEFAULT_SCENARIO`). whatif: unpublished settings moved away from the scenario's
     (:class:`pedas.whatif.WhatIf`: traffic volumes, lorry share, the person's compliance and speeding, the HUD
-    band, the DP's time weight; default none). Raises SafetyViolation when an invariant fails.
+    band, the DP's time weight; default none). hud_channels: append :data:`HUD_LOG_COLUMNS` to a pEDAS drive's log
+    (default: when the advice is computed here, i.e. no `controller` is given — a remote controller's advice does
+    not carry the whole frame its server showed; that server logs it). Raises SafetyViolation when an invariant
+    fails.
     ``df.attrs['drive']`` holds a :class:`DriveInfo` as dict (with the non-default what-if settings under
     ``whatif``).
     """
@@ -225,6 +238,8 @@ def drive(participant_seed: int, style: str, condition: str, *, traffic_seed: in
     cols: dict[str, list] = {c: [] for c in ("t", "s", "v", "a", "tl_id", "tl_state", "d_tl", "leader_gap",
                                              "leader_v", "v_advice", "controller", "hud_arrow", "hud_in_band",
                                              "warning")}
+    if assisted and (controller is None if hud_channels is None else hud_channels):
+        cols["hud"] = []   # channel_values of the frame shown at each sample
     wall0 = time.perf_counter()
     try:
         demand = wi.demand(load_demand(scenario=sc))
@@ -247,7 +262,8 @@ def drive(participant_seed: int, style: str, condition: str, *, traffic_seed: in
 
 def _loop(tr: Traffic, lights, human: HumanDriver, ctrl, guard: SafetyGuard, alive: LivenessGuard, cols: dict,
           max_duration: float) -> tuple[int, int, float]:
-    """Step the drive until the ego arrives; fills `cols`; returns (steps, max vehicles, SUMO insertion time)."""
+    """Step the drive until the ego arrives; fills `cols` (and the HUD channels when it has a "hud" list);
+    returns (steps, max vehicles, SUMO insertion time)."""
     steps = 0
     max_veh = 0
     t_ins = tr.insert_ego()
@@ -288,6 +304,8 @@ def _loop(tr: Traffic, lights, human: HumanDriver, ctrl, guard: SafetyGuard, ali
         cols["hud_arrow"].append(adv.hud_arrow if adv is not None else None)
         cols["hud_in_band"].append(adv.hud_in_band if adv is not None else None)
         cols["warning"].append(adv.warning if adv is not None else None)
+        if "hud" in cols:   # the frame the driver saw: measured speed and this step's advice
+            cols["hud"].append(channel_values(hud_frame(v, adv)))
         steps += 1
         if steps % 50 == 0:
             max_veh = max(max_veh, tr.vehicle_count())
@@ -326,7 +344,11 @@ def _log_frame(cols: dict, route) -> pd.DataFrame:
     df["hud_arrow"] = pd.array(cols["hud_arrow"], dtype="Int8")
     df["hud_in_band"] = pd.array(cols["hud_in_band"], dtype="boolean")
     df["warning"] = pd.array(cols["warning"], dtype="boolean")
-    return df[list(LOG_COLUMNS)]
+    df = df[list(LOG_COLUMNS)]
+    if "hud" in cols:
+        hud = pd.DataFrame.from_records(cols["hud"], columns=list(HUD_LOG_COLUMNS)).astype("float64")
+        df = pd.concat([df, hud], axis=1)
+    return df
 
 
 def green_crossings(df: pd.DataFrame, stop_zone: float = 100.0) -> pd.DataFrame:

@@ -13,9 +13,15 @@ Labs can drive a real head-up display from :func:`advisory`; the controller call
 - arrow length proportional to |v - v_opt|, full length at arrow_full_scale, capped at 1;
 - the remaining time of the next traffic light's phase when it is below HUD_TL_COUNTDOWN and the light is within
   icon_range;
-- one icon: stop sign > curve > green wave (the most safety-relevant first);
-- warning tone when the safe distance is violated (psi < 0) or a slow-down advice has not been followed for
-  warn_delay s (the driver kept a >= -not_decel m/s^2 while the arrow pointed down).
+- the phase of that light (tl_phase, 'green'|'yellow'|'red'), lit in the HUD's light glyph beside the countdown
+  (Fig. 7h green, 7i red);
+- one icon: stop or yield sign > curve > green wave (the most safety-relevant first);
+- tone: the warning tone the HUD sounds, the paper's rule "if the suggestion to slow down is not followed": the
+  arrow has pointed down for warn_delay s while the driver kept a >= -not_decel m/s^2 (slow_unfollowed >=
+  warn_delay). 2 s is above a driver's brake reaction time to an expected signal (about 0.7-1.5 s), so a driver
+  about to follow the advice is not alarmed, and short enough that the tone comes while braking still helps;
+- warning: the controller's alert, tone or the safe distance violated (psi < 0). The virtual drivers of the
+  simulated cohort react to it (pedas.drivers), so it stays as it was; the HUD sounds only the tone.
 
 HUD_BAND and HUD_TL_COUNTDOWN are printed in the paper (pedas.constants); the lower-case thresholds are design
 choices, fields of :class:`pedas.params.ControllerParams`, taken as keyword arguments defaulting to
@@ -53,7 +59,8 @@ class HudContext:
     mode: controller mode ('green_wave'|'dp'|'stop'|'follow'); tl_distance (m to the next light's stop line or
     None), tl_remaining (s left in its current phase or None); stop_distance (m to the next stop line or None);
     curve_distance (m to the next curve whose limit is below the current speed, or None); psi = d_rel - d_s (m,
-    None without a leader); speed_limit (m/s, shown under the speed).
+    None without a leader); speed_limit (m/s, shown under the speed); tl_state: the light's current phase
+    ('green'|'yellow'|'red' or None); stop_kind: 'stop'|'yield', the kind of sign at stop_distance.
     """
 
     mode: str = "dp"
@@ -63,13 +70,19 @@ class HudContext:
     curve_distance: float | None = None
     psi: float | None = None
     speed_limit: float | None = None
+    tl_state: str | None = None
+    stop_kind: str = "stop"
+
+
+ICONS = ("green_wave", "stop_sign", "yield_sign", "curve")
 
 
 @dataclass(frozen=True)
 class HudAdvice:
     """What the HUD shows: v_opt (m/s), hud_arrow -1|0|1, arrow_len 0..1, hud_in_band (black digits, coast),
-    color ('black'|'green'|'red'), warning tone, tl_countdown (s or None), icon ('green_wave'|'stop_sign'|'curve'|
-    None), speed_limit (m/s or None)."""
+    color ('black'|'green'|'red'), warning (the controller's alert: tone or psi < 0), tl_countdown (s or None),
+    icon (one of ICONS or None), speed_limit (m/s or None), tl_phase (the phase whose remaining time tl_countdown
+    is, or None), tone (the HUD's warning tone: a slow-down advice not followed for warn_delay s)."""
 
     v_opt: float
     hud_arrow: int
@@ -80,6 +93,8 @@ class HudAdvice:
     tl_countdown: float | None
     icon: str | None
     speed_limit: float | None
+    tl_phase: str | None = None
+    tone: bool = False
 
 
 def update_unfollowed(prev: float, arrow: int, a: float, dt: float, *,
@@ -108,19 +123,20 @@ def advisory(state: HudState, plan: Sequence[float], context: HudContext, *,
     else:
         arrow, color = 0, "black"
     arrow_len = 0.0 if arrow == 0 else min(abs(dv) / arrow_full_scale, 1.0)
-    countdown = None
+    countdown, phase = None, None
     if (context.tl_distance is not None and context.tl_remaining is not None
             and 0.0 <= context.tl_distance <= icon_range and context.tl_remaining < HUD_TL_COUNTDOWN):
-        countdown = float(context.tl_remaining)
+        countdown, phase = float(context.tl_remaining), context.tl_state
     if context.stop_distance is not None and 0.0 <= context.stop_distance <= icon_range:
-        icon = "stop_sign"
+        icon = "yield_sign" if context.stop_kind == "yield" else "stop_sign"
     elif context.curve_distance is not None and 0.0 <= context.curve_distance <= icon_range:
         icon = "curve"
     elif context.mode == "green_wave" and context.tl_distance is not None and context.tl_distance <= icon_range:
         icon = "green_wave"
     else:
         icon = None
-    warning = (context.psi is not None and context.psi < 0.0) or state.slow_unfollowed >= warn_delay
+    tone = state.slow_unfollowed >= warn_delay
+    warning = (context.psi is not None and context.psi < 0.0) or tone
     return HudAdvice(v_opt=v_opt, hud_arrow=arrow, arrow_len=float(arrow_len), hud_in_band=arrow == 0,
                      color=color, warning=bool(warning), tl_countdown=countdown, icon=icon,
-                     speed_limit=context.speed_limit)
+                     speed_limit=context.speed_limit, tl_phase=phase, tone=bool(tone))

@@ -4,21 +4,24 @@
 :class:`pedas.controller.Advisory`) into a :class:`HudFrame`; the web component ``pedas/web/hud.js`` draws it
 (``<pedas-hud>``), :mod:`pedas.hud_png` renders it to PNG, the live server sends it, the replay page shows it.
 
-Display rules (the paper shows integers on the HUD): speeds and the limit in whole km/h (rounded half up), the
-countdown in whole seconds rounded up (a light that changes in 2.3 s shows 3, never 2 — the driver must not be told
-there is less time than there is).
+Display rules (the paper shows integers on the HUD): speeds and the limit in whole km/h (rounded half up); the
+countdown in whole seconds rounded down (the paper shows "the remaining time (less than 10 s)": every remaining
+time below 10 s is shown, as 0..9, and 9.0-9.99 s shows 9, never 10; the digit is the number of whole seconds
+still left, like a signal's countdown timer, and in a green phase it never promises more green than there is).
 
-:data:`FIG7` are the nine situations of Fig. 7 (a-i), each produced by :func:`pedas.hud.advisory` from a state,
-a plan and a route context — never written as frames by hand.
+:data:`FIG7` are the nine panels of Fig. 7 (a-i) as the paper's text describes them, each produced by
+:func:`pedas.hud.advisory` from the state, plan and route context the controller had at one step of a simulated
+drive of the reference cohort (``hud_fig7.json``, found by :mod:`pedas.hud_search`) — never written by hand.
 """
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import asdict, dataclass
+from pathlib import Path
 
 from pedas.constants import KMH
 from pedas.hud import HudContext, HudState, advisory
-from pedas.params import CONTROLLER
 
 
 def display_kmh(v_ms: float | None) -> int | None:
@@ -31,8 +34,10 @@ class HudFrame:
     """One HUD frame. speed, advice, limit: km/h (integers as displayed; advice None = no advice, as in a baseline
     drive; limit None = no sign); arrow -1|0|1;
     arrow_len 0..1 (fraction of the full arrow); color 'black'|'green'|'red' (the digits and the arrow);
-    in_band: inside the +-2 km/h band (coast); countdown: whole s until the next light changes, or None;
-    icon 'green_wave'|'stop_sign'|'curve'|None; warning: the tone sounds."""
+    in_band: inside the +-2 km/h band (coast); countdown: whole s left in the next light's phase (0..9), or None;
+    light: that phase ('green'|'yellow'|'red', lit in the light glyph; None without countdown);
+    icon 'green_wave'|'stop_sign'|'yield_sign'|'curve'|None; warning: the warning tone sounds (a slow-down advice
+    not followed, :func:`pedas.hud.advisory`'s ``tone``)."""
 
     speed: int
     advice: int | None
@@ -44,30 +49,44 @@ class HudFrame:
     countdown: int | None
     icon: str | None
     warning: bool
+    light: str | None = None
 
     def as_dict(self) -> dict:
         return asdict(self)
 
 
+def display_countdown(remaining: float | None) -> int | None:
+    """Seconds left (s) -> the whole seconds the HUD shows: rounded down (9.99 -> 9, 0.4 -> 0); None stays None.
+    The 1e-9 keeps a remaining time computed as 6.999999999 for 7.0 at 7."""
+    return None if remaining is None else max(int(math.floor(remaining + 1e-9)), 0)
+
+
 def hud_frame(v: float, advice) -> HudFrame:
     """The frame for measured speed v (m/s) and an advice with the fields of :class:`pedas.hud.HudAdvice`
-    (v_opt or v_advice, hud_arrow, arrow_len, hud_in_band, warning, tl_countdown, icon, speed_limit)."""
+    (v_opt or v_advice, hud_arrow, arrow_len, hud_in_band, tl_countdown, icon, speed_limit, tl_phase, tone)."""
     v_opt = advice.v_opt if hasattr(advice, "v_opt") else advice.v_advice
     color = "black" if advice.hud_in_band else ("green" if advice.hud_arrow > 0 else "red")
-    cd = advice.tl_countdown
+    cd = display_countdown(advice.tl_countdown)
     return HudFrame(speed=display_kmh(max(v, 0.0)), advice=display_kmh(v_opt),
                     limit=display_kmh(getattr(advice, "speed_limit", None)),
                     arrow=int(advice.hud_arrow), arrow_len=round(float(advice.arrow_len), 3), color=color,
-                    in_band=bool(advice.hud_in_band), countdown=None if cd is None else int(math.ceil(cd - 1e-9)),
-                    icon=advice.icon, warning=bool(advice.warning))
+                    in_band=bool(advice.hud_in_band), countdown=cd, icon=advice.icon,
+                    warning=bool(getattr(advice, "tone", False)),
+                    light=None if cd is None else getattr(advice, "tl_phase", None))
 
 
 @dataclass(frozen=True)
 class Situation:
-    """One panel of Fig. 7: letter, caption, and the inputs of :func:`pedas.hud.advisory` that produce it."""
+    """One panel of Fig. 7: letter, the paper's caption, the sentence of its text the panel follows, where we chose,
+    the drive and time it comes from, and the inputs of :func:`pedas.hud.advisory` that produce it."""
 
     key: str
     caption: str
+    sentence: str
+    choice: str
+    drive: str
+    t: float
+    s: float
     state: HudState
     plan: tuple[float, ...]
     context: HudContext
@@ -75,34 +94,37 @@ class Situation:
     def frame(self) -> HudFrame:
         return hud_frame(self.state.v, advisory(self.state, self.plan, self.context))
 
+    def source(self) -> str:
+        """Where the state comes from, one line."""
+        c = self.context
+        parts = [f"{self.drive} pedas drive, t = {self.t:.1f} s (SUMO time), s = {self.s:.0f} m",
+                 f"v = {self.state.v / KMH:.1f} km/h, v_opt = {self.plan[0] / KMH:.1f} km/h, mode {c.mode}"]
+        if c.tl_remaining is not None:
+            parts.append(f"light {c.tl_state} {c.tl_remaining:.2f} s left at {c.tl_distance:.0f} m")
+        if c.stop_distance is not None and c.stop_distance <= 150:
+            parts.append(f"stop line at {c.stop_distance:.0f} m")
+        if c.curve_distance is not None:
+            parts.append(f"curve at {c.curve_distance:.0f} m")
+        if c.psi is not None:
+            parts.append(f"psi = d_rel - d_s = {c.psi:.1f} m")
+        return "; ".join(parts)
 
-_URBAN = 50 * KMH
-_HWY = 100 * KMH
-FIG7: tuple[Situation, ...] = (
-    Situation("a", "speed up: optimal speed 8 km/h above (green arrow up)",
-              HudState(v=40 * KMH), (48 * KMH,), HudContext(speed_limit=_URBAN)),
-    Situation("b", "slow down: optimal speed 12 km/h below (red arrow down)",
-              HudState(v=50 * KMH), (38 * KMH,), HudContext(speed_limit=_URBAN)),
-    Situation("c", "inside the +-2 km/h band: black digits, coast",
-              HudState(v=45 * KMH), (46 * KMH,), HudContext(speed_limit=_URBAN)),
-    Situation("d", "traffic light changes in 6.4 s (countdown), slow down to stop",
-              HudState(v=45 * KMH), (36 * KMH,),
-              HudContext(speed_limit=_URBAN, tl_distance=70.0, tl_remaining=6.4)),
-    Situation("e", "green wave: speed up to pass the next light in green",
-              HudState(v=38 * KMH), (44 * KMH,),
-              HudContext(mode="green_wave", speed_limit=_URBAN, tl_distance=120.0, tl_remaining=14.0)),
-    Situation("f", "stop sign ahead: slow down",
-              HudState(v=30 * KMH), (20 * KMH,), HudContext(speed_limit=_URBAN, stop_distance=60.0)),
-    Situation("g", "curve ahead: slow down to its speed",
-              HudState(v=95 * KMH), (80 * KMH,), HudContext(speed_limit=_HWY, curve_distance=110.0)),
-    Situation("h", "safe distance violated: warning tone",
-              HudState(v=50 * KMH), (42 * KMH,), HudContext(speed_limit=_URBAN, psi=-3.0)),
-    Situation("i", "slow-down advice ignored for warn_delay s: warning tone",
-              HudState(v=50 * KMH, slow_unfollowed=CONTROLLER.warn_delay), (44 * KMH,),
-              HudContext(speed_limit=_URBAN)),
-)
+
+FIG7_FILE = Path(__file__).resolve().parent / "hud_fig7.json"
+
+
+def _load_fig7() -> tuple[Situation, ...]:
+    out = []
+    for r in json.loads(FIG7_FILE.read_text(encoding="utf-8")):
+        out.append(Situation(r["key"], r["caption"], r["sentence"], r["choice"], r["drive"], float(r["t"]),
+                             float(r["s"]), HudState(**r["state"]), tuple(r["plan"]), HudContext(**r["context"])))
+    return tuple(out)
+
+
+#: the nine panels, a-i (written by ``pedas-study hud search``)
+FIG7: tuple[Situation, ...] = _load_fig7()
 
 
 def fig7_frames() -> dict[str, HudFrame]:
-    """Letter -> frame of the nine Fig. 7 situations."""
+    """Letter -> frame of the nine Fig. 7 panels."""
     return {s.key: s.frame() for s in FIG7}

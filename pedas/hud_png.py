@@ -68,18 +68,33 @@ def render_png(frames: dict[str, HudFrame], out_dir: str | Path) -> dict[str, Pa
     return paths
 
 
+def panel_text(s) -> str:
+    """What is written beside a Fig. 7 panel's PNG: letter, the paper's caption and sentence, where we chose, and
+    the controller state the frame comes from."""
+    return (f"Fig. 7({s.key}) {s.caption}\n"
+            f"The paper: \"{s.sentence}\"\n"
+            f"Our choice: {s.choice}\n"
+            f"State: {s.source()}\n"
+            f"Frame: {json.dumps(s.frame().as_dict(), sort_keys=True)}\n")
+
+
 def write_fig7(out_dir: str | Path) -> dict[str, Path]:
-    """The nine Fig. 7 situations as ``fig7_<letter>.png`` plus ``fig7.html`` (the live component, captions and
-    frames side by side); letter -> PNG path."""
+    """The nine Fig. 7 panels as ``fig7_<letter>.png``, beside each ``fig7_<letter>.txt`` (:func:`panel_text`),
+    plus ``fig7.html`` (the live component with the same texts); letter -> PNG path."""
     out = Path(out_dir)
     frames = {s.key: s.frame() for s in FIG7}
     pngs = render_png({f"fig7_{k}": f for k, f in frames.items()}, out)
+    for s in FIG7:
+        (out / f"fig7_{s.key}.txt").write_text(panel_text(s), encoding="utf-8")
     cells = "".join(
         f"<figure><pedas-hud frame='{html.escape(json.dumps(frames[s.key].as_dict()))}'></pedas-hud>"
-        f"<figcaption>({s.key}) {html.escape(s.caption)}</figcaption></figure>" for s in FIG7)
+        f"<figcaption><b>({s.key}) {html.escape(s.caption)}</b><br><i>{html.escape(s.sentence)}</i><br>"
+        f"Our choice: {html.escape(s.choice)}<br><small>{html.escape(s.source())}</small></figcaption></figure>"
+        for s in FIG7)
     (out / "fig7.html").write_text(
-        "<!doctype html><html><head><meta charset='utf-8'><title>pEDAS HUD, Fig. 7 situations</title>"
+        "<!doctype html><html><head><meta charset='utf-8'><title>pEDAS HUD, Fig. 7 panels</title>"
         "<style>body{font-family:sans-serif;display:grid;grid-template-columns:repeat(3,1fr);gap:12px;margin:12px}"
-        f"figure{{margin:0}}</style><script>{hud_script()}</script></head><body>{cells}</body></html>",
+        f"figure{{margin:0}}figcaption{{font-size:13px}}</style><script>{hud_script()}</script></head>"
+        f"<body>{cells}</body></html>",
         encoding="utf-8")
     return {k: pngs[f"fig7_{k}"] for k in frames}

@@ -4,15 +4,19 @@ over WebSocket and UDP, with a full-screen HUD page for a second monitor or a he
 :class:`LiveSession` is the protocol without sockets (one per WebSocket connection or UDP peer): it answers each
 message with exactly the in-process controller's advice for the same inputs, and hands a log row per state to an
 optional drive log (:class:`study.live_log.LiveDriveLog`, any object with append/flush/close). :class:`LiveServer` runs
-the sockets: WebSocket and HTTP on ``port`` (``/`` is the HUD page, ``/display`` its feed of HUD frames, any other
-path the simulator's channel) and UDP on the same port number; drive logs are flushed about once a second in a
-worker thread so that the store never delays an answer.
+the sockets: WebSocket and HTTP on ``port`` (``/?pair=CODE`` is the HUD page of one session, ``/display?pair=CODE``
+its feed of HUD frames, any other path the simulator's channel) and UDP on the same port number; drive logs are
+flushed about once a second in a worker thread so that the store never delays an answer. Each client is throttled
+to :data:`pedas.live_limits.RATE` messages/s and UDP sessions end after :data:`~pedas.live_limits.UDP_IDLE` s
+without a datagram (docs/hud.md, "Limits").
 """
 from __future__ import annotations
 
 import asyncio
+import gc
 import json
 import math
+import time
 from bisect import bisect_left
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -21,6 +25,9 @@ from typing import Callable
 import numpy as np
 
 from pedas.hud_frame import hud_frame
+from pedas.hud_log import channel_values
+from pedas.live_display import hud_page, new_pair_code, pair_of
+from pedas.live_limits import BURST, MAX_UDP_SESSIONS, RATE, UDP_IDLE, WS_MAX_FRAME, Throttle
 from pedas.live_protocol import ProtocolError, advice_message, decode, error_message, parse_state
 
 FLUSH_EVERY = 1.0  # s of wall time between drive-log commits
@@ -55,7 +62,8 @@ LoggerFactory = Callable[[str, str], object]   # (participant, condition) -> dri
 
 
 class LiveSession:
-    """One simulator's session: hello -> state* -> bye; :meth:`handle` maps each message text to its reply text."""
+    """One simulator's session: hello -> state* -> bye; :meth:`handle` maps each message text to its reply text.
+    ``pair`` is the session's pairing code (its HUD page's key), fixed for the session's life and sent in ready."""
 
     def __init__(self, live: LiveRoute, logger_factory: LoggerFactory | None = None, settings=None) -> None:
         from pedas.params import CONTROLLER
@@ -64,16 +72,21 @@ class LiveSession:
         self.logger_factory = logger_factory
         self.log = None
         self.samples = 0
+        self.pair = new_pair_code()
         self._lights = tuple(live.route.lights)
         self._light_s = [tl.s for tl in self._lights]
-        self._reset()
+        self.ctrl = None   # made by hello or the first state: a session that sends nothing valid costs no controller
+        self._t0 = None
+        self._prev = None
+        self.throttle: Throttle | None = None   # the server's: this client's rate limit
+        self.last_seen = 0.0                    # the server's: time.monotonic() of the client's last message
 
     def _reset(self) -> None:
         from pedas.controller import PedasController
 
         self.ctrl = PedasController(self.live.route, v_dp=self.live.v_dp, settings=self.settings)
         self._t0 = None
-        self._prev = None   # (t, v) of the last state, for the logged acceleration
+        self._prev = None   # (t, v) of the last state: the logged acceleration, and the time order of states
 
     def handle(self, text: str | bytes | dict) -> str:
         """The reply to one message (text, or the object :func:`decode` made of it)."""
@@ -101,10 +114,15 @@ class LiveSession:
         self._reset()
         self.samples = 0
         return json.dumps({"type": "ready", "route": self.live.name, "length_m": float(self.live.route.length),
-                           "logging": self.log is not None})
+                           "logging": self.log is not None, "pair": self.pair})
 
     def _state(self, msg: dict) -> str:
-        st = parse_state(msg)
+        st = parse_state(msg, float(self.live.route.length))
+        if self._prev is not None and st.t < self._prev[0]:
+            raise ProtocolError(f"'t' went backwards: {st.t!r} s after {self._prev[0]!r} s (a session's time never "
+                                "decreases; hello starts a new one)")
+        if self.ctrl is None:
+            self._reset()
         adv = self.ctrl.step(st.t, st.s, st.v, st.leader)
         frame = hud_frame(st.v, adv)
         tl = self._next_light(st.s)
@@ -112,7 +130,9 @@ class LiveSession:
         if st.spat is not None:
             spat_ok = tl is not None and st.spat[0] == tl.tl_id and st.spat[1] == tl.state_at(st.t)
         if self.log is not None:
-            self.log.append(self._row(st, adv, tl))
+            # what the driver was shown, per sample (pedas.hud_log): the replay shows exactly this
+            self.log.append({**self._row(st, adv, tl), **channel_values(frame)})
+        self._prev = (st.t, st.v)
         self.samples += 1
         return advice_message(st.seq, adv, frame, spat_ok)
 
@@ -135,7 +155,6 @@ class LiveSession:
             self._t0 = st.t
         i = int(np.clip(np.searchsorted(r.s, st.s, side="right") - 1, 0, r.s.size - 1))
         a = 0.0 if self._prev is None or st.t <= self._prev[0] else (st.v - self._prev[1]) / (st.t - self._prev[0])
-        self._prev = (st.t, st.v)
         state = (st.spat[1] if st.spat is not None else tl.state_at(st.t)) if tl is not None else None
         lead = st.leader
         return {"t": round(st.t - self._t0, 6), "s": st.s, "v": st.v, "segment": str(r.segment[i]),
@@ -148,25 +167,16 @@ class LiveSession:
 
 
 # ---------------------------------------------------------------------------------------------- the server
-def hud_page(feed_path: str = "/display") -> str:
-    """The full-screen HUD page: ``<pedas-hud sound>`` fed by the server's frames (a click enables the tone)."""
-    from pedas.hud_png import hud_script
+Announce = Callable[[str], None]   # one console line: a session's pairing code and HUD page, a session's end
 
-    return f"""<!doctype html><html lang="en"><head><meta charset="utf-8"><title>pEDAS HUD</title>
-<style>html,body{{margin:0;height:100%;background:#000}}pedas-hud{{width:100vw;max-height:100vh;margin:auto}}
-#state{{position:fixed;bottom:4px;left:6px;color:#888;font:12px sans-serif}}</style>
-<script>{hud_script()}</script></head><body><pedas-hud id="hud" sound></pedas-hud><div id="state">connecting</div>
-<script>
-const hud = document.getElementById("hud"), state = document.getElementById("state");
-document.body.addEventListener("click", () => document.documentElement.requestFullscreen?.());
-function connect() {{
-  const ws = new WebSocket(`ws://${{location.host}}{feed_path}`);
-  ws.onopen = () => {{ state.textContent = "live"; }};
-  ws.onmessage = e => {{ const m = JSON.parse(e.data); hud.frame = m.hud; hud.dataset.seq = String(m.seq); }};
-  ws.onclose = () => {{ state.textContent = "reconnecting"; setTimeout(connect, 1000); }};
-}}
-connect();
-</script></body></html>"""
+
+def _decode_error(text: str | bytes) -> str:
+    """The error answer to a message that does not decode."""
+    try:
+        decode(text)
+    except ProtocolError as exc:
+        return error_message(None, str(exc))
+    raise AssertionError("the message decodes")
 
 
 class _Udp(asyncio.DatagramProtocol):
@@ -178,32 +188,58 @@ class _Udp(asyncio.DatagramProtocol):
         self.transport = transport
 
     def datagram_received(self, data: bytes, addr) -> None:
-        session = self.server.session_for(("udp",) + tuple(addr))
-        msg, store = self.server.triage(data)
+        server, key = self.server, ("udp",) + tuple(addr)
+        session = server.sessions.get(key)
+        if session is not None and not session.throttle.take():
+            return   # over the client's rate: dropped unanswered (UDP has no back-pressure; an answer would double it)
+        msg, store = server.triage(data)
+        if session is None:
+            # no session for a message that does not decode, nor beyond the session cap: answered (within a
+            # server-wide budget) and forgotten, so stray datagrams from many ports hold no memory
+            if not isinstance(msg, dict) or server.udp_count() >= server.max_udp_sessions:
+                if server.strays.take():
+                    why = (_decode_error(msg) if not isinstance(msg, dict) else
+                           error_message(msg.get("seq"), f"too many UDP sessions ({server.max_udp_sessions} at "
+                                                         f"once): try again after {server.udp_idle:g} s"))
+                    self.transport.sendto(why.encode(), addr)
+                return
+            session = server.session_for(key)
+        session.last_seen = time.monotonic()
         if store:
-            asyncio.ensure_future(self._reply_later(session, msg, addr))
+            asyncio.ensure_future(self._reply_later(session, msg, addr, key))
             return
-        self._send(session.handle(msg), addr)
+        self._send(session, session.handle(msg), addr, key, msg)
 
-    async def _reply_later(self, session: LiveSession, msg: dict, addr) -> None:
-        self._send(await self.server.in_store_thread(session.handle, msg), addr)
+    async def _reply_later(self, session: LiveSession, msg: dict, addr, key) -> None:
+        self._send(session, await self.server.in_store_thread(session.handle, msg), addr, key, msg)
 
-    def _send(self, reply: str, addr) -> None:
+    def _send(self, session: LiveSession, reply: str, addr, key, msg) -> None:
         self.transport.sendto(reply.encode(), addr)
-        self.server.broadcast(reply)
+        self.server.answered(session, key, msg, reply)
 
 
 class LiveServer:
-    """The sockets around :class:`LiveSession`s; run with :meth:`run` (blocks) or ``asyncio.run(server.start())``."""
+    """The sockets around :class:`LiveSession`s; run with :meth:`run` (blocks) or ``asyncio.run(server.start())``.
+
+    ``rate``/``burst``: each client's throttle (messages/s, messages at once); ``udp_idle``: s without a datagram
+    after which a UDP session ends; ``max_udp_sessions``: UDP sessions at once; ``announce``: called with a console
+    line when a session says hello (its pairing code and HUD page) and when a session ends."""
 
     def __init__(self, live: LiveRoute, host: str = "127.0.0.1", port: int = 8765,
-                 logger_factory: LoggerFactory | None = None, on_ready: Callable[[int], None] | None = None) -> None:
+                 logger_factory: LoggerFactory | None = None, on_ready: Callable[[int], None] | None = None,
+                 announce: Announce | None = None, rate: float = RATE, burst: int = BURST,
+                 udp_idle: float = UDP_IDLE, max_udp_sessions: int = MAX_UDP_SESSIONS) -> None:
         self.live, self.host, self.port = live, host, port
         self.logger_factory = logger_factory
         self.on_ready = on_ready
+        self.announce = announce or (lambda line: None)
+        self.rate, self.burst, self.udp_idle, self.max_udp_sessions = rate, burst, udp_idle, max_udp_sessions
         self.sessions: dict[tuple, LiveSession] = {}
-        self.displays: set = set()
+        self.paired: dict[str, LiveSession] = {}    # pairing code -> its session
+        self.displays: dict[str, set] = {}          # pairing code -> the HUD pages showing that session
+        self.strays = Throttle(rate, burst)         # answers to UDP datagrams that get no session, all peers together
         self.pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="drive-log")   # the store's one writer
+        self.bound_port = port
 
     def triage(self, text: str | bytes) -> tuple[dict | str | bytes, bool]:
         """(the message decoded once, or the text itself when it does not decode: the session answers with the
@@ -221,70 +257,134 @@ class LiveServer:
 
     def session_for(self, key: tuple) -> LiveSession:
         if key not in self.sessions:
-            self.sessions[key] = LiveSession(self.live, self.logger_factory)
+            session = LiveSession(self.live, self.logger_factory)
+            session.throttle, session.last_seen = Throttle(self.rate, self.burst), time.monotonic()
+            self.sessions[key] = session
+            self.paired[session.pair] = session
         return self.sessions[key]
 
-    def broadcast(self, reply: str) -> None:
-        """Send an advice's HUD frame to every display page."""
-        if not self.displays or not reply.startswith('{"type":"advice"'):
-            return
-        from websockets.asyncio.server import broadcast
+    def udp_count(self) -> int:
+        return sum(1 for key in self.sessions if key[0] == "udp")
 
-        broadcast(self.displays, reply)
+    def answered(self, session: LiveSession, key: tuple, msg, reply: str) -> None:
+        """After each answer: an advice goes to the session's HUD pages; a hello that was accepted is announced."""
+        if reply.startswith('{"type":"advice"'):
+            pages = self.displays.get(session.pair)
+            if pages:
+                from websockets.asyncio.server import broadcast
+
+                broadcast(pages, reply)
+        elif reply.startswith('{"type": "ready"') and isinstance(msg, dict):
+            who = ", ".join(str(msg[k]) for k in ("participant", "condition") if msg.get(k) is not None)
+            self.announce(f"session {key[0]} {':'.join(map(str, key[1:3]))}{f' ({who})' if who else ''}: pairing "
+                          f"code {session.pair}, HUD page http://{self.host}:{self.bound_port}/?pair={session.pair}")
+
+    async def end_session(self, key: tuple, why: str) -> None:
+        """Forget a session: its log flushed (a drive without bye stays incomplete), its HUD pages closed."""
+        session = self.sessions.pop(key, None)
+        if session is None:
+            return
+        self.paired.pop(session.pair, None)
+        if session.log is not None:
+            await self.in_store_thread(session.log.flush)
+        for page in list(self.displays.pop(session.pair, ())):   # not awaited: a slow page delays nothing
+            asyncio.ensure_future(page.close(1000, "session ended"))
+        if key[0] == "udp":
+            self.announce(f"session udp {':'.join(map(str, key[1:3]))} ended: {why}")
 
     def _http(self, connection, request):
         from websockets.datastructures import Headers
         from websockets.http11 import Response
 
-        if request.path in ("/", "/hud") and "upgrade" not in request.headers.get("Connection", "").lower():
+        path = request.path.split("?")[0]
+        if path in ("/", "/hud") and "upgrade" not in request.headers.get("Connection", "").lower():
             body = hud_page().encode()
             return Response(200, "OK", Headers([("Content-Type", "text/html; charset=utf-8"),
-                                                ("Content-Length", str(len(body)))]), body)
+                                                ("Content-Length", str(len(body))),
+                                                ("Cache-Control", "no-store")]), body)
         return None
 
-    async def _ws(self, connection) -> None:
-        if connection.request.path == "/display":
-            self.displays.add(connection)
-            try:
-                await connection.wait_closed()
-            finally:
-                self.displays.discard(connection)
+    async def _display(self, connection) -> None:
+        """A HUD page: bound to the session of its pairing code, or told the code is unknown and closed."""
+        from websockets.exceptions import ConnectionClosed
+
+        code = pair_of(connection.request.path)
+        if code not in self.paired:
+            await connection.send(error_message(None, f"unknown pairing code {code!r}: open the HUD page address "
+                                                      "the console printed for the session (/?pair=CODE)"))
+            await connection.close(1008, "unknown pairing code")
             return
-        key = ("ws", id(connection))
+        self.displays.setdefault(code, set()).add(connection)
+        throttle = Throttle(self.rate, self.burst)
+        try:
+            async for _ in connection:   # a page sends nothing today; whatever it sends is read, throttled, dropped
+                if delay := throttle.delay():
+                    await asyncio.sleep(delay)
+        except ConnectionClosed:   # a page that went away abruptly: nothing to answer
+            pass
+        finally:
+            pages = self.displays.get(code)
+            if pages is not None:
+                pages.discard(connection)
+                if not pages:
+                    self.displays.pop(code, None)
+
+    async def _ws(self, connection) -> None:
+        from websockets.exceptions import ConnectionClosed
+
+        if connection.request.path.split("?")[0] == "/display":
+            await self._display(connection)
+            return
+        key = ("ws",) + tuple(connection.remote_address[:2]) + (id(connection),)
         session = self.session_for(key)
         try:
             async for text in connection:
+                if delay := session.throttle.delay():   # over the rate: wait, and TCP back-pressure slows the sender
+                    await asyncio.sleep(delay)
                 msg, store = self.triage(text)
                 reply = await self.in_store_thread(session.handle, msg) if store else session.handle(msg)
                 await connection.send(reply)
-                self.broadcast(reply)
+                self.answered(session, key, msg, reply)
+                await asyncio.sleep(0)   # let the other clients' messages in between: one busy client cannot hog
+        except ConnectionClosed:   # a client that went away abruptly (or sent a frame above WS_MAX_FRAME: 1009)
+            pass
         finally:   # a simulator that went away without bye: keep what it sent, the drive stays incomplete
-            self.sessions.pop(key, None)
-            if session.log is not None:
-                await self.in_store_thread(session.log.flush)
+            await self.end_session(key, "disconnected")
 
-    async def _flusher(self) -> None:
+    async def _housekeeper(self) -> None:
+        """Flush the drive logs about every FLUSH_EVERY s; end UDP sessions idle for udp_idle s."""
+        tick = min(FLUSH_EVERY, self.udp_idle / 4)
+        last_flush = time.monotonic()
         while True:
-            await asyncio.sleep(FLUSH_EVERY)
-            for session in list(self.sessions.values()):
-                if session.log is not None:
-                    await self.in_store_thread(session.log.flush)
+            await asyncio.sleep(tick)
+            now = time.monotonic()
+            idle = [k for k, s in self.sessions.items() if k[0] == "udp" and now - s.last_seen > self.udp_idle]
+            for key in idle:
+                await self.end_session(key, f"{self.udp_idle:g} s without a datagram")
+            if idle:
+                gc.collect()   # a controller holds reference cycles: give its memory back now, not some time later
+            if now - last_flush >= FLUSH_EVERY:
+                last_flush = now
+                for session in list(self.sessions.values()):
+                    if session.log is not None:
+                        await self.in_store_thread(session.log.flush)
 
     async def start(self) -> None:
         """Serve until cancelled."""
         from websockets.asyncio.server import serve
 
         loop = asyncio.get_running_loop()
-        async with serve(self._ws, self.host, self.port, process_request=self._http, max_queue=64) as ws:
-            port = ws.sockets[0].getsockname()[1]
+        async with serve(self._ws, self.host, self.port, process_request=self._http, max_queue=64,
+                         max_size=WS_MAX_FRAME) as ws:
+            port = self.bound_port = ws.sockets[0].getsockname()[1]
             transport, _ = await loop.create_datagram_endpoint(lambda: _Udp(self), local_addr=(self.host, port))
-            flusher = asyncio.create_task(self._flusher())
+            housekeeper = asyncio.create_task(self._housekeeper())
             if self.on_ready:
                 self.on_ready(port)
             try:
                 await asyncio.Future()
             finally:
-                flusher.cancel()
+                housekeeper.cancel()
                 transport.close()
 
     def run(self) -> None:

@@ -11,9 +11,14 @@ per-step vectors ``q``, ``l``, ``u`` (:class:`pedas.mpc.SparseMpc` keeps them an
   equality rows are still imposed exactly. Rows bounding one variable are passed as DAQP's simple bounds, and
   unbounded sides as ``+-bound`` (finite: a hot start on a row whose bound became infinite returned NaN).
 
-Every solve returns a :class:`QpResult` whose ``ok`` is true only if the status is an optimum, the solution is
-finite and it satisfies ``l <= A x <= u`` within the backend's residual tolerance (QP units). The objective is not
-part of the result (no check needs it): :meth:`pedas.mpc.SparseMpc.objective` evaluates it on demand.
+Every solve returns a :class:`QpResult` whose ``ok`` is true only if the status is the solver's optimum ("solved";
+OSQP's "solved inaccurate" and "maximum iterations reached" are failures), the solution is finite, it satisfies
+``l <= A x <= u`` within the backend's residual tolerance (QP units) and it passes a KKT check with the solver's
+own multipliers (:class:`_Kkt`): stationarity ``|Hz + f + M'lam|_inf <= KKT_STAT_TOL max(1, |f|_inf)`` and the
+duality gap (primal minus dual objective) ``<= KKT_GAP_TOL max(1, |objective|)``. A solve whose data q, l, u are
+not finite is refused before the solver sees it (status ``rejected:non-finite data``, solver state untouched), and
+an OSQP whose iterate became non-finite is set up again (:meth:`OsqpBackend.rebuild`) and the solve repeated once.
+:meth:`pedas.mpc.SparseMpc.objective` evaluates the objective of eq. (9a) / (10a) on demand.
 """
 from __future__ import annotations
 
@@ -32,9 +37,11 @@ except ImportError:   # pragma: no cover - numpy < 2
 
 BACKENDS = ("daqp", "osqp")
 
-_OSQP_OK = {"solved"}
-_OSQP_CHECK = {"solved inaccurate", "maximum iterations reached", "solved_inaccurate", "max_iter_reached"}
+_OSQP_OK = {"solved"}   # only OSQP's optimum: "solved inaccurate" / "maximum iterations reached" are failures
 OSQP_RESIDUAL_TOL = 1e-2    # QP units (m/s, m, kN): largest accepted violation of l <= Ax <= u for OSQP
+OSQP_INFTY = 1e30           # OSQP's infinity: a bound at or beyond it is no bound (its multiplier: no certificate)
+KKT_STAT_TOL = {"osqp": 1e-3, "daqp": 1e-6}   # stationarity, relative to max(1, |f|_inf)
+KKT_GAP_TOL = {"osqp": 1e-2, "daqp": 1e-6}    # duality gap, relative to max(1, |objective|)
 # DAQP exit flags (https://darnstrom.github.io/daqp/parameters): 1 optimal; the rest are failures
 _DAQP_STATUS = {1: "solved", 2: "solved", -1: "primal infeasible", -2: "cycling", -3: "unbounded",
                 -4: "maximum iterations reached", -5: "nonconvex", -6: "overdetermined initial active set"}
@@ -56,6 +63,16 @@ def residual(A: sp.csc_matrix, l: np.ndarray, u: np.ndarray, x: np.ndarray) -> f
     """Largest violation of l <= A x <= u (QP units). A sparse product: no BLAS, the same bits on every kernel."""
     Ax = A @ x
     return float(max(np.max(l - Ax, initial=0.0), np.max(Ax - u, initial=0.0)))
+
+
+def _finite_data(*vectors: np.ndarray) -> bool:
+    """All entries of the vectors are finite: a NaN or inf anywhere makes a sum of squares NaN or inf (quietly: no
+    inf - inf), and the QP's vectors hold a few hundred entries of magnitude <= 1e30, so the sum of squares of
+    finite entries (<= 1e63) cannot overflow."""
+    total = 0.0
+    for vec in vectors:
+        total += float(vec @ vec)
+    return total < np.inf
 
 
 def _postcondition(status: str, x: np.ndarray | None, violation: float, tol: float) -> str:
@@ -122,11 +139,72 @@ class _Residual:
         return float(t[t.argmax()])   # the maximum (argmax returns the first NaN if there is one), cheaper than max
 
 
+class _Kkt:
+    """The KKT check of a QP ``min 1/2 z'Hz + f'z  s.t.  lo <= M z <= hi`` at a solver's (z, lam), lam > 0 pushing
+    against hi, lam < 0 against lo (OSQP's y, DAQP's lambda). The first ``n_identity`` rows of M are the identity
+    (DAQP's simple bounds, one per variable), ``M_rest`` the others.
+
+    * stationarity: ``|Hz + f + M'lam|_inf / max(1, |f|_inf)``;
+    * duality gap: primal objective ``1/2 z'Hz + f'z`` minus the dual objective of (z, lam),
+      ``-1/2 z'Hz - sum_(lam_i > 0) lam_i hi_i - sum_(lam_i < 0) lam_i lo_i``, i.e.
+      ``|z'Hz + f'z + lam+'hi + lam-'lo| / max(1, |1/2 z'Hz + f'z|)`` (with stationarity, the complementarity
+      ``sum lam_i (b_i - (Mz)_i)`` of the bound b_i that lam_i pushes against).
+
+    ``infinite``: a bound at or beyond it is no bound. With ``drop_infinite`` (OSQP, whose infinity 1e30 times a
+    rounding-sized multiplier would swamp the gap) a multiplier on such a side is dropped and the stationarity
+    residual shows it; otherwise (DAQP, bounds clipped to +-1e4) it stays and its product with the bound shows in
+    the gap. Returns (stationarity, gap), NaN when z or lam is not finite (NaN fails every ``<=``). Dense products
+    of small matrices: a check with margins of many orders of magnitude (docs/controller.md), whose last bits do
+    not change its verdict.
+    """
+
+    def __init__(self, H: sp.spmatrix | np.ndarray, M_rest: sp.spmatrix | np.ndarray, n_identity: int,
+                 infinite: float, drop_infinite: bool) -> None:
+        dense = lambda a: np.ascontiguousarray(a.toarray() if sp.issparse(a) else a, dtype=float)  # noqa: E731
+        self._H = dense(H)
+        self._MrT = np.ascontiguousarray(dense(M_rest).T)
+        self._n = n_identity
+        self._inf, self._drop = infinite, drop_infinite
+        self._hz, self._r = np.empty(self._H.shape[0]), np.empty(self._H.shape[0])
+        self._b = np.empty(n_identity + self._MrT.shape[1])
+
+    def __call__(self, f: np.ndarray, lo: np.ndarray, hi: np.ndarray, z: np.ndarray, lam: np.ndarray
+                 ) -> tuple[float, float]:
+        if self._drop:
+            lam = np.where(((lam > 0.0) & (hi >= self._inf)) | ((lam < 0.0) & (lo <= -self._inf)), 0.0, lam)
+        n, hz, r, b = self._n, self._hz, self._r, self._b
+        np.matmul(self._H, z, hz)
+        np.matmul(self._MrT, lam[n:], r)
+        r += hz
+        r += f
+        if n:
+            r += lam[:n]
+        np.abs(r, r)
+        stat = float(r.max()) / max(1.0, float(f.max()), -float(f.min()))   # at the optimum |Hz| ~ |f + M'lam|
+        zhz, fz = float(z @ hz), float(f @ z)
+        np.copyto(b, lo)
+        np.copyto(b, hi, where=lam > 0.0)     # the bound each multiplier pushes against
+        gap = abs(zhz + fz + float(lam @ b)) / max(1.0, abs(0.5 * zhz + fz))
+        return stat, gap
+
+
+def _kkt_status(status: str, stat: float, gap: float, stat_tol: float, gap_tol: float) -> str:
+    """``status`` if both KKT measures pass, else 'rejected:<status>:stationarity' or 'rejected:<status>:gap'."""
+    if not stat <= stat_tol:
+        return f"rejected:{status}:stationarity"
+    if not gap <= gap_tol:
+        return f"rejected:{status}:gap"
+    return status
+
+
 class OsqpBackend:
     """OSQP set up once; :meth:`solve` updates q, l, u (OSQP's vector update, no re-setup) and checks the result.
 
-    ``solved`` is accepted if finite and primal feasible within :data:`OSQP_RESIDUAL_TOL`; ``solved inaccurate``
-    and ``maximum iterations reached`` under the same condition.
+    Only ``solved`` is accepted, and only if finite, primal feasible within :data:`OSQP_RESIDUAL_TOL` and passing
+    the KKT check (:class:`_Kkt` with OSQP's y, tolerances :data:`KKT_STAT_TOL`, :data:`KKT_GAP_TOL`). Non-finite
+    data are refused without calling OSQP. If OSQP's iterate (x or y) is not finite after a solve, its state is
+    poisoned (every later warm-started solve would start from NaN): OSQP is set up again and the solve repeated once.
+    :meth:`cold_start` (a new drive) sets it up again as well.
     """
 
     name = "osqp"
@@ -137,15 +215,45 @@ class OsqpBackend:
         self.shift_warm_start = bool(kw.pop("shift_warm_start"))
         self.settings = kw
         self._residual = _Residual(A)
+        self._P, self._A = P, A
+        self._kkt = _Kkt(P + P.T - sp.diags(P.diagonal()), A, 0, OSQP_INFTY, drop_infinite=True)
+        self.rebuilds = 0
+        self._data = (q.copy(), l.copy(), u.copy())   # finite vectors to set up with (each solve updates them)
+        self._setup(*self._data)
+
+    def _setup(self, q: np.ndarray, l: np.ndarray, u: np.ndarray) -> None:
+        """A new OSQP solver on (P, A) and these vectors: no iterate, no warm start, rho back to its initial value."""
         self.solver = osqp.OSQP()
-        self.solver.setup(P=P, q=q, A=A, l=l, u=u, **kw)
+        self.solver.setup(P=self._P, q=q, A=self._A, l=l, u=u, **self.settings)
         core = getattr(self.solver, "_solver", None)
         # the extension object behind OSQP.update/solve: same calls without the wrapper's per-call overhead
         self._core = core if core is not None and hasattr(core, "update_data_vec") and hasattr(core, "solution") \
             else None
         self.y: np.ndarray | None = None
+        self._used = False
+
+    def rebuild(self) -> None:
+        """Set OSQP up again (the poisoned or stale solver is dropped; counted in :attr:`rebuilds`)."""
+        self.rebuilds += 1
+        self._setup(*self._data)
 
     def solve(self, q: np.ndarray, l: np.ndarray, u: np.ndarray) -> QpResult:
+        if not _finite_data(q, l, u):
+            return QpResult("rejected:non-finite data", False, None, 0, 0.0)
+        res, x, y = self._solve(q, l, u)
+        if not (_finite_data(x) and _finite_data(y)):   # the iterate is poisoned: a new solver, one more try
+            self.rebuild()
+            again, x, y = self._solve(q, l, u)
+            again.iterations += res.iterations
+            again.run_time += res.run_time
+            res = again
+            if not (_finite_data(x) and _finite_data(y)):
+                self.rebuild()
+        return res
+
+    def _solve(self, q: np.ndarray, l: np.ndarray, u: np.ndarray) -> tuple[QpResult, np.ndarray, np.ndarray]:
+        """One OSQP solve and its checks: (result, OSQP's x, OSQP's y)."""
+        self._used = True
         if self._core is not None:
             core = self._core
             core.update_data_vec(q=q, l=l, u=u)
@@ -159,13 +267,16 @@ class OsqpBackend:
             res = self.solver.solve(raise_error=False)
             status, iters, run_time = res.info.status, int(res.info.iter), float(res.info.run_time)
             x, y = res.x, res.y
-        if status in _OSQP_OK or status in _OSQP_CHECK:
-            violation = float("nan") if x is None else self._residual(l, u, x)
-            status = _postcondition(status, x, violation, OSQP_RESIDUAL_TOL)
-        if status not in _OSQP_OK and status not in _OSQP_CHECK:
-            return QpResult(status, False, None, iters, run_time)
+        x = np.full(self._A.shape[1], np.nan) if x is None else x
+        y = np.full(self._A.shape[0], np.nan) if y is None else y
+        if status in _OSQP_OK:
+            status = _postcondition(status, x, self._residual(l, u, x), OSQP_RESIDUAL_TOL)
+        if status in _OSQP_OK:
+            status = _kkt_status(status, *self._kkt(q, l, u, x, y), KKT_STAT_TOL["osqp"], KKT_GAP_TOL["osqp"])
+        if status not in _OSQP_OK:
+            return QpResult(status, False, None, iters, run_time), x, y
         self.y = y
-        return QpResult(status, True, x, iters, run_time)
+        return QpResult(status, True, x, iters, run_time), x, y
 
     def warm_start(self, x: np.ndarray, y: np.ndarray | None = None) -> None:
         """Start the next solve's ADMM iterates from x (and y)."""
@@ -175,7 +286,10 @@ class OsqpBackend:
             self.solver.warm_start(x=x, y=y)
 
     def cold_start(self) -> None:
-        """Nothing to forget: OSQP's warm start is its previous iterate (kept across drives as before)."""
+        """Forget the previous iterate (a new drive, or after a failure the caller does not trust): OSQP is set up
+        again if it has solved since its last setup."""
+        if self._used:
+            self.rebuild()
 
 
 class _DaqpBase:
@@ -185,6 +299,9 @@ class _DaqpBase:
     ``_fill`` (this step's DAQP vectors from q, l, u) and ``_primal`` (x in the QP's variables from DAQP's solution).
     After any failed solve the working set is cleared and the solve is repeated once from a cold start (a stale
     working set can make the active-set method fail on a feasible problem); a second failure is reported as such.
+    Non-finite data are refused before DAQP sees them (working set untouched). A solution DAQP calls optimal passes
+    the residual check and the KKT check (:class:`_Kkt` on DAQP's own QP in z with DAQP's lambda: ``H``, the
+    constraint rows ``[I; A_general]`` and the clipped bounds, ``+-bound`` counting as no bound).
     """
 
     name = "daqp"
@@ -199,6 +316,7 @@ class _DaqpBase:
         s.update(primal_tol=self.settings.primal_tol, iter_limit=self.settings.iter_limit, eps_prox=0.0)
         self.model.settings = s
         self._cold = False
+        self._kkt = _Kkt(H, Ag, H.shape[0], float(self.settings.bound), drop_infinite=False)
 
     def _bounds(self, A: sp.csr_matrix, eq_rows: np.ndarray, nx: int) -> tuple[np.ndarray, np.ndarray]:
         """Split the rows of A into DAQP simple bounds (a single coefficient 1: one row per variable) and general
@@ -236,6 +354,8 @@ class _DaqpBase:
         self._gather = np.concatenate([rows, rows + m + 1])
 
     def solve(self, q: np.ndarray, l: np.ndarray, u: np.ndarray) -> QpResult:
+        if not _finite_data(q, l, u):
+            return QpResult("rejected:non-finite data", False, None, 0, 0.0)
         self._fill(q, l, u)
         res = self._solve_checked(l, u)
         if not res.ok:
@@ -261,6 +381,10 @@ class _DaqpBase:
         if status == "solved":
             x = self._primal(z)   # a non-finite z gives a non-finite x (each y is one entry of x)
             status = _postcondition(status, x, self._residual(l, u, x), self.settings.residual_tol)
+        if status == "solved":
+            lam = info.get("lam")
+            stat, gap = (float("nan"), float("nan")) if lam is None else self._kkt(self._f, self._lo, self._hi, z, lam)
+            status = _kkt_status(status, stat, gap, KKT_STAT_TOL["daqp"], KKT_GAP_TOL["daqp"])
         if status != "solved":
             return QpResult(status, False, None, iters, run_time)
         return QpResult(status, True, x, iters, run_time)

@@ -4,7 +4,9 @@ What a participant needs follows their exclusions: scope ``all`` needs nothing m
 ``subjective`` needs no survey. A drive is needed for every drive phase of the participant's protocol (its
 ``condition``); a phase is done when it ended with outcome ``completed`` (an aborted phase stays missing: it is a
 gap the researcher decides about, usually with an exclusion); the survey is done when its answers are final
-(:func:`study.survey.final_responses`' rule).
+(:func:`study.survey.final_responses`' rule). An instrument answered on several occasions (questionnaire phases,
+:mod:`study.occasions`) is done when the answers of every occasion in the participant's protocol are final; its
+``survey`` column then reads ``k/n final``.
 """
 from __future__ import annotations
 
@@ -26,7 +28,9 @@ def completeness(st, instrument: str | None = None) -> pd.DataFrame:
     done = st.df("SELECT participant_id, phase FROM phase_events WHERE outcome = 'completed'")
     drives = st.df("SELECT participant_id, condition FROM drives")
     excl = st.df("SELECT participant_id, scope FROM exclusions")
-    survey = sv.survey_status(st, instrument).set_index("participant_id")
+    survey = sv.survey_status(st, instrument)
+    several = "occasion" in survey.columns
+    survey = survey.set_index("participant_id")
     rows = []
     for pid in people:
         proto = protocol_of(st, pid)
@@ -37,7 +41,13 @@ def completeness(st, instrument: str | None = None) -> pd.DataFrame:
         needs_drives = not scopes & {"all", "objective"}
         missing_drives = [p.condition for p in proto.steps
                           if needs_drives and p.drive and p.condition and p.condition not in have_drives]
-        basis, final = survey.loc[pid, "basis"], bool(survey.loc[pid, "final"])
+        if several:  # the occasions of this participant's protocol, each final
+            mine = survey.loc[[pid]]
+            mine = mine[mine["occasion"].isin(proto.phases)]
+            done_n = int(mine["final"].sum())
+            basis, final = f"{done_n}/{len(mine)} final", done_n == len(mine)
+        else:
+            basis, final = survey.loc[pid, "basis"], bool(survey.loc[pid, "final"])
         survey_missing = not final and not scopes & {"all", "subjective"}
         rows.append({"participant_id": pid, "protocol": proto.name, "excluded": ",".join(sorted(scopes)),
                      "phases_done": len(have_phases & set(proto.phases)), "phases_total": len(proto.phases),

@@ -29,6 +29,7 @@ import pandas as pd
 from study.errors import UserError, check_name
 from study.file_checks import run_file_checks
 from study.instrument import Instrument
+from study.instrument_library import included_files, included_instruments, is_library_key
 from study.problems import Problem, Problems, StudyError
 from study.protocol_file import parse_protocol
 from study.toml_lines import line_of
@@ -213,16 +214,32 @@ class StudyDefinition:
 
     @cached_property
     def instruments(self) -> dict[str, Any]:
-        """Instrument name -> :class:`study.instrument.Instrument` (one per study version)."""
-        out = {}
+        """Instrument name -> :class:`study.instrument.Instrument` (the study's current versions), the default
+        (first declared) first."""
+        return {name: Instrument.from_csv(name, self.files[rel], rel) for name, rel in self.instrument_files}
+
+    @property
+    def instrument_files(self) -> list[tuple[str, str]]:
+        """(stored instrument name, codebook path) of each declared codebook, in declaration order. One codebook
+        (``[files] instrument = "codebook.csv"``) is named ``<[instrument] name>_v<version>``; several (a list: a
+        pre-study, a post-drive and a final questionnaire) are each named after their file,
+        ``<file stem>_v<version>``, the version ``[instrument.versions] <stem>`` or else ``[instrument] version``."""
         rel = self.paths.get("instrument")
-        if rel:
-            ins = Instrument.from_csv(self.instrument_name, self.files[rel], rel)
-            out[ins.name] = ins
-        return out
+        included = included_instruments(self.settings, self.files)   # shipped ones, [instrument] include
+        if not rel:
+            return included
+        if not isinstance(rel, list):
+            return [(self.instrument_name, rel)] + included
+        inst = self.settings.get("instrument", {})
+        versions = inst.get("versions", {}) if isinstance(inst.get("versions", {}), dict) else {}
+        return [(f"{Path(r).stem}_v{versions.get(Path(r).stem, inst.get('version', 1))}", r) for r in rel] + included
 
     @property
     def instrument_name(self) -> str:
+        """The default instrument's stored name."""
+        if isinstance(self.paths.get("instrument"), list) or (not self.paths.get("instrument")
+                                                              and self.instrument_files):
+            return self.instrument_files[0][0]
         inst = self.settings.get("instrument", {})
         return f"{inst.get('name', self.study_id)}_v{inst.get('version', 1)}"
 
@@ -293,6 +310,7 @@ def read_folder(folder: str | Path) -> dict[str, str]:
         path = folder / rel
         if path.is_file() and folder.resolve() in path.resolve().parents:
             files[rel] = path.read_text(encoding="utf-8")
+    files.update(included_files(data))   # shipped instruments the study includes, kept with its own files
     return files
 
 
@@ -452,6 +470,13 @@ def _parse(files: dict[str, str], problems: Problems, check_files: bool = True) 
         values = value if isinstance(value, list) else [value]
         if key == "protocols" and not isinstance(value, list):
             problems.add(STUDY_FILE, line, f"files.{key}", "must be a list of file names")
+        if key == "instrument" and isinstance(value, list):
+            stems = [Path(v).stem for v in values if isinstance(v, str)]
+            bad = [v for v in stems if not NAME.match(v)] or sorted({v for v in stems if stems.count(v) > 1})
+            if not values or bad:
+                problems.add(STUDY_FILE, line, f"files.{key}", "several codebooks are named after their files: "
+                             "distinct names of letters, digits and _ (" + ", ".join(bad or ["none given"]) + ")")
+                continue
         if not all(isinstance(v, str) for v in values):
             problems.add(STUDY_FILE, line, f"files.{key}", "must name files relative to the study folder")
             continue
@@ -460,7 +485,7 @@ def _parse(files: dict[str, str], problems: Problems, check_files: bool = True) 
                 problems.add(STUDY_FILE, line, f"files.{key}", f"{v!r}: files must lie inside the study folder")
             elif v not in files:
                 problems.add(STUDY_FILE, line, f"files.{key}", f"file {v!r} not found in the study folder")
-        clean[key] = list(values) if key == "protocols" else values[0]
+        clean[key] = list(values) if key == "protocols" or isinstance(value, list) else values[0]
     if "protocols" not in clean:
         problems.add(STUDY_FILE, line_of(text, "", "files"), "files.protocols", "declare at least one protocol")
 
@@ -477,7 +502,8 @@ def _parse(files: dict[str, str], problems: Problems, check_files: bool = True) 
     study = StudyDefinition(study_id=study_id, title=title, description=description, id_pattern=id_pattern,
                             id_example=id_example, attributes=tuple(attributes), conditions=tuple(conditions),
                             checks=tuple(checks), settings=settings,
-                            files={k: v for k, v in files.items() if k == STUDY_FILE or k in _declared(clean)},
+                            files={k: v for k, v in files.items()
+                                   if k == STUDY_FILE or k in _declared(clean) or is_library_key(k)},
                             paths=clean)
     if check_files:
         _check_files(study, problems)
@@ -540,15 +566,20 @@ def _check_sql(checks: list[Check], attributes: list[Attribute], text: str, prob
 
 def _check_files(study: StudyDefinition, problems: Problems) -> None:
     """Parse every declared file and cross-check names between them."""
-    instrument = None
-    rel = study.paths.get("instrument")
-    if rel in study.files:
+    instrument = None   # the default (first) instrument: the model file's items are its items
+    first = True
+    for name, rel in study.instrument_files:
+        if rel not in study.files:
+            first = False
+            continue
         try:
-            instrument = Instrument.from_csv(study.instrument_name, study.files[rel], rel, problems=problems)
+            ins = Instrument.from_csv(name, study.files[rel], rel, problems=problems)
         except StudyError:
-            pass
-        if instrument is not None:
-            _check_item_attributes(study, instrument, rel, problems)
+            ins = None
+        if ins is not None:
+            _check_item_attributes(study, ins, rel, problems)
+        if first:
+            instrument, first = ins, False
     conditions = set(study.condition_names)
     for rel in study.paths.get("protocols", []):
         if rel not in study.files:
@@ -564,6 +595,9 @@ def _check_files(study: StudyDefinition, problems: Problems) -> None:
             if ph.condition is not None and ph.condition not in conditions:
                 problems.add(rel, _json_line(study.files[rel], ph.name), f"phases.{ph.name}.condition",
                              f"{ph.condition!r} is not a declared condition ({'|'.join(study.condition_names)})")
+    from study.occasions import check_occasions
+
+    check_occasions(study, problems)
     rel = study.paths.get("model")
     if rel in study.files:
         model = parse_model(study.files[rel], rel, problems)
@@ -712,7 +746,8 @@ def _check_model_names(study: StudyDefinition, model: AnalysisModel, instrument,
 
     items = set(instrument.scaled_items) if instrument is not None else set()
     # a declared codebook that did not parse has its own problems; its items are not known, so not reported again
-    unknown_items = instrument is not None or study.paths.get("instrument") not in study.files
+    declared = study.instrument_files
+    unknown_items = instrument is not None or not declared or declared[0][1] not in study.files
     for construct, its in model.measurement.items():
         for it in its:
             if unknown_items and it not in items:

@@ -39,7 +39,7 @@ from typing import Any, Callable, Iterator
 import numpy as np
 import pandas as pd
 
-from study import logmap, route_file
+from study import fcd_route, logmap, route_file
 from study.definition import STUDY_FILE
 from study.drive_columns import BOOL_OPTIONAL, COLUMNS, FLOAT_OPTIONAL, REQUIRED, TEXT_OPTIONAL
 from study.errors import UserError, check_choice
@@ -96,6 +96,7 @@ class DriveImport:
     channels: tuple[str, ...] = ()          # extra channels stored with the samples
     energy_source: str | None = None
     overridden: tuple[str, ...] = ()        # plausibility problems imported anyway (force)
+    phase: str | None = None                # a drive phase without a condition (then `condition` names it too)
 
     @property
     def rows_per_second(self) -> float:
@@ -195,6 +196,52 @@ class DriveRecord:
     meta: dict | None = None
     replace: bool = False
     progress: Callable[[str], None] | None = None
+    phase: str | None = None
+
+
+# ---------------------------------------------------------------------------------------------- drive phases
+def drive_target(st, participant_id: str, name: str) -> tuple[str | None, str | None]:
+    """(condition, phase) of the drive `name` names: a condition of the study -> (name, None); else a drive phase
+    without a condition (familiarisation, practice) of the participant's protocol (any protocol of the study for
+    an unknown participant) -> (None, name), stored with condition NULL and that phase. Else UserError."""
+    from study.studies import definition
+
+    study = definition(st)
+    if name in study.condition_names:
+        return name, None
+    try:
+        from study.protocol import protocol_of
+
+        protos = [protocol_of(st, participant_id)]
+    except UserError:
+        protos = list(study.protocols.values())
+    free = list(dict.fromkeys(ph.name for pr in protos for ph in pr.steps if ph.drive and ph.condition is None))
+    if name in free:
+        return None, name
+    also = f"; drive phases without a condition: {', '.join(free)}" if free else ""
+    raise UserError(f"unknown condition {name!r} (study {study.study_id}: {'|'.join(study.condition_names)}{also})")
+
+
+def phase_mismatch(st, participant_id: str, condition: str | None, phase: str | None) -> str | None:
+    """Why a log of `condition` (or of the drive `phase` without one) does not belong to the participant's current
+    drive phase (the last drive phase they entered), or None when it does. A participant without recorded phases
+    is not checked (a lab that does not record the protocol)."""
+    from study.protocol import protocol_of
+
+    entered = st.df("SELECT phase FROM phase_events WHERE participant_id = ? ORDER BY seq", [participant_id])["phase"]
+    if entered.empty:
+        return None
+    proto = protocol_of(st, participant_id)
+    steps = {p.name: p for p in proto.steps}
+    driven = [steps[n] for n in entered if n in steps and steps[n].drive]
+    want = condition if condition is not None else f"the drive phase {phase}"
+    if not driven:
+        return f"{participant_id} has not started a drive phase (is at {entered.iloc[-1]}); the log is for {want}"
+    cur = driven[-1]
+    if (cur.condition == condition) if condition is not None else (cur.condition is None and cur.name == phase):
+        return None
+    return (f"{participant_id}'s current drive phase is {cur.name} ({cur.condition or 'no condition'}), "
+            f"the log is for {want}")
 
 
 # ---------------------------------------------------------------------------------------------- validation
@@ -761,7 +808,10 @@ def _store_drive(st, drive: DriveRecord) -> DriveImport:
     prep, progress, t0 = drive.prepared, drive.progress, drive.started
     log, extras, channels, ignored = prep.summary, prep.extras, prep.channels, prep.ignored
     study = definition(st)
-    study.check_condition(condition)
+    phase = drive.phase
+    if phase is None:
+        study.check_condition(condition)
+    label = condition if phase is None else phase   # what messages and the result call the drive
     check_choice("source", source, SOURCES)
     # an empty power column is no measurement: it is dropped and the model (if any) fills it
     model, energy_source = _energy(log.has_power, study, source)
@@ -773,17 +823,19 @@ def _store_drive(st, drive: DriveRecord) -> DriveImport:
         with bounded(st.con, IMPORT_MEMORY), st.transaction():
             require(st, participant_id)
             have = st.con.execute("SELECT drive_id, checksum, file_name FROM drives WHERE participant_id = ? "
-                                  "AND condition = ?", [participant_id, condition]).fetchone()
+                                  "AND condition IS NOT DISTINCT FROM ? AND phase IS NOT DISTINCT FROM ?",
+                                  [participant_id, None if phase else condition, phase]).fetchone()
             if have and have[1] == checksum:
-                return DriveImport(int(have[0]), participant_id, condition, "unchanged", log.n, checksum,
-                                   time.perf_counter() - t0, ignored, energy_source=meta["energy_source"])
+                return DriveImport(int(have[0]), participant_id, label, "unchanged", log.n, checksum,
+                                   time.perf_counter() - t0, ignored, energy_source=meta["energy_source"],
+                                   phase=phase)
             if source == "import":
-                twin = st.con.execute("SELECT participant_id, condition FROM drives WHERE checksum = ?",
-                                      [checksum]).fetchone()
+                twin = st.con.execute("SELECT participant_id, coalesce(condition, phase) FROM drives "
+                                      "WHERE checksum = ?", [checksum]).fetchone()
                 if twin:
                     raise UserError(f"this log is already stored as the {twin[1]} drive of {twin[0]}")
             if have and not drive.replace:
-                raise UserError(f"{participant_id} already has a {condition} drive"
+                raise UserError(f"{participant_id} already has a {label} drive"
                                 f"{' from ' + have[2] if have[2] else ''} with different content; "
                                 f"use --replace to replace it")
             if channels:
@@ -794,13 +846,14 @@ def _store_drive(st, drive: DriveRecord) -> DriveImport:
                 st.delete("drives", {"drive_id": int(have[0])})
                 status = "replaced"
             row = st.insert("drives", {
-                "participant_id": participant_id, "condition": condition, "source": source, "route": drive.route,
+                "participant_id": participant_id, "condition": None if phase else condition, "phase": phase,
+                "source": source, "route": drive.route,
                 "checksum": checksum, "n_samples": log.n, "file_name": drive.file_name,
                 "duration_s": float(log.t[1] - log.t[0]), "distance_m": float(log.s[1] - log.s[0]),
                 "seed": drive.seed, "meta": json.dumps(meta, sort_keys=True, default=str)})
             drive_id = int(row["drive_id"])
             if progress:
-                progress(f"writing {log.n} samples of drive {drive_id} ({participant_id} {condition})")
+                progress(f"writing {log.n} samples of drive {drive_id} ({participant_id} {label})")
             filled: list[tuple[str, ...]] = []
 
             def samples() -> Iterator[pd.DataFrame]:
@@ -821,9 +874,9 @@ def _store_drive(st, drive: DriveRecord) -> DriveImport:
     finally:
         if channels:  # a rolled-back ALTER TABLE leaves a stale cached column list otherwise
             st._columns.pop("drive_samples", None)
-    return DriveImport(drive_id, participant_id, condition, status, log.n, checksum,
+    return DriveImport(drive_id, participant_id, label, status, log.n, checksum,
                        time.perf_counter() - t0, ignored, filled[0], tuple(ch.name for ch in channels),
-                       meta["energy_source"], prep.overridden)
+                       meta["energy_source"], prep.overridden, phase)
 
 
 def _mapping_for(study, path: Path, fmt: str, mapping) -> logmap.Mapping | None:
@@ -1013,13 +1066,16 @@ def _force_reason(force: str | None) -> str | None:
 def import_drive_file(st, participant_id: str, condition: str, path: str | Path, replace: bool = False,
                       route: str | None = None, progress: Callable[[str], None] | None = None,
                       mapping: Any = None, fmt: str | None = None, vehicle: str | None = None,
-                      force: str | None = None) -> DriveImport:
+                      force: str | None = None, net: str | Path | None = None) -> DriveImport:
     """Read, map, check and import a drive log file (CSV, Parquet or SUMO FCD) for (participant, condition).
 
     `mapping`: None = the study's log mapping when it reads this format (else the file is a canonical log),
     "none" = a canonical log, or a mapping file path / :class:`study.logmap.Mapping`. `fmt` overrides the format
-    taken from the file name; `vehicle` picks the vehicle of an FCD file. `force` = a reason to import despite
-    plausibility problems (recorded in drives.meta). `route` names the route stored with the drive (default: the
+    taken from the file name; `vehicle` picks the vehicle of an FCD file, `net` its SUMO network (limits and lights
+    from there instead of the study's route: :mod:`study.fcd_route`). `force` = a reason to import despite
+    plausibility problems (recorded in drives.meta) and despite :func:`phase_mismatch` (a log for another condition
+    than the participant's current drive phase: refused without it). `condition` is a condition of the study or a
+    drive phase without one (:func:`drive_target`). `route` names the route stored with the drive (default: the
     study's route file's name). Checksum: sha256 of the file; of file, mapping and route when those were used.
     Every problem of the log is one line starting with the file name. A canonical CSV or Parquet log (no mapping) is
     read in chunks of :data:`CHUNK_ROWS` rows, twice (validated, then stored), so that its size does not bound the
@@ -1031,10 +1087,15 @@ def import_drive_file(st, participant_id: str, condition: str, path: str | Path,
     t0 = time.perf_counter()
     path = Path(path)
     force = _force_reason(force)
-    study.check_condition(condition)
+    condition, phase = drive_target(st, participant_id, condition)
+    mismatch = phase_mismatch(st, participant_id, condition, phase)
+    if mismatch and not force:
+        raise UserError(f"{mismatch}; import with --force REASON to store it anyway")
     kind = log_format(path, fmt)
     m = _mapping_for(study, path, kind, mapping)
+    fcd_route.check_net_option(net, kind, m)
     rfile = route_file.study_route(study)
+    derived: list[str] = []
     vehicle = vehicle or (m.vehicle if m is not None else None)
     if m is None and kind in ("csv", "parquet"):  # a canonical log: read in chunks, never whole
         if not path.exists():
@@ -1049,9 +1110,12 @@ def import_drive_file(st, participant_id: str, condition: str, path: str | Path,
             progress(f"read {prep.summary.n} rows from {path.name}")
     else:  # a mapped log (units, integrated positions, lights by position) or SUMO FCD: read whole
         raw = read_drive_file(path, kind, vehicle)
+        derived = [c for c in raw.attrs.get("derived", ()) if m is not None and c in {ch.column for ch in m.channels}]
         if progress:
             progress(f"read {len(raw)} rows from {path.name}")
         try:
+            if kind == "sumo-fcd" and m is not None:  # its own network (--net), or the study's route it drives
+                raw, rfile = fcd_route.fcd_route(raw, rfile, net, m)
             prep = _prepare(raw, m, rfile, "import", force)
         except UserError as exc:
             raise UserError(f"{path.name}: {exc}") from None
@@ -1067,16 +1131,22 @@ def import_drive_file(st, participant_id: str, condition: str, path: str | Path,
         meta["units"] = {c.name: c.unit for c in m.channels if c.unit is not None}
     if vehicle:
         meta["vehicle"] = vehicle
+    if net is not None:
+        meta["net"] = Path(net).name
+    if derived:
+        meta["derived"] = derived
     if prep.joined:
         meta["from_route"] = list(prep.joined)
     if prep.s_integrated:
         meta["s"] = "integrated from v"
     if force is not None:
-        meta["forced"] = {"reason": force, "overridden": list(prep.overridden)}
+        meta["forced"] = {"reason": force, "overridden": list(prep.overridden) + ([mismatch] if mismatch else [])}
     route = route or (rfile.name if rfile is not None else None)
     try:
-        return _store_drive(st, DriveRecord(participant_id, condition, prep, checksum, "import", t0, route=route,
-                                            file_name=path.name, meta=meta, replace=replace, progress=progress))
+        r = _store_drive(st, DriveRecord(participant_id, condition, prep, checksum, "import", t0, route=route,
+                                         file_name=path.name, meta=meta, replace=replace, progress=progress,
+                                         phase=phase))
+        return replace_overridden(r, mismatch)
     except UserError as exc:
         if str(exc).startswith("channel "):
             raise UserError(f"{path.name}: {exc}") from None
@@ -1090,6 +1160,8 @@ def import_drive_frame(st, participant_id: str, condition: str, df: pd.DataFrame
     """Validate and store a drive given as a canonical DataFrame (e.g. a simulated drive).
 
     The checksum is :func:`frame_checksum` of the validated frame, so storing the same frame again is a no-op.
+    The HUD channels of :data:`pedas.hud_log.HUD_CHANNELS` (all or none) are kept as extra channels and counted in
+    the checksum (:mod:`study.hud_channels`); other columns outside the format are ignored.
     `seed` and `meta` (JSON-serialisable settings) are kept on the drives row for reproducibility, with
     ``energy_source`` added unless `meta` names it. Source 'import' frames get the plausibility checks.
     """
@@ -1098,23 +1170,38 @@ def import_drive_frame(st, participant_id: str, condition: str, df: pd.DataFrame
     study = definition(st)
     t0 = time.perf_counter()
     force = _force_reason(force)
-    study.check_condition(condition)
+    condition, phase = drive_target(st, participant_id, condition)
     rfile = route_file.study_route(study)
     prep = _prepare(df, None, rfile, source, force)
+    from dataclasses import replace as _with
+
+    from study.hud_channels import hud_extras, with_channels
+
+    extras, hud = hud_extras(df)   # what the HUD showed (docs/hud.md): kept as extra channels, not ignored
+    if hud:
+        prep = _with(prep, extras=extras, channels=hud, ignored=tuple(c for c in prep.ignored if c not in extras))
     meta = dict(meta) if meta is not None else {}
     if prep.joined:
         meta["from_route"] = list(prep.joined)
     if force is not None:
         meta["forced"] = {"reason": force, "overridden": list(prep.overridden)}
-    return _store_drive(st, DriveRecord(participant_id, condition, prep, frame_checksum(prep.frame), source, t0,
+    checksum = with_channels(frame_checksum(prep.frame), prep.extras, prep.channels)
+    return _store_drive(st, DriveRecord(participant_id, condition, prep, checksum, source, t0,
                                         route=route, file_name=file_name, seed=seed, meta=meta, replace=replace,
-                                        progress=progress))
+                                        progress=progress, phase=phase))
+
+
+def replace_overridden(r: DriveImport, mismatch: str | None) -> DriveImport:
+    """`r` with the phase mismatch a forced import overrode listed after its plausibility problems."""
+    from dataclasses import replace
+
+    return r if not mismatch or r.status == "unchanged" else replace(r, overridden=r.overridden + (mismatch,))
 
 
 def drive_samples(st, participant_id: str, condition: str, channels: bool | list[str] = False) -> pd.DataFrame:
     """The samples of one drive in order (columns of the drive-log format, then the extra `channels`: True = all
     registered ones, or a list of names); unknown drive or channel -> UserError."""
-    drive_id = st.one("SELECT drive_id FROM drives WHERE participant_id = ? AND condition = ?",
+    drive_id = st.one("SELECT drive_id FROM drives WHERE participant_id = ? AND coalesce(condition, phase) = ?",
                       [participant_id, condition])
     if drive_id is None:
         raise UserError(f"{participant_id} has no {condition} drive")
@@ -1138,5 +1225,9 @@ def list_channels(st) -> pd.DataFrame:
 
 
 def list_drives(st) -> pd.DataFrame:
-    return st.df("SELECT drive_id, participant_id, condition, source, route, n_samples, duration_s, distance_m, "
-                 "file_name, checksum, created_at FROM drives ORDER BY participant_id, condition")
+    """Every stored drive; a ``phase`` column after ``condition`` only when a drive outside the conditions is
+    stored (a familiarisation drive: condition empty, its phase named)."""
+    phase = ", phase" if st.one("SELECT count(*) FROM drives WHERE phase IS NOT NULL") else ""
+    return st.df(f"SELECT drive_id, participant_id, condition{phase}, source, route, n_samples, duration_s, "
+                 f"distance_m, file_name, checksum, created_at FROM drives ORDER BY participant_id, condition, "
+                 f"drive_id")

@@ -119,6 +119,7 @@ LABELS: dict[str, str] = {
     "hud_in_band": "Speed within the HUD band",
     "warning": "Auditory warning active",
     "instrument": "Survey instrument",
+    "occasion": "Questionnaire occasion (the protocol phase answered in)",
     "item_id": "Survey item",
     "entry_round": "Data entry round",
     "value": "Answer (scale value)",
@@ -314,17 +315,38 @@ def samples_in_order(st) -> bool:
                 WHERE next_lo <= hi) = 0""")
 
 
-def table_sql(st, table: str, deidentify: bool = False, origins: str | None = None) -> str:
+def hidden_columns(st, study) -> dict[str, set[str]]:
+    """Columns of the store that an export leaves out because they carry nothing for this store, so that a study
+    keeps the files it had before they existed: the ``occasion`` of the survey tables when the study has one
+    questionnaire occasion (:func:`study.occasions.several`), ``drives.phase`` when no drive outside the conditions
+    is stored (docs/store.md, "Exports")."""
+    from study.occasions import OCCASION_TABLES, several
+
+    hide: dict[str, set[str]] = {}
+    if study is None or not several(study):
+        for t in OCCASION_TABLES:
+            hide[t] = {"occasion"}
+    if not st.one("SELECT count(*) FROM drives WHERE phase IS NOT NULL"):
+        hide["drives"] = {"phase"}
+    return hide
+
+
+def table_sql(st, table: str, deidentify: bool = False, origins: str | None = None,
+              hide: set[str] | frozenset = frozenset()) -> str:
     """The SELECT that exports `table`: every column as stored (``drive_samples`` ordered by drive and sample: the
     stored order when :func:`samples_in_order`, else sorted); deidentified (:data:`IDENTIFYING_COLUMNS` left out,
     each timestamp ``<col>`` of a participant's row as ``<col>_s`` seconds after the participant's first event from
-    `origins` (:func:`origins_sql`), other timestamps left out) in the table's row order."""
+    `origins` (:func:`origins_sql`), other timestamps left out) in the table's row order; the columns `hide`
+    (:func:`hidden_columns`) left out."""
     order = ""
     if table == "drive_samples" and not samples_in_order(st):  # a sort of millions of rows: only when needed
         order = ' ORDER BY t."drive_id", t."idx"'
     if not deidentify:
+        if hide:
+            shown = ", ".join(f't."{c}"' for c, _ in _columns(st, table) if c not in hide)
+            return f'SELECT {shown} FROM "{table}" t{order}'
         return f'SELECT * FROM "{table}" t{order}'
-    cols = _columns(st, table)
+    cols = [(c, typ) for c, typ in _columns(st, table) if c not in hide]
     per_person = any(c == "participant_id" for c, _ in cols)
     select, relative = [], False
     for c, typ in cols:
@@ -401,14 +423,16 @@ def collect(st, deidentify: bool = False) -> tuple[list[Part], tuple[str, ...]]:
         (skipped if deidentify and table not in DEIDENTIFIED_TABLES else tables).append(table)
     origins = origins_sql(st, tables) if deidentify else None
     text_attributes = tuple(a.name for a in study.attributes if a.type == "text") if study is not None else ()
+    hide = hidden_columns(st, study)
     parts: list[Part] = []
     by_frame = None
     for table in tables:
         framed = table == "participants" or (deidentify and any(c == "meta" for c, _ in _columns(st, table)))
         if not framed:
-            parts.append(Part(table, sql=table_sql(st, table, deidentify, origins)))
+            parts.append(Part(table, sql=table_sql(st, table, deidentify, origins, hide.get(table, set()))))
             continue
         df = participants_frame(st, study) if table == "participants" else st.df(f'SELECT * FROM "{table}"')
+        df = df.drop(columns=[c for c in hide.get(table, ()) if c in df.columns])
         if deidentify:
             if by_frame is None:
                 by_frame = first_events(st, tables)
@@ -592,6 +616,10 @@ def export(st, fmt: str, outdir: str | Path, deidentify: bool = False) -> Export
             path = outdir / f"{part.name}.{fmt}"
             tmp = path.with_name(path.name + ".partial")
             files[path.name] = _write(st, fmt, part, tmp, voc)
+            if fmt == "sav" and deidentify:  # no export date and time in a de-identified file's header
+                from study.sav_header import clear_timestamp
+
+                clear_timestamp(tmp)
             tmp.replace(path)  # a crash never leaves a half-written file under the final name
     manifest = {"format": fmt, "deidentified": deidentify, "schema_version": st.schema_version,
                 "files": files, "left_out": list(skipped)}

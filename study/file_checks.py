@@ -14,7 +14,8 @@ from typing import Any
 _FILE_CHECKS: list = []
 #: the modules that register them, imported by name before every check so that a direct `load` checks every declared
 #: file as the CLI does
-CHECK_MODULES = ("study.logmap", "study.route_file", "study.drives", "study.export", "study.kpi_spec")
+CHECK_MODULES = ("study.logmap", "study.route_file", "study.drives", "study.export", "study.kpi_spec",
+                 "study.scores", "study.within_spec")
 
 
 def register_file_check(fn) -> Any:

@@ -7,8 +7,14 @@ the web form refuses to submit without it; an import needs the column). Optional
 attribute the answer fills), reconstructed, source, and any other column (kept, not interpreted).
 
 response_type is ``likert``/``likertK`` or ``semantic``/``semanticK`` (a K-point scale, 2 <= K <= 11, K =
-scale_max - scale_min + 1), ``number``, ``choice`` or ``text``. ``choices`` lists ``code=label`` or REDCap's
-``code, label`` pairs separated by ``|``; a Likert item may label every point this way.
+scale_max - scale_min + 1), ``slider`` (a visual analogue scale: a whole number in scale_min..scale_max on the grid
+scale_min + k * step, the optional ``step`` column, default 1; e.g. NASA-TLX 0..100 in steps of 5), ``number``,
+``choice`` or ``text``. ``choices`` lists ``code=label`` or REDCap's ``code, label`` pairs separated by ``|``; a
+Likert item may label every point this way.
+
+Scaled items (Likert, semantic differential, slider) are the numeric answers the analysis scores and reverses;
+:meth:`Instrument.parse` is the one validation of an answer that the web form, the CSV import and the double entry
+share.
 """
 from __future__ import annotations
 
@@ -21,13 +27,15 @@ import pandas as pd
 
 from study.problems import Problems, StudyError
 
-SCALED_KINDS = ("likert", "semantic")
+SCALED_KINDS = ("likert", "semantic", "slider")
+SLIDER = "slider"
 DEMOGRAPHIC_TYPES = ("number", "choice")
-RESPONSE_TYPE = re.compile(r"^(likert|semantic)(\d+)?$|^(number|choice|text)$")
+RESPONSE_TYPE = re.compile(r"^(likert|semantic)(\d+)?$|^(number|choice|text|slider)$")
 MIN_POINTS, MAX_POINTS = 2, 11
 REQUIRED_COLUMNS = ("item_id", "construct", "section", "text", "response_type", "scale_min", "scale_max",
                     "anchor_low", "anchor_high", "choices", "reverse_scored", "required")
 MAX_TEXT = 5000  # characters kept for one free-text answer
+MAX_SLIDER_STEPS = 1000  # grid points of a slider beyond which a tablet's finger cannot pick one value
 
 
 @dataclass(frozen=True)
@@ -60,7 +68,7 @@ class Instrument:
 
     @property
     def scaled_items(self) -> list[str]:
-        """Items answered on a numeric scale (Likert and semantic differentials), in order."""
+        """Items answered on a numeric scale (Likert, semantic differentials, sliders), in order."""
         return self.items.index[self.items["response_type"].map(is_scaled)].tolist()
 
     @property
@@ -109,7 +117,7 @@ class Instrument:
         meta = self._meta.get(item_id)
         if meta is None:
             raise ValueError(f"unknown item {item_id!r} (not in instrument {self.name})")
-        kind, lo, hi, labels = meta
+        kind, lo, hi, labels, step = meta
         if raw is None or (isinstance(raw, float) and raw != raw):
             return Answer()
         if kind == "text":
@@ -135,22 +143,33 @@ class Instrument:
                 value = int(whole.group(1))
         if not lo <= value <= hi:
             raise ValueError(f"{item_id}: value {value} outside {lo}-{hi}")
+        if (value - lo) % step:
+            below = value - (value - lo) % step
+            raise ValueError(f"{item_id}: value {value} is not a step of {step} from {lo} "
+                             f"(nearest allowed: {below} or {below + step})")
         return Answer(value=value)
 
     @cached_property
-    def _meta(self) -> dict[str, tuple[str, int | None, int | None, dict[str, int]]]:
-        """item -> (response_type, min, max, {casefolded choice label: code}) for fast validation."""
+    def _meta(self) -> dict[str, tuple[str, int | None, int | None, dict[str, int], int]]:
+        """item -> (response_type, min, max, {casefolded choice label: code}, step) for fast validation."""
         out = {}
         for item, row in self.items.iterrows():
             lo = None if pd.isna(row["scale_min"]) else int(row["scale_min"])
             hi = None if pd.isna(row["scale_max"]) else int(row["scale_max"])
             labels = {label.casefold(): code for code, label in self.choices(item).items()}
-            out[item] = (row["response_type"], lo, hi, labels)
+            out[item] = (row["response_type"], lo, hi, labels, self.step(item))
         return out
 
     def scale(self, item_id: str) -> tuple[int, int]:
         row = self.items.loc[item_id]
         return int(row["scale_min"]), int(row["scale_max"])
+
+    def step(self, item_id: str) -> int:
+        """Distance between two allowed answers: a slider's `step` (default 1), 1 for every other item."""
+        if "step" not in self.items.columns:
+            return 1
+        raw = str(self.items.loc[item_id, "step"] or "").strip()
+        return int(raw) if raw else 1
 
     def reverse(self, answers: pd.DataFrame) -> pd.DataFrame:
         """Copy of wide `answers` (columns = item ids) with reverse-scored items mapped x -> min + max - x."""
@@ -163,7 +182,7 @@ class Instrument:
 
 
 def is_scaled(response_type: str) -> bool:
-    """Likert items and semantic differentials (any number of points)."""
+    """Likert items, semantic differentials (any number of points) and sliders: answers on a numeric scale."""
     return str(response_type).startswith(SCALED_KINDS)
 
 
@@ -227,8 +246,8 @@ def _check_row(row: dict, line: int, rel: str, seen: set, problems) -> None:
     kind = str(row["response_type"]).strip()
     m = RESPONSE_TYPE.match(kind)
     if not m:
-        problems.add(rel, line, f"{where}.response_type", f"{kind!r} is not likert[K] | semantic[K] | number | "
-                                                          f"choice | text")
+        problems.add(rel, line, f"{where}.response_type", f"{kind!r} is not likert[K] | semantic[K] | slider | "
+                                                          f"number | choice | text")
         return
     if not str(row["text"]).strip():
         problems.add(rel, line, f"{where}.text", "empty question text")
@@ -238,6 +257,9 @@ def _check_row(row: dict, line: int, rel: str, seen: set, problems) -> None:
         if str(row[col]).strip() not in ("0", "1"):
             problems.add(rel, line, f"{where}.{col}", f"{row[col]!r} is not 0 or 1")
     lo, hi = str(row["scale_min"]).strip(), str(row["scale_max"]).strip()
+    step = str(row.get("step", "") or "").strip()
+    if step and kind != SLIDER:
+        problems.add(rel, line, f"{where}.step", f"only a slider has a step (this item is {kind})")
     if kind == "text":
         if lo or hi:
             problems.add(rel, line, f"{where}.scale_min", "a text item has no scale")
@@ -270,6 +292,28 @@ def _check_row(row: dict, line: int, rel: str, seen: set, problems) -> None:
             problems.add(rel, line, f"{where}.choices", "a choice item needs choices")
         elif min(choices) < lo_i or max(choices) > hi_i:
             problems.add(rel, line, f"{where}.choices", f"codes must lie within {lo_i}..{hi_i}")
-    if str(row["reverse_scored"]).strip() == "1" and not m.group(1):
+    elif kind == SLIDER:
+        _check_slider(where, lo_i, hi_i, step, choices, line, rel, problems)
+    if str(row["reverse_scored"]).strip() == "1" and not (m.group(1) or kind == SLIDER):
         problems.add(rel, line, f"{where}.reverse_scored", "only a scaled item can be reverse-scored")
+
+
+def _check_slider(where: str, lo: int, hi: int, step: str, choices: dict, line: int, rel: str, problems) -> None:
+    """A slider: a whole-number step > 0 that divides scale_max - scale_min (so both ends are answers), at most
+    MAX_SLIDER_STEPS grid points, no choices (its two anchors label the ends)."""
+    if choices:
+        problems.add(rel, line, f"{where}.choices", "a slider has no choices (anchor_low and anchor_high label its ends)")
+    if not step:
+        n = hi - lo
+    elif not re.fullmatch(r"\d+", step) or int(step) == 0:
+        problems.add(rel, line, f"{where}.step", f"{step!r} is not a whole number above 0")
+        return
+    elif (hi - lo) % int(step):
+        problems.add(rel, line, f"{where}.step", f"step {step} does not divide scale_max - scale_min = {hi - lo} "
+                                                 f"(the ends {lo} and {hi} must be answers)")
+        return
+    else:
+        n = (hi - lo) // int(step)
+    if n > MAX_SLIDER_STEPS:
+        problems.add(rel, line, f"{where}.step", f"{n} steps; a slider has at most {MAX_SLIDER_STEPS}")
 

@@ -7,6 +7,11 @@ samples received since the last one in one transaction, together with the drive'
 id). :meth:`LiveDriveLog.close` (the simulator said bye) replaces the partial drive, in one transaction, with the
 complete log stored like an imported one (:func:`study.drives.import_drive_frame`: validation, plausibility,
 energy columns, content checksum) and ``meta.live.complete = true``.
+
+What the HUD showed: a row may also carry the seven HUD channels (:data:`pedas.hud_log.HUD_CHANNELS`, the values of
+:func:`pedas.hud_log.channel_values` of the frame sent with the advice; all or none). A session whose first flushed
+row has them stores them in every flush as the drive's extra channels (registered in ``drive_channels`` like an
+import's, :mod:`study.hud_channels`), and the complete log keeps them.
 """
 from __future__ import annotations
 
@@ -53,6 +58,7 @@ class LiveDriveLog:
         self.n = 0                      # samples committed
         self._pending: list[dict] = []
         self._first: dict | None = None
+        self._hud: tuple[str, ...] | None = None   # the HUD channels' names once a flush saw them, else ()
         self._last: dict | None = None
         self._lock = threading.Lock()    # the queue (held for microseconds: append runs in the event loop)
         self._write = threading.Lock()   # the store (flush and close, in a worker thread)
@@ -85,9 +91,13 @@ class LiveDriveLog:
                     return self.n
                 self._pending = []
             first = self._first or rows[0]
-            frame = pd.DataFrame(rows, columns=list(LIVE_COLUMNS))
+            if self._hud is None:   # the session's first flush decides: the rows carry the HUD channels or not
+                from study.hud_channels import hud_names
+
+                self._hud = hud_names() if all(k in rows[0] for k in hud_names()) else ()
+            frame = pd.DataFrame(rows, columns=list(LIVE_COLUMNS) + list(self._hud))
             last = rows[-1]
-            with self._store() as st, st.transaction():
+            with self._store() as st, st.transaction(), _hud_columns(st, bool(self._hud)):
                 if self.drive_id is None:
                     old = st.one("SELECT drive_id FROM drives WHERE participant_id = ? AND condition = ?",
                                  [self.participant_id, self.condition])
@@ -123,7 +133,8 @@ class LiveDriveLog:
             if self.drive_id is None:
                 return None
             with self._store() as st:
-                frame = drive_samples(st, self.participant_id, self.condition)[list(LIVE_COLUMNS)]
+                frame = drive_samples(st, self.participant_id, self.condition,
+                                      channels=list(self._hud or ()))[list(LIVE_COLUMNS) + list(self._hud or ())]
                 try:
                     return import_drive_frame(st, self.participant_id, self.condition, frame, source="import",
                                               route=self.route, replace=True,
@@ -133,6 +144,23 @@ class LiveDriveLog:
                     st.update("drives", {"drive_id": self.drive_id},
                               {"meta": self._meta(True, samples=len(frame), import_error=str(exc))})
                     return None
+
+
+@contextmanager
+def _hud_columns(st, wanted: bool):
+    """Within a flush's transaction: the HUD channels registered and their columns in drive_samples (when
+    `wanted`); the store's cached column list dropped afterwards (a rolled-back ALTER TABLE leaves it stale)."""
+    if not wanted:
+        yield
+        return
+    from study.drives import _store_channels
+    from study.hud_channels import hud_channel_defs
+
+    try:
+        _store_channels(st, hud_channel_defs())
+        yield
+    finally:
+        st._columns.pop("drive_samples", None)
 
 
 def _typed(frame: pd.DataFrame) -> pd.DataFrame:
@@ -145,4 +173,6 @@ def _typed(frame: pd.DataFrame) -> pd.DataFrame:
     out["warning"] = pd.array(out["warning"], dtype="boolean")
     for c in ("t", "s", "v", "speed_limit", "a", "grade", "d_tl", "leader_gap", "leader_v", "v_advice"):
         out[c] = out[c].astype(float)
+    for c in frame.columns[len(LIVE_COLUMNS):]:   # the HUD channels (NaN: not shown)
+        out[c] = pd.to_numeric(out[c]).astype(float)
     return out

@@ -7,6 +7,8 @@ A mapping is a TOML file (``[files] log_mapping`` of a study, or ``drive import 
     rate_hz = 60                # optional: the logger's sampling rate, checked against the time channel
     max_gap_s = 1.0             # optional: largest allowed time step (s), default 1 s
     distance_tolerance = 0.10   # optional: allowed relative difference of the integral of v dt and of s
+    vehicle = "ego"             # sumo-fcd: the vehicle (or drive import --vehicle)
+    route_edges = ["u01", ...]  # sumo-fcd: the SUMO edges of the study's route in driving order (study.fcd_route)
 
     [channels.v]                # a canonical channel (docs/contracts.md "Drive log") ...
     column = "speed_kmh"        # ... read from this source column
@@ -50,7 +52,7 @@ CHANNEL_NAME = re.compile(r"^[a-z][a-z0-9_]{0,62}$")
 RESERVED = ("drive_id", "idx")       # columns of drive_samples that are not channels
 DEFAULT_MAX_GAP_S = 1.0
 DEFAULT_DISTANCE_TOLERANCE = 0.10
-_LOG_KEYS = ("format", "vehicle", "rate_hz", "max_gap_s", "distance_tolerance", "name")
+_LOG_KEYS = ("format", "vehicle", "rate_hz", "max_gap_s", "distance_tolerance", "name", "route_edges")
 _CHANNEL_KEYS = ("column", "unit", "scale", "offset", "description", "to")
 _SLOPE_UNITS = ("percent", "permille")   # grade given as rise/run, not as an angle
 
@@ -121,6 +123,7 @@ class Mapping:
     format: str
     channels: tuple[Channel, ...]
     vehicle: str | None = None
+    route_edges: tuple[str, ...] = ()   # sumo-fcd: the SUMO edges of the study's route, in driving order
     rate_hz: float | None = None
     max_gap_s: float = DEFAULT_MAX_GAP_S
     distance_tolerance: float = DEFAULT_DISTANCE_TOLERANCE
@@ -189,6 +192,14 @@ def parse_mapping(text: str, name: str) -> tuple[Mapping | None, list[tuple[int 
     vehicle = log.get("vehicle")
     if vehicle is not None and not isinstance(vehicle, str):
         problems.append((_line(text, "log", "vehicle"), "log.vehicle", "must be a vehicle id (text)"))
+    route_edges = log.get("route_edges", [])
+    if not isinstance(route_edges, list) or not all(isinstance(e, str) and e and not e.startswith(":")
+                                                    for e in route_edges):
+        problems.append((_line(text, "log", "route_edges"), "log.route_edges",
+                         "must be a list of SUMO edge ids (text, not junction-internal ':' edges)"))
+        route_edges = []
+    elif route_edges and fmt != "sumo-fcd":
+        problems.append((_line(text, "log", "route_edges"), "log.route_edges", "is for sumo-fcd logs only"))
 
     def positive(key: str, default: float | None) -> float | None:
         v = log.get(key, default)
@@ -278,7 +289,7 @@ def parse_mapping(text: str, name: str) -> tuple[Mapping | None, list[tuple[int 
     if problems:
         return None, problems
     return Mapping(name=str(log.get("name", name)), format=fmt, channels=tuple(c for c in channels if c.name in names),
-                   vehicle=vehicle, rate_hz=rate, max_gap_s=gap or DEFAULT_MAX_GAP_S,
+                   vehicle=vehicle, route_edges=tuple(route_edges), rate_hz=rate, max_gap_s=gap or DEFAULT_MAX_GAP_S,
                    distance_tolerance=tol or DEFAULT_DISTANCE_TOLERANCE, text=text), []
 
 

@@ -3,7 +3,8 @@ their planned minutes.
 
 A protocol is a JSON file of a study folder (declared in its ``study.toml``, docs/study_folder.md) with an ordered
 list of ``phases`` (each a ``name``, ``planned_minutes``, whether it is a ``drive`` and for which ``condition`` of
-the study) and optionally ``orders`` (order name -> the phases in that order). Extra keys are kept in
+the study; a questionnaire phase names its ``instrument`` and optionally the condition it ``rates``, see
+:mod:`study.occasions`) and optionally ``orders`` (order name -> the phases in that order). Extra keys are kept in
 :attr:`Phase.extra` / :attr:`Protocol.extra` so that newer files load in older code. Recording a participant's way
 through a protocol is :mod:`study.protocol`; assigning an order, :mod:`study.orders`.
 """
@@ -23,6 +24,12 @@ class Phase:
     drive: bool = False
     condition: str | None = None
     extra: dict[str, Any] = field(default_factory=dict, compare=False, hash=False)
+    instrument: str | None = None   # a questionnaire phase: the instrument answered in it (its name, no version)
+    rates: str | None = None        # the condition a questionnaire phase after a drive rates
+
+    @property
+    def questionnaire(self) -> bool:
+        return self.instrument is not None
 
 
 @dataclass(frozen=True)
@@ -61,12 +68,16 @@ def parse_protocol(text: str, rel: str = "protocol.json") -> Protocol:
     steps = []
     for raw in data.get("phases", []):
         raw = {"name": raw} if isinstance(raw, str) else dict(raw)
-        known = {k: raw.pop(k) for k in ("name", "planned_minutes", "drive", "condition") if k in raw}
+        known = {k: raw.pop(k) for k in ("name", "planned_minutes", "drive", "condition", "instrument", "rates")
+                 if k in raw}
         if not isinstance(known.get("name"), str):
             raise UserError(f"{rel}: every phase needs a name")
         pm = known.get("planned_minutes")
         if pm is not None and (isinstance(pm, bool) or not isinstance(pm, (int, float)) or pm < 0):
             raise UserError(f"{rel}: phase {known['name']}: planned_minutes must be a number >= 0")
+        for k in ("instrument", "rates"):
+            if known.get(k) is not None and not isinstance(known[k], str):
+                raise UserError(f"{rel}: phase {known['name']}: {k} must be a name")
         steps.append(Phase(extra=raw, **known))
     names = [s.name for s in steps]
     if not names or len(set(names)) != len(names):

@@ -25,6 +25,7 @@ from study.protocol import load_protocol, status
 from study.protocol_file import planned_minutes
 
 ACTIVE = "booked"
+SIMULATOR_MAX = 40  # characters of a simulator name (the appointments table's CHECK)
 
 
 # ---------------------------------------------------------------------------------------------- helpers
@@ -48,6 +49,25 @@ def parse_date(value: str | date) -> date:
         return date.fromisoformat(str(value).strip())
     except ValueError:
         raise UserError(f"malformed date {value!r} (use ISO 8601, e.g. 2026-05-04)") from None
+
+
+def _slot_end(start: datetime, length: timedelta) -> datetime:
+    """`start` + `length`; UserError when the slot would end after 9999-12-31 23:59:59 (the last date-time)."""
+    try:
+        return start + length
+    except OverflowError:
+        raise UserError(f"a slot starting {start:%Y-%m-%d %H:%M} would end after 9999-12-31 (the latest date "
+                        "there is); book an earlier slot") from None
+
+
+def _simulator(name: str | None) -> str:
+    """The simulator name stripped; UserError when it is empty or longer than SIMULATOR_MAX characters."""
+    name = (name or "").strip()
+    if not name:
+        raise UserError("a simulator name is required")
+    if len(name) > SIMULATOR_MAX:
+        raise UserError(f"a simulator name has at most {SIMULATOR_MAX} characters, not {len(name)}")
+    return name
 
 
 def _active(st, participant_id: str) -> pd.DataFrame:
@@ -77,17 +97,19 @@ def book(st, participant_id: str, at: str | datetime, simulator: str = DEFAULT_S
     start = parse_datetime(at)
     if start < (now or datetime.now()):
         raise UserError(f"{start:%Y-%m-%d %H:%M} is in the past; book a future slot")
-    if buffer_minutes < 0:
-        raise UserError("the buffer cannot be negative")
-    simulator = (simulator or "").strip()
-    if not simulator:
-        raise UserError("a simulator name is required")
+    if not buffer_minutes >= 0:  # NaN too
+        raise UserError(f"the buffer must be a number of minutes >= 0, not {buffer_minutes!r}")
+    simulator = _simulator(simulator)
     p = participant_row(st, participant_id)
     proto = load_protocol(st, p["protocol"])
     minutes = planned_minutes(proto) + buffer_minutes
     if minutes <= 0:
         raise UserError(f"protocol {proto.name} plans no minutes; give a buffer to book a slot")
-    end = start + timedelta(minutes=minutes)
+    try:
+        length = timedelta(minutes=minutes)
+    except (OverflowError, ValueError):  # too many minutes, or infinite
+        raise UserError(f"a slot of {minutes:g} minutes is longer than any calendar; give a shorter buffer") from None
+    end = _slot_end(start, length)
     with st.transaction():
         excluded = exclusion_of(st, participant_id)
         if excluded:
@@ -120,8 +142,8 @@ def reschedule(st, participant_id: str, at: str | datetime, simulator: str | Non
         raise UserError(f"{start:%Y-%m-%d %H:%M} is in the past; reschedule to a future slot")
     with st.transaction():
         cur = _held(st, participant_id)
-        sim = (simulator or cur["simulator"]).strip()
-        end = start + (cur["ends_at"] - cur["starts_at"])
+        sim = _simulator(simulator or cur["simulator"])
+        end = _slot_end(start, cur["ends_at"] - cur["starts_at"])
         _check_free(st, sim, start, end, ignore=int(cur["appointment_id"]))
         return st.update("appointments", {"appointment_id": int(cur["appointment_id"])},
                          {"starts_at": start, "ends_at": end, "simulator": sim})

@@ -65,7 +65,9 @@ def drive_settings(df: pd.DataFrame, task) -> dict:
 
 def store_simulated(st, tasks, results: dict, replace: bool = False) -> list[tuple]:
     """Import the simulated drive of every task (`results`: {(participant_id, condition): log}) in task order;
-    [(task, log, import result)]."""
+    [(task, log, import result)]. What the HUD of a pEDAS drive showed (its columns
+    :data:`pedas.drive.HUD_LOG_COLUMNS`) is stored as the drive's HUD channels (:mod:`study.hud_channels`), so that
+    its replay shows exactly that."""
     from study.drives import import_drive_frame
 
     out = []

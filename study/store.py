@@ -43,6 +43,8 @@ LOCK_TIMEOUT = 30.0
 LOCK_BACKOFF_FIRST = 0.005
 LOCK_BACKOFF_FACTOR = 1.5
 LOCK_BACKOFF_MAX = 0.1
+#: the migration that keys answers by occasion; the rows it migrates get their occasion from the stored study
+OCCASIONS_MIGRATION = 50
 
 
 def _one_line(exc: BaseException) -> str:
@@ -151,6 +153,16 @@ class Store:
                 migrate.check_not_newer(con)
             st = cls(con, path, audit_trail.resolve_actor(actor), read_only)
             st.applied = [m.version for m in applied]  # migrations applied by this open (for `init`)
+            if OCCASIONS_MIGRATION in st.applied:  # answers stored before occasions get their study's occasion
+                from study.occasions import fill_migrated
+                from study.studies import definition
+
+                try:
+                    study = definition(st)
+                except UserError:  # no study stored yet: `init --study` fills them
+                    study = None
+                if study is not None:
+                    fill_migrated(st, study)
             st.lock_wait = wait
         except BaseException:
             con.close()
@@ -299,8 +311,10 @@ class Store:
     def _write(self, sql: str, params: list[Any], table: str):
         try:
             return self.con.execute(sql, params)
-        except duckdb.ConstraintException as exc:
-            raise UserError(f"{table}: {_one_line(exc)}") from exc
+        except duckdb.ConstraintException as exc:  # said as the field's rule when the constraint's shape is known
+            from study.constraint_text import constraint_rule
+
+            raise UserError(f"{table}: {constraint_rule(str(exc)) or _one_line(exc)}") from exc
         except (duckdb.ConversionException, duckdb.InvalidInputException) as exc:
             raise UserError(f"{table}: {_one_line(exc)}") from exc
 

@@ -87,6 +87,9 @@ def register(st, folder: str | Path, new_version: bool = False,
                                         "loaded_by": st.actor})
         _store_instruments(st, study)
     st._study_definition = None
+    from study.occasions import fill_migrated
+
+    fill_migrated(st, study)  # answers of a store migrated before it had a study get the study's occasion
     return ("stored" if ver == 1 else "new version"), ver
 
 
@@ -117,11 +120,25 @@ def _check_compatible(st, study: StudyDefinition) -> None:
             run_checks(study, values)
         except UserError as exc:
             refuse(f"participant {pid}", exc)
-    for cond in st.df("SELECT DISTINCT condition FROM drives ORDER BY 1")["condition"]:
+    for cond in st.df("SELECT DISTINCT condition FROM drives WHERE condition IS NOT NULL ORDER BY 1")["condition"]:
         try:
             study.check_condition(cond)
         except UserError as exc:
             refuse("drives", exc)
+    drive_phases = {ph.name for proto in study.protocols.values() for ph in proto.steps
+                    if ph.drive and ph.condition is None}
+    for phase in st.df("SELECT DISTINCT phase FROM drives WHERE phase IS NOT NULL ORDER BY 1")["phase"]:
+        if phase not in drive_phases:
+            refuse("drives", f"{phase!r} is no longer a drive phase without a condition")
+    from study.occasions import study_occasions
+
+    occasions = {o.name for o in study_occasions(study)}
+    for (occasion,) in st.con.execute("SELECT DISTINCT occasion FROM responses WHERE occasion <> '' UNION "
+                                      "SELECT DISTINCT occasion FROM survey_submissions WHERE occasion <> '' "
+                                      "ORDER BY 1").fetchall():
+        if occasion not in occasions:
+            refuse("survey answers", f"occasion {occasion!r} is no longer a questionnaire phase "
+                                     f"({', '.join(sorted(occasions)) or 'none'})")
     used = st.df("""SELECT protocol, NULL AS phase, NULL AS order_name FROM participants
                     UNION SELECT protocol, NULL, NULL FROM appointments
                     UNION SELECT p.protocol, e.phase, NULL

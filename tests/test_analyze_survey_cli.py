@@ -161,7 +161,9 @@ def test_cli_from_the_store_applies_subjective_exclusions(cli, paper_db, data, t
             long["instrument"] = inst.name
             long["entry_round"] = 1
             long["value"] = long["value"].astype(int)
-            st.insert_df("responses", long[["participant_id", "instrument", "item_id", "entry_round", "value"]])
+            long["occasion"] = "survey"   # the paper's study has one questionnaire phase
+            st.insert_df("responses", long[["participant_id", "instrument", "item_id", "entry_round", "value",
+                                            "occasion"]])
         exclude(st, "P040", "subjective", "motion_sickness")
         exclude(st, "P039", "objective", "technical_issue")  # does not affect the survey
     out = tmp_path / "store_out"

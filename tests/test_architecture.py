@@ -10,8 +10,8 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 PARTS = ("pedas", "study", "analysis", "pedas_study")   # each may import only the ones before it
-ROOMS = ("analysis.render", "analysis.survey", "analysis.paper", "analysis.drives", "analysis.sweep",
-         "analysis.report")                              # docs/architecture.md, "Code layout": downwards only
+ROOMS = ("analysis.render", "analysis.survey", "analysis.paper", "analysis.drives", "analysis.within",
+         "analysis.sweep", "analysis.report")                              # docs/architecture.md, "Code layout": downwards only
 
 
 def _modules(root: Path) -> dict[str, Path]:

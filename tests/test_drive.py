@@ -6,7 +6,7 @@ import pandas as pd
 import pytest
 
 from pedas.constants import DT, ROUTE_LENGTH
-from pedas.drive import LOG_COLUMNS, SafetyGuard, SafetyViolation, drive, green_crossings
+from pedas.drive import HUD_LOG_COLUMNS, LOG_COLUMNS, SafetyGuard, SafetyViolation, drive, green_crossings
 from pedas.route import Route, StopSign, TrafficLight
 
 pytestmark = pytest.mark.sumo
@@ -22,7 +22,8 @@ def check_log(df: pd.DataFrame) -> None:
     from pedas.route_study import study_route
 
     route = study_route()
-    assert tuple(df.columns) == LOG_COLUMNS
+    # a pEDAS drive carries what its HUD showed after the drive-log columns (pedas.hud_log)
+    assert tuple(df.columns) == LOG_COLUMNS + (HUD_LOG_COLUMNS if df.attrs["drive"]["condition"] == "pedas" else ())
     assert df["t"].iloc[0] == 0.0
     assert np.allclose(np.diff(df["t"]), DT)
     assert df["s"].iloc[-1] == pytest.approx(ROUTE_LENGTH, abs=100.0)
@@ -95,6 +96,19 @@ def test_pedas_drive_log():
     assert set(df["hud_arrow"].dropna().unique()) <= {-1, 0, 1}
     stats = df.attrs["drive"]["controller_stats"]
     assert stats["steps"] == len(df)
+    # the HUD channels agree with the logged speed, limit and arrow (whole km/h rounded half up)
+    assert (df["hud_speed"] == np.floor(df["v"] * 3.6 + 0.5)).all()
+    # the sign shows the logged limit, but the controller interpolates the limit between the route's grid points:
+    # the one sample before a change (the next sample's logged limit differs) may show a value in between
+    lim, nxt = np.floor(df["speed_limit"] * 3.6 + 0.5), np.floor(df["speed_limit"].shift(-1) * 3.6 + 0.5)
+    off = df["hud_limit"] != lim
+    assert (lim[off] != nxt[off]).all() and off.sum() <= (lim != nxt).sum() - 1
+    assert ((df["hud_limit"][off] - lim[off]) * (nxt[off] - df["hud_limit"][off]) > 0).all()
+    assert (df.loc[df["hud_arrow"] == 0, "hud_arrow_len"] == 0).all() and df["hud_arrow_len"].between(0, 1).all()
+    # the tone: a slow-down advice not followed (the arrow down at this sample or, as the timer counts, the last)
+    down = df["hud_arrow"].fillna(0).to_numpy() == -1
+    assert (down | np.r_[False, down[:-1]])[df["hud_tone"].to_numpy() == 1].all() and df["hud_tone"].any()
+    assert df["hud_countdown"].notna().equals(df["hud_light"].notna()) and df["hud_countdown"].notna().any()
 
 
 # --------------------------------------------------------------------------------------- the guard itself

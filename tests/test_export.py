@@ -39,9 +39,9 @@ def db(paper_db):
         import_drive_frame(st, "P001", "baseline", small_drive(), file_name="john_doe_run1.csv")
         for item, value in (("PU1", 4), ("PU2", 5), ("PEoU3", 2)):
             st.insert("responses", {"participant_id": "P001", "instrument": "pedas_acceptance_v1", "item_id": item,
-                                    "entry_round": 1, "value": value, "entered_by": "ra_mueller"})
+                                    "entry_round": 1, "value": value, "entered_by": "ra_mueller", "occasion": "survey"})
         st.insert("responses", {"participant_id": "P001", "instrument": "pedas_acceptance_v1", "item_id": "Q1",
-                                "entry_round": 1, "text": "fine", "entered_by": "ra_mueller"})
+                                "entry_round": 1, "text": "fine", "entered_by": "ra_mueller", "occasion": "survey"})
     return tmp_db
 
 

@@ -16,16 +16,27 @@ from study.store import Store
 from tests.test_export import db, small_drive  # noqa: F401  (the fixture: three participants, notes, a drive)
 
 
+def _shown(st, table: str) -> list[tuple[str, str]]:
+    """(column, type) of `table` as exported: the columns that carry nothing for this store are left out
+    (study.export.hidden_columns: the occasion of a study with one occasion, drives.phase without such drives)."""
+    from study.export import _study_of, hidden_columns
+
+    hide = hidden_columns(st, _study_of(st)).get(table, set())
+    cols = st.con.execute("SELECT column_name, data_type FROM duckdb_columns() WHERE table_name = ? "
+                          "AND schema_name = 'main' ORDER BY column_index", [table]).fetchall()
+    return [(c, t) for c, t in cols if c not in hide]
+
+
 def _store_rows(st, table: str) -> list[tuple]:
     order = " ORDER BY drive_id, idx" if table == "drive_samples" else ""
-    return st.con.execute(f'SELECT * FROM "{table}"{order}').fetchall()
+    cols = ", ".join(f'"{c}"' for c, _ in _shown(st, table))
+    return st.con.execute(f'SELECT {cols} FROM "{table}"{order}').fetchall()
 
 
 def _csv_rows(st, table: str, path) -> list[tuple]:
     """The CSV read back by DuckDB with the table's column types (doubles are written in their shortest exact form,
     so they read back bit for bit)."""
-    cols = st.con.execute("SELECT column_name, data_type FROM duckdb_columns() WHERE table_name = ? "
-                          "AND schema_name = 'main' ORDER BY column_index", [table]).fetchall()
+    cols = _shown(st, table)
     spec = "{" + ", ".join(f"'{c}': '{t}'" for c, t in cols) + "}"
     return st.con.execute(f"SELECT * FROM read_csv('{path}', header = true, columns = {spec})").fetchall()
 

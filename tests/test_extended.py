@@ -178,7 +178,7 @@ def test_invariance_refuses_small_groups_in_one_line(paper_scored):
         invariance(scored, meas, pd.Series("all", index=scored.index), group_var="site")
 
 
-def test_invariance_decisions_follow_delta_cfi():
+def test_invariance_decisions_follow_delta_cfi_and_delta_rmsea():
     data = pd.read_csv(REF / "invariance_survey.csv", dtype={"participant_id": str})
     study = load(PAPER)
     scored = score_responses(data.drop(columns="style"), study.instrument()).scored
@@ -187,10 +187,13 @@ def test_invariance_decisions_follow_delta_cfi():
     st = res.steps.set_index("step")
     assert list(st.index) == ["configural", "metric", "scalar"]
     assert (st["df"].diff().iloc[1:] > 0).all() and (st["chi2"].diff().iloc[1:] > 0).all()
+    assert st.loc["configural", "holds"] == bool(st.loc["configural", "cfi"] >= 0.90
+                                                  and st.loc["configural", "rmsea"] <= 0.08)
     for step in ("metric", "scalar"):
-        holds_here = st.loc[step, "delta_cfi"] >= -0.01
+        holds_here = st.loc[step, "delta_cfi"] >= -0.01 and st.loc[step, "delta_rmsea"] <= 0.015
         prev = st.index[list(st.index).index(step) - 1]
         assert st.loc[step, "holds"] == bool(holds_here and st.loc[prev, "holds"])
+    assert list(st["holds"]) == [True, True, False] and st.loc["scalar", "reason"] == "Delta CFI -0.012 < -0.01"
     assert res.groups["n"].sum() == 240
 
 

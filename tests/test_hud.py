@@ -73,3 +73,33 @@ def test_thresholds_are_keyword_arguments():
     standing = advisory(HudState(v=0.0), [0.26], HudContext())
     assert standing.hud_arrow == 1
     assert advisory(HudState(v=0.0), [0.26], HudContext(), start_min=0.5).hud_arrow == 0
+
+
+def test_tone_only_when_slow_down_advice_not_followed():
+    """The HUD's tone is the paper's rule (slow-down advice not followed for warn_delay s); a violated safe
+    distance alone raises the controller's warning (the virtual driver's cue) but no tone."""
+    violated = advisory(HudState(v=10.0), [10.0], HudContext(psi=-0.5))
+    assert violated.warning and not violated.tone
+    ignored = advisory(HudState(v=10.0, slow_unfollowed=2.0), [8.0], HudContext())
+    assert CONTROLLER.warn_delay == 2.0 and ignored.tone and ignored.warning
+    assert not advisory(HudState(v=10.0, slow_unfollowed=1.8), [8.0], HudContext()).tone
+    # at 5 Hz the timer sums 0.2 s steps in floating point: after ten it holds 1.9999999999999998 s (< 2.0), so
+    # the tone sounds on the eleventh sample, 2.2 s after the arrow turned down (the controller's warning alike)
+    unf = 0.0
+    for _ in range(10):
+        unf = update_unfollowed(unf, -1, -0.1, 0.2)
+    assert unf == 1.9999999999999998
+    assert not advisory(HudState(v=10.0, slow_unfollowed=unf), [8.0], HudContext()).tone
+    unf = update_unfollowed(unf, -1, -0.1, 0.2)
+    assert advisory(HudState(v=10.0, slow_unfollowed=unf), [8.0], HudContext()).tone
+
+
+def test_counted_down_phase_and_yield_sign():
+    ctx = HudContext(tl_distance=80.0, tl_remaining=4.2, tl_state="red")
+    red = advisory(HudState(v=10.0), [10.0], ctx)
+    assert (red.tl_countdown, red.tl_phase) == (4.2, "red")
+    # no countdown (more than 10 s left): no phase either
+    assert advisory(HudState(v=10.0), [10.0], HudContext(tl_distance=80.0, tl_remaining=12.0,
+                                                        tl_state="green")).tl_phase is None
+    assert advisory(HudState(v=10.0), [10.0], HudContext(stop_distance=60.0, stop_kind="yield")).icon == "yield_sign"
+    assert advisory(HudState(v=10.0), [10.0], HudContext(stop_distance=60.0)).icon == "stop_sign"

@@ -38,11 +38,12 @@ SHOWN = """el => {
   return {speed: r.getElementById('speed').textContent, fill: r.getElementById('speed').getAttribute('fill'),
           arrow: vis('arrow') ? r.getElementById('arrow').getAttribute('stroke') : null,
           arrow_len: vis('arrow') ? Number(r.getElementById('arrow').dataset.length) : 0,
-          tip_up: vis('arrow') ? /M350 (\\d+\\.?\\d*) L350 (\\d+\\.?\\d*)/.exec(r.getElementById('arrow').getAttribute('d'))
+          tip_up: vis('arrow') ? /M258 (\\d+\\.?\\d*) L258 (\\d+\\.?\\d*)/.exec(r.getElementById('arrow').getAttribute('d'))
                                    .slice(1).map(Number).reduce((a, b) => a > b) : null,
           limit: vis('limit') ? r.getElementById('limit-text').textContent : null,
           countdown: vis('countdown') ? r.getElementById('countdown-text').textContent : null,
-          icons: ['green_wave', 'stop_sign', 'curve'].filter(i => vis('icon-' + i)),
+          icons: ['green_wave', 'stop_sign', 'yield_sign', 'curve'].filter(i => vis('icon-' + i)),
+          lamps: ['red', 'yellow', 'green'].filter(l => r.getElementById('lamp-' + l).getAttribute('fill') !== '#4a4a4a'),
           warning: vis('warning'), tones: Number(el.dataset.tones)};
 }"""
 COLOURS = {"black": "#111", "green": "#0a9d3c", "red": "#d2161e"}
@@ -69,18 +70,68 @@ def test_each_fig7_situation_is_drawn_as_its_frame_says(page, sit):
     assert shown["countdown"] == (None if f.countdown is None else str(f.countdown))
     assert shown["icons"] == ([f.icon] if f.icon else [])
     assert shown["warning"] == f.warning
+    assert shown["lamps"] == ([f.light] if f.countdown is not None else [])
 
 
 def test_arrow_length_and_tone(page):
     base = fig7_frames()["a"].as_dict()
     short = draw(page, {**base, "arrow_len": 0.1})["arrow_len"]
     long = draw(page, {**base, "arrow_len": 0.9})["arrow_len"]
-    assert short == pytest.approx(28 + 92 * 0.1, abs=0.06) and long == pytest.approx(28 + 92 * 0.9, abs=0.06)
+    assert short == pytest.approx(30 + 160 * 0.1, abs=0.06) and long == pytest.approx(30 + 160 * 0.9, abs=0.06)
     tones = draw(page, base)["tones"]
     assert draw(page, {**base, "warning": True})["tones"] == tones + 1      # switched on: one tone
     assert draw(page, {**base, "warning": True})["tones"] == tones + 1      # still on: no new tone
     draw(page, base)
     assert draw(page, {**base, "warning": True})["tones"] == tones + 2      # on again: a second tone
+
+
+BOXES = """el => {
+  // boxes in the 480 x 270 view's units, from the rendered boxes (groups are translated)
+  const r = el.shadowRoot, s = r.querySelector('svg').getBoundingClientRect(), k = 480 / s.width,
+        box = id => { const b = r.getElementById(id).getBoundingClientRect();
+                      return [(b.left - s.left) * k, (b.top - s.top) * k, (b.right - s.left) * k, (b.bottom - s.top) * k]; };
+  return {speed: box('speed'), arrow: box('arrow'), limit: box('limit'), countdown: box('countdown'),
+          text: r.getElementById('speed').textContent};
+}"""
+
+
+@pytest.mark.parametrize("speed", [0, 99, 100, 188])
+def test_speeds_up_to_three_digits_fit_left_of_the_arrow(page, speed):
+    """Region 1 (speed, limit below it) ends at x = 208 of the 480-wide view, the arrow is at x = 258 +- 14:
+    the digits of 0..188 km/h, the limit under them and the full-length arrow do not overlap (screenshots in
+    tests/output/hud/speed_<n>.png)."""
+    frame = {"speed": speed, "advice": speed + 20, "limit": 120, "arrow": 1, "arrow_len": 1.0, "color": "green",
+             "in_band": False, "countdown": 9, "light": "green", "icon": "green_wave", "warning": False}
+    hud = page.locator("#hud")
+    hud.evaluate("(el, f) => { el.frame = f; }", frame)
+    b = hud.evaluate(BOXES)
+    assert b["text"] == str(speed)
+    assert 4 <= b["speed"][0] and b["speed"][2] <= 208 < b["arrow"][0]            # digits left of the arrow
+    assert b["speed"][3] <= b["limit"][1]                                          # the limit below the speed
+    assert b["arrow"][2] < 308 <= b["countdown"][0]                                # arrow left of region 3
+    OUTPUT.mkdir(parents=True, exist_ok=True)
+    hud.screenshot(path=str(OUTPUT / f"speed_{speed}.png"), animations="disabled")
+
+
+def test_green_and_red_countdowns_differ_and_icons(page):
+    """The counted-down phase's lamp is lit (green bottom, red top) and the digits take its colour; the G and
+    the yield icon are drawn."""
+    base = {"speed": 40, "advice": 40, "limit": 50, "arrow": 0, "arrow_len": 0, "color": "black", "in_band": True,
+            "countdown": 6, "icon": None, "warning": False}
+    green, red = draw(page, {**base, "light": "green"}), draw(page, {**base, "light": "red"})
+    assert (green["lamps"], red["lamps"]) == (["green"], ["red"])
+    digit = "el => el.shadowRoot.getElementById('countdown-text').getAttribute('fill')"
+    draw(page, {**base, "light": "green"})
+    g = page.locator("#hud").evaluate(digit)
+    draw(page, {**base, "light": "red"})
+    assert g != page.locator("#hud").evaluate(digit)
+    assert draw(page, {**base, "icon": "yield_sign", "countdown": None})["icons"] == ["yield_sign"]
+    icon_text = "el => el.shadowRoot.querySelector('#icon-green_wave text').textContent"
+    assert page.locator("#hud").evaluate(icon_text) == "G"
+    hud = page.locator("#hud")
+    hud.evaluate("(el, f) => { el.frame = f; }", {**base, "icon": "yield_sign", "countdown": None})
+    OUTPUT.mkdir(parents=True, exist_ok=True)
+    hud.screenshot(path=str(OUTPUT / "yield_sign.png"), animations="disabled")
 
 
 def test_cli_writes_the_nine_pngs(cli_proc, tmp_path):
@@ -91,15 +142,21 @@ def test_cli_writes_the_nine_pngs(cli_proc, tmp_path):
     out = tmp_path / "fig7"
     r = cli_proc("hud", "fig7", "--out", out, db=None, timeout=300)
     assert r.code == 0, r.err
-    assert r.out.count(".png") == 9 and "fig7.html" in r.out
+    assert r.out.count(".png") == 9 and "fig7.html" in r.out and r.out.count("the paper: ") == 9
+    for k in "abcdefghi":   # the text beside each PNG: letter, caption, the paper's sentence, the state
+        text = (out / f"fig7_{k}.txt").read_text(encoding="utf-8")
+        assert text.startswith(f"Fig. 7({k}) ") and "The paper: " in text and "State: P" in text
     images = {k: Image.open(out / f"fig7_{k}.png").convert("RGB") for k in "abcdefghi"}
     assert {im.size for im in images.values()} == {images["a"].size} and images["a"].size[0] == 480
     assert len({im.tobytes() for im in images.values()}) == 9          # nine different pictures
-    # green digits in (a), red in (b), black in (c): count pixels of each colour
+    # green digits in (e), red in (f), black in (d): count pixels of each colour
     def count(im, rgb):
         return int((np.abs(np.asarray(im, int) - rgb) < 12).all(axis=2).sum())
-    assert count(images["a"], (10, 157, 60)) > 2000 and count(images["a"], (210, 22, 30)) < count(images["b"], (210, 22, 30))
-    assert count(images["c"], (10, 157, 60)) == 0
+    assert count(images["e"], (10, 157, 60)) > 2000 and count(images["e"], (210, 22, 30)) < count(images["f"], (210, 22, 30))
+    assert count(images["d"], (10, 157, 60)) == 0
+    # the lit lamp: green in (h), red in (i)
+    assert count(images["h"], (25, 179, 74)) > 200 and count(images["i"], (25, 179, 74)) == 0
+    assert count(images["i"], (224, 25, 31)) > 200 and count(images["h"], (224, 25, 31)) == 0
     OUTPUT.mkdir(parents=True, exist_ok=True)
     for k in "abcdefghi":
         shutil.copy(out / f"fig7_{k}.png", OUTPUT / f"fig7_{k}.png")

@@ -7,6 +7,7 @@ import pytest
 
 from pedas.constants import KMH
 from pedas.hud import HudAdvice
+from pedas.hud import advisory
 from pedas.hud_frame import FIG7, HudFrame, fig7_frames, hud_frame
 
 
@@ -21,9 +22,13 @@ def test_rounding_to_displayed_integers():
     f = hud_frame(12.64, _advice(v_opt=12.5, speed_limit=50 * KMH))
     assert (f.speed, f.advice, f.limit) == (46, 45, 50)
     assert hud_frame(-0.01, _advice()).speed == 0            # a negative speed reading shows 0
-    # the countdown is rounded up: 2.3 s left shows 3, exactly 4 s shows 4
-    assert hud_frame(10.0, _advice(tl_countdown=2.3)).countdown == 3
+    # the countdown is rounded down (the paper shows times under 10 s): 2.3 s left shows 2, exactly 4 s shows 4,
+    # 9.99 s shows 9 (never 10), the last second shows 0; a float 6.9999999999 for 7 s shows 7
+    assert hud_frame(10.0, _advice(tl_countdown=2.3)).countdown == 2
     assert hud_frame(10.0, _advice(tl_countdown=4.0)).countdown == 4
+    assert hud_frame(10.0, _advice(tl_countdown=9.99)).countdown == 9
+    assert hud_frame(10.0, _advice(tl_countdown=0.4)).countdown == 0
+    assert hud_frame(10.0, _advice(tl_countdown=7.0 - 1e-10)).countdown == 7
     assert hud_frame(10.0, _advice()).countdown is None and hud_frame(10.0, _advice()).limit is None
 
 
@@ -40,27 +45,51 @@ def test_frame_from_controller_advisory_fields():
 
     adv = Advisory(v_advice=11.0, controller="rt", mode="dp", ft=0.0, fb=0.0, hud_arrow=1, arrow_len=0.4,
                    hud_in_band=False, warning=True, tl_countdown=5.5, icon="curve", solve_status="solved",
-                   fallback=False, plan_v=(11.0,), speed_limit=50 * KMH)
+                   fallback=False, plan_v=(11.0,), speed_limit=50 * KMH, tl_phase="green", tone=False)
     hud = _advice(v_opt=11.0, hud_arrow=1, arrow_len=0.4, hud_in_band=False, color="green", warning=True,
-                  tl_countdown=5.5, icon="curve", speed_limit=50 * KMH)
+                  tl_countdown=5.5, icon="curve", speed_limit=50 * KMH, tl_phase="green")
     assert hud_frame(9.0, adv) == hud_frame(9.0, hud)
-    assert json.loads(json.dumps(hud_frame(9.0, adv).as_dict()))["countdown"] == 6
+    shown = json.loads(json.dumps(hud_frame(9.0, adv).as_dict()))
+    assert (shown["countdown"], shown["light"]) == (5, "green")
+    # the frame's warning is the tone: the controller's warning without a tone (safe distance) sounds nothing
+    assert shown["warning"] is False
+    assert hud_frame(9.0, _advice(hud_arrow=-1, hud_in_band=False, warning=True, tone=True)).warning is True
 
 
-def test_fig7_situations_show_what_their_captions_say():
+def test_fig7_panels_show_what_the_papers_text_says():
+    """Each panel, produced by advisory from a recorded controller state of a reference drive, shows what the
+    paper's text describes for it (the paper, Fig. 7 and Sec. 3.8)."""
     frames = fig7_frames()
     assert list(frames) == list("abcdefghi")
     a, b, c, d, e, f, g, h, i = (frames[k] for k in "abcdefghi")
-    assert (a.arrow, a.color) == (1, "green") and (b.arrow, b.color) == (-1, "red")
-    assert (c.arrow, c.color, c.in_band) == (0, "black", True)
-    assert d.countdown == 7 and d.icon is None          # 6.4 s left -> 7
-    assert (e.icon, e.arrow) == ("green_wave", 1)
-    assert f.icon == "stop_sign" and g.icon == "curve" and g.limit == 100
-    assert h.warning and i.warning and not any(frames[k].warning for k in "abcdefg")
-    # only the situation that shows a countdown has one, only e-g show an icon
-    assert [k for k, fr in frames.items() if fr.countdown is not None] == ["d"]
-    assert [k for k, fr in frames.items() if fr.icon] == ["e", "f", "g"]
-    assert len({s.caption for s in FIG7}) == 9
+    assert a.arrow != 0 and a.countdown is not None                      # all three regions shown
+    assert b.icon == "green_wave"                                        # the "G" icon
+    assert (c.icon, c.arrow) == ("stop_sign", -1)                        # stop sign, slow down
+    assert (d.color, d.in_band, d.arrow) == ("black", True, 0) and d.limit >= 100   # band, freeway
+    assert (e.arrow, e.icon, e.countdown) == (1, None, None)             # speed up to the comfort distance
+    assert (f.arrow, f.icon, f.countdown) == (-1, None, None)            # slow down before d_s is violated
+    assert (g.icon, g.arrow) == ("curve", -1)
+    assert (h.light, i.light) == ("green", "red") and h.countdown < 10 and i.countdown < 10
+    assert not any(fr.warning for fr in frames.values())
+    by = {s.key: s for s in FIG7}
+    assert by["d"].context.mode == "dp" and by["b"].context.mode == "green_wave"
+    assert by["e"].context.psi > 0 and 0.0 <= by["f"].context.psi <= 5.0         # psi = d_rel - d_s, m
+    assert len({s.sentence for s in FIG7}) == 9 and all(s.drive.startswith("P") for s in FIG7)
+
+
+def test_each_stored_state_passes_its_panels_test():
+    """The stored states (pedas/hud_fig7.json) pass the test of the panel they are stored for (pedas.hud_search)."""
+    from pedas.hud_search import PANELS, pick
+    from pedas.params import CONTROLLER
+
+    w = CONTROLLER.cf_weights
+    records = [{"advice": advisory(s.state, s.plan, s.context), "context": s.context, "v": s.state.v,
+                "plan0": s.plan[0], "controller": "cf" if s.context.mode == "follow" else "rt",
+                "leader": (s.context.psi + w.h_s * s.state.v + w.d_min, 8.0) if s.context.psi is not None else None,
+                "d_c": w.h_c * s.state.v + w.d_min} for s in FIG7]
+    for p, r in zip(PANELS, records):
+        assert p.test(r), p.key      # every stored panel passes its own panel's test
+        assert pick(records, p) is not None
 
 
 @pytest.mark.parametrize("v_opt,expected", [(10.0 + 5 * KMH, 0.5), (10.0 + 20 * KMH, 1.0)])

@@ -13,6 +13,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from pedas.live import LiveRoute, LiveSession
@@ -57,7 +58,9 @@ def test_session_advice_equals_the_in_process_controller(live):
 
     session = LiveSession(live)
     ready = json.loads(session.handle('{"type":"hello"}'))
-    assert ready == {"type": "ready", "route": "synthetic-mixed", "length_m": 13200.0, "logging": False}
+    assert ready == {"type": "ready", "route": "synthetic-mixed", "length_m": 13200.0, "logging": False,
+                     "pair": session.pair}
+    assert len(session.pair) == 8 and set(session.pair) <= set("23456789ABCDEFGHJKLMNPQRSTUVWXYZ")
     ref = PedasController(live.route, v_dp=live.v_dp)
     for k, msg in enumerate(states(150)):
         if k == 50:
@@ -87,6 +90,8 @@ def test_spat_checked_against_the_route_program(live):
 
 # ---------------------------------------------------------------------------------------------- the drive log
 def test_drive_log_complete_after_bye(paper_db, live):
+    from pedas.hud_frame import HudFrame
+    from pedas.hud_log import channel_values
     from study.drives import drive_samples, import_drive_frame
     from study.live_log import LIVE_COLUMNS, LiveDriveLog
     from study.participants import add_participant
@@ -107,16 +112,19 @@ def test_drive_log_complete_after_bye(paper_db, live):
         row = st.df("SELECT n_samples, duration_s, meta FROM drives WHERE participant_id = 'P001'").iloc[0]
         assert row["n_samples"] == 30 and row["duration_s"] == pytest.approx(29 * 0.2)
         assert json.loads(row["meta"])["live"]["complete"] is False
-        for msg in msgs[30:]:
-            session.handle(json.dumps(msg))
+        replies = [json.loads(session.handle(json.dumps(msg))) for msg in msgs[30:]]
         done = json.loads(session.handle('{"type":"bye"}'))
         assert done["samples"] == 60 and done["drive_id"] is not None
         d = st.df("SELECT drive_id, n_samples, checksum, meta FROM drives WHERE participant_id = 'P001'").iloc[0]
-        log = drive_samples(st, "P001", "pedas")
+        log = drive_samples(st, "P001", "pedas", channels=True)
         assert d["n_samples"] == 60 and json.loads(d["meta"])["live"]["complete"] is True
         session_id = json.loads(d["meta"])["live"]["session"]
         assert d["checksum"] != hashlib.sha256(session_id.encode()).hexdigest()   # the content's, not the placeholder
-        again = import_drive_frame(st, "P001", "pedas", log[list(LIVE_COLUMNS)], source="import")
+        # what the page was sent is what the log stores as the displayed HUD (pedas.hud_log)
+        shown = pd.DataFrame([channel_values(HudFrame(**r["hud"])) for r in replies])
+        pd.testing.assert_frame_equal(log[list(shown.columns)].iloc[30:].reset_index(drop=True), shown,
+                                      check_dtype=False)
+        again = import_drive_frame(st, "P001", "pedas", log[[*LIVE_COLUMNS, *shown.columns]], source="import")
         assert again.status == "unchanged"                                # the same content stored as an import
         assert log["t"].iloc[-1] == pytest.approx(59 * 0.2) and (log["v"] == 10.0).all()
         assert log["leader_gap"].isna().sum() == 10 and (log["controller"].iloc[10:] == "cf").all()
@@ -179,19 +187,20 @@ def test_killed_session_keeps_what_was_logged(paper_db, cli_proc):
 
 
 def test_udp_and_the_hud_page_feed(cli_proc):
-    """A simulator speaking UDP gets the advice; the HUD page's feed gets each frame; a second server on the same
-    port and a client without a server are one-line errors."""
+    """A simulator speaking UDP gets the advice; the feed of the HUD page paired with its session gets each frame;
+    a second server on the same port and a client without a server are one-line errors."""
     from websockets.sync.client import connect
 
     proc, port = start_server(None)
     try:
         r = cli_proc("live", "serve", "--no-log", "--route", "synthetic-mixed", "--port", port, db=None, timeout=120)
         assert r.code == 2 and r.err.count("\n") == 1 and f"cannot listen on 127.0.0.1:{port}" in r.err
-        with connect(f"ws://127.0.0.1:{port}/display") as display:
-            udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-            udp.settimeout(30)
-            udp.sendto(b'{"type":"hello"}', ("127.0.0.1", port))
-            assert json.loads(udp.recv(65536))["type"] == "ready"
+        udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        udp.settimeout(30)
+        udp.sendto(b'{"type":"hello"}', ("127.0.0.1", port))
+        ready = json.loads(udp.recv(65536))
+        assert ready["type"] == "ready"
+        with connect(f"ws://127.0.0.1:{port}/display?pair={ready['pair']}") as display:
             for msg in states(5):
                 udp.sendto(json.dumps(msg).encode(), ("127.0.0.1", port))
                 reply = json.loads(udp.recv(65536))
@@ -235,7 +244,8 @@ def test_udp_session_logs_a_complete_drive(paper_db):
 @pytest.mark.browser
 @needs_chromium
 def test_hud_page_in_chromium_follows_the_advice():
-    """The server's full-screen HUD page (/) draws each frame the simulator's states produce."""
+    """The server's full-screen HUD page (/?pair=CODE, the code of the simulator's session) draws each frame the
+    simulator's states produce."""
     from playwright.sync_api import expect, sync_playwright
     from websockets.sync.client import connect
 
@@ -246,11 +256,11 @@ def test_hud_page_in_chromium_follows_the_advice():
         with sync_playwright() as p:
             b = launch(p)
             page = b.new_page(viewport={"width": 960, "height": 540})
-            page.goto(f"http://127.0.0.1:{port}/")
-            expect(page.locator("#state")).to_have_text("live", timeout=30_000)
             with connect(f"ws://127.0.0.1:{port}/") as ws:
                 ws.send('{"type":"hello"}')
-                ws.recv(timeout=30)
+                code = json.loads(ws.recv(timeout=30))["pair"]
+                page.goto(f"http://127.0.0.1:{port}/?pair={code}")
+                expect(page.locator("#state")).to_have_text("live", timeout=30_000)
                 for msg in states(3, v=13.0):
                     ws.send(json.dumps(msg))
                     reply = json.loads(ws.recv(timeout=30))
@@ -258,6 +268,13 @@ def test_hud_page_in_chromium_follows_the_advice():
             assert page.locator("#hud").get_attribute("data-speed") == str(reply["hud"]["speed"]) == "47"
             (OUTPUT / "live").mkdir(parents=True, exist_ok=True)
             page.screenshot(path=str(OUTPUT / "live" / "hud_page.png"))
+            # without a code the page asks for one; with a code no session has it says so and stays unpaired
+            page.goto(f"http://127.0.0.1:{port}/")
+            expect(page.locator("#state")).to_have_text("not paired", timeout=30_000)
+            expect(page.locator("#pair input[name=pair]")).to_be_visible()
+            page.screenshot(path=str(OUTPUT / "live" / "hud_page_unpaired.png"))
+            page.goto(f"http://127.0.0.1:{port}/?pair=AAAAAAAA")
+            expect(page.locator("#state")).to_contain_text("unknown pairing code 'AAAAAAAA'", timeout=30_000)
             b.close()
     finally:
         proc.send_signal(signal.SIGINT)

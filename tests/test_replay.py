@@ -50,8 +50,10 @@ def test_frames_from_the_log_hand_worked():
     assert fr.loc[0, "arrow_len"] == pytest.approx(0.5)              # 5 km/h of the 10 km/h full scale
     assert fr.loc[30, "arrow"] == 0 and fr.loc[30, "in_band"] and fr.loc[30, "arrow_len"] == 0.0
     assert fr.loc[0, "countdown"] == 8                                # 8.0 s left
-    assert fr.loc[1, "countdown"] == 8                                # 7.8 s left: rounded up
-    assert bool(fr.loc[3, "warning"]) and not fr["warning"].drop(3).any()
+    assert fr.loc[1, "countdown"] == 7                                # 7.8 s left: rounded down
+    assert fr.loc[0, "light"] == "green"                              # the logged phase, lit in the glyph
+    # the logged warning of sample 3 is the controller's alert without a slow-down arrow: the HUD sounded no tone
+    assert not fr["warning"].any()
     # the stop sign at 450 m is within icon_range (150 m) from s = 300 m on: samples with s >= 300
     s = log()["s"]
     assert (fr["icon"].fillna("") == "stop_sign").tolist() == (450.0 - s <= 150.0).tolist()
@@ -59,6 +61,19 @@ def test_frames_from_the_log_hand_worked():
     bare = log_frames(log())
     assert bare["countdown"].isna().all() and bare["icon"].isna().all()
     assert bare[["speed", "arrow", "arrow_len", "warning"]].equals(fr[["speed", "arrow", "arrow_len", "warning"]])
+
+
+def test_tone_rebuilt_from_the_logged_arrow_and_speed():
+    """Arrow down from sample 0 at a constant 10 m/s (no deceleration): the controller's timer adds the logged
+    time steps from sample 1 on (t rounded to 1e-6 s: the steps sum to 2.0 s at sample 10), so the tone sounds from
+    sample 10 on; a decelerating driver (-1 m/s^2 from sample 20 on) resets it at once."""
+    df = log()
+    df["hud_arrow"] = pd.array([-1] * 50, dtype="Int8")
+    df["hud_in_band"] = pd.array([False] * 50, dtype="boolean")
+    df["v_advice"] = df["v"] - 5 * KMH
+    df.loc[20:, "v"] = 10.0 - 1.0 * (df.loc[20:, "t"] - df.loc[19, "t"])
+    fr = log_frames(df, ROUTE, t_insert=12.0)
+    assert fr["warning"].tolist() == [False] * 10 + [True] * 10 + [False] * 30
 
 
 def test_baseline_shows_speed_and_limit_only():
@@ -75,6 +90,72 @@ def test_page_data_signals_and_json():
     assert d["signals"] == [{"id": "L1", "s": 300.0, "spans": [[0.0, 9.8 + 0.2, "green"]]}]
     assert d["gap"][0] is None and d["v"][0] == 36.0 and d["frames"]["countdown"][0] is None
     json.dumps(data, allow_nan=False)                                 # strict JSON: no NaN leaks into the page
+
+
+def stored_channel_frames(st, participant_id: str, condition: str) -> pd.DataFrame:
+    """The frames the store's HUD channels of a drive say were shown, computed here without the replay's code:
+    frame_from_channels of each sample's seven channels with the displayed advice, the logged arrow and band."""
+    from pedas.hud_frame import HudFrame, display_kmh
+    from pedas.hud_log import HUD_CHANNELS, frame_from_channels
+    from study.drives import drive_samples
+
+    names = [n for n, _, _ in HUD_CHANNELS]
+    df = drive_samples(st, participant_id, condition, channels=names)
+    frames = [frame_from_channels({n: float(r[n]) for n in names},
+                                  None if pd.isna(r["v_advice"]) else display_kmh(float(r["v_advice"])),
+                                  int(r["hud_arrow"]), bool(r["hud_in_band"])).as_dict()
+              for r in df.astype(object).to_dict("records")]
+    return pd.DataFrame(frames, columns=list(HudFrame.__dataclass_fields__))
+
+
+@pytest.fixture
+def stored_hud(paper_db) -> Path:
+    """The paper's store with P001's pEDAS drive carrying the HUD channels (400 samples,
+    :func:`tests.test_hud_channels.hud_log`) and a baseline drive (380) without them."""
+    from study.drives import import_drive_frame
+    from study.participants import add_participant
+    from study.store import Store
+    from tests.test_hud_channels import hud_log
+
+    with Store.open(paper_db, actor="lab") as st:
+        add_participant(st, "P001")
+        import_drive_frame(st, "P001", "pedas", hud_log(400))
+        import_drive_frame(st, "P001", "baseline", log(380, "baseline"))
+    return paper_db
+
+
+def test_replay_from_a_store_shows_the_stored_frames(stored_hud):
+    from analysis.drives.replay import replay_drives
+    from study.store import Store
+
+    with Store.open(stored_hud, actor="lab", read_only=True) as st:
+        pedas, base = replay_drives(st, "P001", "pedas")
+        want = stored_channel_frames(st, "P001", "pedas")
+    assert (pedas.hud_source, base.hud_source) == ("stored", "rebuilt")
+    assert pedas.frames.equals(want)
+    fr = pedas.frames
+    # hand-worked from hud_log: what the log alone cannot rebuild (green-wave and curve icons, the stored tone)
+    assert fr.loc[0, "icon"] == "green_wave" and fr.loc[35, "icon"] == "curve" and pd.isna(fr.loc[25, "icon"])
+    assert (fr.loc[0, "countdown"], fr.loc[0, "light"], fr.loc[9, "countdown"]) == (9, "green", 0)
+    assert fr["warning"].tolist()[38:47] == [False, False] + [True] * 5 + [False, False]
+    assert (fr.loc[0, "speed"], fr.loc[0, "advice"], fr.loc[0, "limit"], fr.loc[0, "arrow_len"]) == (36, 41, 50, 0.5)
+    assert base.frames.equals(log_frames(log(380, "baseline").reset_index(drop=True)))
+    data = page_data("P001", [pedas, base])
+    assert [d["hud_source"] for d in data["drives"]] == ["stored", "rebuilt"]
+
+
+def test_partly_stored_channels_are_used_where_present():
+    from analysis.drives.replay import drive_frames
+    from tests.test_hud_channels import hud_log
+
+    df = hud_log(60)
+    df.loc[20:, [n for n in df.columns if n.startswith("hud_") and n not in ("hud_arrow", "hud_in_band")]] = np.nan
+    fr, source = drive_frames(df, ROUTE, t_insert=12.0)
+    assert source == "stored for 20 of 60 samples"
+    assert fr.loc[0, "icon"] == "green_wave"                         # stored
+    assert fr.loc[55, "icon"] == "stop_sign"                         # rebuilt: s = 310 m, the sign 140 m ahead
+    assert fr.iloc[20:].reset_index(drop=True).equals(log_frames(df, ROUTE, t_insert=12.0).iloc[20:]
+                                                      .reset_index(drop=True).astype(object))
 
 
 def test_cli_errors_leave_no_page(cli, paper_db, tmp_path):
@@ -187,6 +268,30 @@ def test_replay_page_in_chromium(browser, cli, two_drives, tmp_path):
     check_replay_page(browser, out, ["pedas", "baseline"], page_json(out), OUTPUT / "replay" / "synthetic.png")
 
 
+@pytest.mark.browser
+@needs_chromium
+def test_stored_hud_in_chromium(browser, cli, stored_hud, tmp_path):
+    """The page draws the stored frame (green-wave icon, countdown 9 in green at t = 0; the curve icon at t = 7 s,
+    which a rebuilt HUD never shows) and says per drive where its HUD comes from."""
+    out = tmp_path / "stored.html"
+    r = cli("drive", "replay", "P001", "pedas", "--out", out, db=stored_hud)
+    assert r.code == 0, r.err
+    page = browser.new_page(viewport={"width": 1300, "height": 1000})
+    errors = []
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    page.goto(out.as_uri())
+    pedas, base = (page.locator(f"section.drive[data-condition='{c}']") for c in ("pedas", "baseline"))
+    assert pedas.get_attribute("data-hud-source") == "stored" and base.get_attribute("data-hud-source") == "rebuilt"
+    assert pedas.locator(".hud-source").inner_text() == "HUD as shown: the drive's stored HUD channels"
+    assert base.locator(".hud-source").inner_text().startswith("HUD rebuilt from the drive log")
+    hud = pedas.locator("pedas-hud")
+    assert (hud.get_attribute("data-icon"), hud.get_attribute("data-countdown")) == ("green_wave", "9")
+    slide(page, 7.0)                                                   # sample 35: the stored curve icon
+    assert pedas.get_attribute("data-index") == "35" and hud.get_attribute("data-icon") == "curve"
+    assert errors == []
+    page.close()
+
+
 @pytest.mark.slow
 @pytest.mark.sumo
 @pytest.mark.browser
@@ -207,7 +312,14 @@ def test_replay_of_p006_in_chromium(browser, cli, tmp_db, tmp_path):
     data = page_json(out)
     pedas = data["drives"][0]
     assert [d["condition"] for d in data["drives"]] == ["pedas", "baseline"]
-    # the rebuilt HUD of the pEDAS drive shows countdowns and stop signs somewhere on the route
+    # the simulated pEDAS drive stored what its HUD showed; the page shows exactly that (the baseline: rebuilt)
+    assert [d["hud_source"] for d in data["drives"]] == ["stored", "rebuilt"]
+    with Store.open(tmp_db, actor="lab", read_only=True) as st:
+        want = stored_channel_frames(st, "P006", "pedas")
+    assert pedas["frames"] == page_data("P006", [ReplayDrive("pedas", pd.DataFrame({c: [] for c in (
+        "t", "s", "v", "v_advice", "speed_limit", "leader_gap", "controller", "tl_id", "tl_state", "d_tl")}), want)]
+    )["drives"][0]["frames"]
+    # countdowns, stop signs, and now the green-wave and curve icons somewhere on the route
     assert any(c is not None for c in pedas["frames"]["countdown"])
-    assert "stop_sign" in pedas["frames"]["icon"] and len(pedas["signals"]) >= 5
+    assert {"stop_sign", "green_wave", "curve"} <= set(pedas["frames"]["icon"]) and len(pedas["signals"]) >= 5
     check_replay_page(browser, out, ["pedas", "baseline"], data, OUTPUT / "replay" / "P006.png")

@@ -252,7 +252,7 @@ def test_a_new_version_that_reinterprets_stored_data_is_refused(cli, lk_db, tmp_
         add_participant(st, "LK-01", {"age": 70, "km_per_year": 5000})
         advance(st, "LK-01", "familiarisation", at="2026-05-04T09:00")   # assigns the order hud_first
         st.insert("responses", {"participant_id": "LK-01", "instrument": "lk_acceptance_v1", "item_id": "PE1",
-                                "value": 6})
+                                "value": 6, "occasion": "questionnaire"})
     d = copy_study(tmp_path)
     change(d)
     before = _counts(lk_db)
@@ -268,7 +268,7 @@ def test_a_changed_codebook_in_use_goes_into_a_new_instrument_version(cli, lk_db
     with Store.open(lk_db) as st:
         add_participant(st, "LK-01", {"age": 30})
         st.insert("responses", {"participant_id": "LK-01", "instrument": "lk_acceptance_v1", "item_id": "PE1",
-                                "value": 6})
+                                "value": 6, "occasion": "questionnaire"})
     d = copy_study(tmp_path)
     edit(d / "codebook.csv", "helps me keep my lane.", "helps me stay in my lane.")
     edit(d / "study.toml", "version = 1", "version = 2")

@@ -2,7 +2,11 @@
 play/pause, speed with advice and limit, leader gap, controller, the signal states on a space-time strip and the HUD
 as the driver saw it; the person's drives side by side on one time axis.
 
-The HUD of each sample is rebuilt from the drive log (docs/contracts.md columns) by :func:`log_frames`:
+The HUD of each sample is what the drive stored of it when it did: the HUD channels of
+:data:`pedas.hud_log.HUD_CHANNELS` (a simulated pEDAS drive, a live session), read back with
+:func:`pedas.hud_log.frame_from_channels` and the logged ``v_advice``, ``hud_arrow`` and ``hud_in_band``
+(:func:`stored_frames`) — exactly what was shown. A drive without them (an older store, another simulator's log, a
+baseline drive) has its HUD rebuilt from the drive log (docs/contracts.md columns) by :func:`log_frames`:
 
 * digits, arrow direction and colour, band state and warning tone: the logged ``v``, ``hud_arrow``,
   ``hud_in_band``, ``warning``; the advised speed ``v_advice``; the limit ``speed_limit``;
@@ -13,7 +17,8 @@ The HUD of each sample is rebuilt from the drive log (docs/contracts.md columns)
   lines' positions). A drive log does not carry the controller's mode or the curve look-ahead, so
   the green-wave and curve icons are not replayed (docs/hud.md).
 
-A drive without advice (baseline) shows its speed and limit only, as the driver saw no HUD advice.
+A drive without advice (baseline) shows its speed and limit only, as the driver saw no HUD advice. The page says
+per drive which of the two it shows (:attr:`ReplayDrive.hud_source`).
 """
 from __future__ import annotations
 
@@ -28,19 +33,27 @@ import pandas as pd
 from pedas.constants import KMH
 from pedas.hud import HudContext, HudState, advisory
 from pedas.hud_frame import HudFrame, display_kmh, hud_frame
+from pedas.hud_log import HUD_CHANNELS, frame_from_channels, unfollowed_series
 from pedas.params import CONTROLLER
 
 SIGNAL_STATES = ("green", "yellow", "red")
+HUD_NAMES = tuple(name for name, _, _ in HUD_CHANNELS)
+#: what the page says about where a drive's HUD comes from (ReplayDrive.hud_source)
+HUD_STORED = "stored"
+HUD_REBUILT = "rebuilt"
 
 
 @dataclass(frozen=True)
 class ReplayDrive:
     """One drive of the page: condition, its samples (tidy frame: t, s, v, v_advice, speed_limit, leader_gap,
-    controller, tl_id, tl_state, d_tl) and the HUD frame of every sample (:func:`log_frames`)."""
+    controller, tl_id, tl_state, d_tl), the HUD frame of every sample and where the frames come from: ``stored``
+    (the drive's HUD channels, :func:`stored_frames`), ``rebuilt`` (:func:`log_frames`) or, for a drive that stored
+    them for some samples only, ``stored for K of N samples``."""
 
     condition: str
     samples: pd.DataFrame
     frames: pd.DataFrame
+    hud_source: str = HUD_REBUILT
 
 
 def log_frames(df: pd.DataFrame, route=None, t_insert: float | None = None,
@@ -53,9 +66,15 @@ def log_frames(df: pd.DataFrame, route=None, t_insert: float | None = None,
     lights = {tl.tl_id: tl for tl in route.lights} if route is not None and t_insert is not None else {}
     stops = np.array(sorted(ss.s for ss in route.stops), float) if route is not None else np.empty(0)
     kw = {k: getattr(settings, k) for k in ("arrow_full_scale", "icon_range", "warn_delay", "standstill", "start_min")}
-    cols = df[["t", "s", "v", "v_advice", "speed_limit", "tl_id", "d_tl", "hud_arrow", "hud_in_band", "warning"]]
+    cols = df[["t", "s", "v", "v_advice", "speed_limit", "tl_id", "d_tl", "hud_arrow", "hud_in_band", "warning",
+               "tl_state"]]
+    # the tone (a slow-down advice not followed) with the controller's timer over the logged t, v and arrow
+    unfollowed = unfollowed_series(df["t"].to_numpy(float), df["v"].to_numpy(float),
+                                   df["hud_arrow"].astype(object).where(df["hud_arrow"].notna(), None).tolist(),
+                                   not_decel=settings.not_decel)
     frames = []
-    for t, s, v, adv, limit, tl_id, d_tl, arrow, in_band, warning in cols.astype(object).itertuples(index=False):
+    for k, (t, s, v, adv, limit, tl_id, d_tl, arrow, in_band, warning, tl_state) in enumerate(
+            cols.astype(object).itertuples(index=False)):
         limit = None if pd.isna(limit) else float(limit)
         if pd.isna(adv):   # no advice in this drive (baseline): speed and limit only
             frames.append(HudFrame(speed=display_kmh(max(v, 0.0)), advice=None, limit=display_kmh(limit), arrow=0,
@@ -66,8 +85,10 @@ def log_frames(df: pd.DataFrame, route=None, t_insert: float | None = None,
         j = int(np.searchsorted(stops, s))
         ctx = HudContext(tl_distance=None if tl is None else float(d_tl),
                          tl_remaining=None if tl is None else tl.remaining(t + t_insert),
-                         stop_distance=float(stops[j] - s) if j < stops.size else None, speed_limit=limit)
-        shown = advisory(HudState(v=float(v)), [float(adv)], ctx, **kw)   # countdown and icon by the HUD's rules
+                         stop_distance=float(stops[j] - s) if j < stops.size else None, speed_limit=limit,
+                         tl_state=None if pd.isna(tl_state) else str(tl_state))
+        # countdown, its phase, icon and tone by the HUD's rules
+        shown = advisory(HudState(v=float(v), slow_unfollowed=unfollowed[k]), [float(adv)], ctx, **kw)
         arrow = 0 if pd.isna(arrow) else int(arrow)                        # arrow, band, tone: as logged
         shown = dataclasses.replace(
             shown, hud_arrow=arrow, hud_in_band=bool(in_band) if not pd.isna(in_band) else arrow == 0,
@@ -75,6 +96,36 @@ def log_frames(df: pd.DataFrame, route=None, t_insert: float | None = None,
             arrow_len=0.0 if arrow == 0 else min(abs(float(adv) - v) / settings.arrow_full_scale, 1.0))
         frames.append(hud_frame(float(v), shown))
     return pd.DataFrame([f.as_dict() for f in frames], columns=list(HudFrame.__dataclass_fields__))
+
+
+def stored_frames(df: pd.DataFrame) -> pd.DataFrame:
+    """The HUD frame (the fields of :class:`pedas.hud_frame.HudFrame`) of every sample of a drive log that carries
+    the HUD channels (:data:`HUD_NAMES`, every sample): :func:`pedas.hud_log.frame_from_channels` of the sample's
+    channels with the advice as displayed (whole km/h of ``v_advice``), ``hud_arrow`` and ``hud_in_band``."""
+    cols = df[list(HUD_NAMES) + ["v_advice", "hud_arrow", "hud_in_band"]].astype(object)
+    frames = []
+    for row in cols.itertuples(index=False):
+        ch = {k: (float("nan") if pd.isna(x) else float(x)) for k, x in zip(HUD_NAMES, row)}
+        adv, arrow, in_band = row[len(HUD_NAMES):]
+        arrow = 0 if pd.isna(arrow) else int(arrow)
+        frames.append(frame_from_channels(ch, None if pd.isna(adv) else display_kmh(float(adv)), arrow,
+                                          arrow == 0 if pd.isna(in_band) else bool(in_band)))
+    return pd.DataFrame([f.as_dict() for f in frames], columns=list(HudFrame.__dataclass_fields__))
+
+
+def drive_frames(df: pd.DataFrame, route=None, t_insert: float | None = None) -> tuple[pd.DataFrame, str]:
+    """(HUD frame of every sample, where they come from): the stored HUD channels where the log has them
+    (``hud_speed`` not empty), :func:`log_frames` elsewhere; the source as :attr:`ReplayDrive.hud_source`."""
+    have = (df["hud_speed"].notna().to_numpy() if all(c in df.columns for c in HUD_NAMES)
+            else np.zeros(len(df), bool))
+    if have.all():
+        return stored_frames(df), HUD_STORED
+    rebuilt = log_frames(df, route, t_insert)
+    if not have.any():
+        return rebuilt, HUD_REBUILT
+    out = rebuilt.astype(object)
+    out.loc[have] = stored_frames(df[have]).astype(object).to_numpy()
+    return out, f"{HUD_STORED} for {int(have.sum())} of {len(df)} samples"
 
 
 def _route_for(drive_row: dict):
@@ -93,7 +144,7 @@ def _route_for(drive_row: dict):
 def replay_drives(st, participant_id: str, condition: str, others: bool = True) -> list[ReplayDrive]:
     """The drive of `participant_id` in `condition` first, then (others=True) the person's other drives in
     alphabetical order of their conditions; UserError when the drive is not stored."""
-    from study.drives import drive_samples
+    from study.drives import drive_samples, list_channels
     from study.errors import UserError
 
     rows = st.df("SELECT condition, route, meta FROM drives WHERE participant_id = ? ORDER BY condition",
@@ -102,12 +153,16 @@ def replay_drives(st, participant_id: str, condition: str, others: bool = True) 
     if condition not in by_cond:
         raise UserError(f"{participant_id} has no {condition} drive")
     order = [condition] + ([c for c in by_cond if c != condition] if others else [])
+    # the HUD channels when this store has them (an older store has none: every HUD is rebuilt)
+    hud = list(HUD_NAMES) if set(HUD_NAMES) <= set(list_channels(st)["channel"]) else False
     out = []
     for cond in order:
-        df = drive_samples(st, participant_id, cond)
-        route, t_ins = _route_for(by_cond[cond])
+        df = drive_samples(st, participant_id, cond, channels=hud)
+        stored = bool(hud) and bool(df["hud_speed"].notna().all())
+        route, t_ins = (None, None) if stored else _route_for(by_cond[cond])   # the route only to rebuild
+        frames, source = drive_frames(df, route, t_ins)
         out.append(ReplayDrive(cond, df[["t", "s", "v", "v_advice", "speed_limit", "leader_gap", "controller",
-                                         "tl_id", "tl_state", "d_tl"]], log_frames(df, route, t_ins)))
+                                         "tl_id", "tl_state", "d_tl"]], frames, source))
     return out
 
 
@@ -144,7 +199,7 @@ def page_data(participant_id: str, drives: list[ReplayDrive]) -> dict:
     for d in drives:
         df, fr = d.samples, d.frames
         out.append({
-            "condition": d.condition,
+            "condition": d.condition, "hud_source": d.hud_source,
             "t": _num(df["t"], 2), "s": _num(df["s"], 1), "v": _num(df["v"] / KMH, 2),
             "advice": _num(df["v_advice"] / KMH, 2), "limit": _num(df["speed_limit"] / KMH, 1),
             "gap": _num(df["leader_gap"], 1), "controller": _col(df["controller"]),
@@ -174,6 +229,7 @@ align-items:center;z-index:1}}
 #drives{{display:grid;grid-template-columns:repeat({len(drives)},minmax(0,1fr));gap:18px}}
 pedas-hud{{width:min(100%,420px)}}
 .readout{{font-size:13px;min-height:2.6em}}
+.hud-source{{font-size:12px;color:#555;margin:0 0 6px}}
 h2{{margin:8px 0;text-transform:capitalize}}
 </style>
 <script>{hud_script()}</script></head>

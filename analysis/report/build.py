@@ -34,6 +34,7 @@ from analysis.render import write_table
 from analysis.report.pipeline import Pipeline, Step, StepResult
 from pedas.paths import NETWORK_DIR, REFERENCE_DIR, REPO_ROOT
 from pedas.scenario import DEFAULT_SCENARIO, SINGLE_LANE
+from study.errors import UserError
 
 CODE = {name: REPO_ROOT / name for name in ("study", "pedas", "analysis")}
 #: the one-line reason a step that skipped writes into its output folder
@@ -176,7 +177,13 @@ def survey_step(cfg: ReportConfig) -> None:
     with _open_store(cfg, read_only=True) as st:
         reason = survey_missing(st, definition(st))
         if reason is None:
-            res, responses = analyze_store(st, n_boot=cfg.n_boot, seed=cfg.seed or 20240101)
+            try:
+                res, responses = analyze_store(st, n_boot=cfg.n_boot, seed=cfg.seed or 20240101)
+            except (ValueError, UserError) as exc:
+                # too few rows for the CFA, a singular covariance matrix, ...: the part is skipped with its reason,
+                # the rest of the report still runs
+                reason = f"the survey analysis (CFA, reliability, regressions) cannot run: {exc}"
+        if reason is None:
             # Table 3 the way SPSS FACTOR reports it (first principal component per construct), beside our CFA;
             # only the loadings differ, so no bootstrap, and the CFA fits are the ones above
             pca, _ = analyze_store(st, n_boot=0, seed=cfg.seed or 20240101, loadings="pca", reuse=res)
@@ -194,6 +201,24 @@ def survey_step(cfg: ReportConfig) -> None:
         else:
             (out / "extended").mkdir()
             (out / "extended" / SKIPPED).write_text(ext_reason + "\n", encoding="utf-8")
+
+
+def within_step(cfg: ReportConfig) -> None:
+    """within/: the within-subjects comparison the study declares ([within]; analysis.within), or the reason it
+    could not run."""
+    from analysis.within.analyze import analyze_store_within
+
+    with _open_store(cfg, read_only=True) as st:
+        try:
+            res, data = analyze_store_within(st)
+            reason = None
+        except UserError as exc:
+            reason = f"within-subjects comparison: {exc}"
+    with _fresh_dir(cfg.out / "within") as out:
+        if reason is not None:
+            (out / SKIPPED).write_text(reason + "\n", encoding="utf-8")
+            return
+        res.write(out, data)
 
 
 def write_table3_pca(pca, out: Path) -> None:
@@ -400,7 +425,7 @@ def collect_step(cfg: ReportConfig) -> None:
     tables, figs = cfg.out / "tables", cfg.out / "figures"
     tables.mkdir(parents=True, exist_ok=True)
     figs.mkdir(parents=True, exist_ok=True)
-    for sub in ("survey", "survey/pca", "survey/extended", "drives", "scenarios", "sweep", "paper"):
+    for sub in ("survey", "survey/pca", "survey/extended", "drives", "within", "scenarios", "sweep", "paper"):
         d = cfg.out / sub
         if not d.exists():
             continue
@@ -458,7 +483,6 @@ def comparison_skip(cfg: ReportConfig, study) -> str | None:
 def core_figures_apply(study) -> bool:
     """Whether the simulation core's figures belong to `study`'s report: only to a study whose conditions the
     simulator drives. For any other study the part does not exist (no step, no section, no skip line)."""
-    from study.errors import UserError
     from study.simulated import check_simulable
 
     try:
@@ -466,6 +490,25 @@ def core_figures_apply(study) -> bool:
     except UserError:
         return False
     return True
+
+
+def within_applies(study) -> bool:
+    """Whether the study declares a within-subjects comparison ([within]); without one the part does not exist."""
+    from study.within_spec import within_spec
+
+    return within_spec(study) is not None
+
+
+def absent_parts(study) -> set[str]:
+    """Parts of the document the study's declaration rules out, shown not even as skipped (their steps still say
+    why in the command's output and the steps table): the survey analysis without an instrument or a model file,
+    the audit and reproduction without published values."""
+    out = set()
+    if not study.instruments or study.model is None:
+        out.add("survey")
+    if "published" not in study.paths:
+        out |= {"audit", "reproduction"}
+    return out
 
 
 def planned_skips(cfg: ReportConfig, study) -> dict[str, str]:
@@ -480,7 +523,7 @@ def planned_skips(cfg: ReportConfig, study) -> dict[str, str]:
 def data_skips(cfg: ReportConfig) -> dict[str, str]:
     """Parts skipped because the store lacks their data, as the steps recorded them: part -> reason."""
     out = {}
-    for part in ("survey", "drives"):
+    for part in ("survey", "drives", "within"):
         reason = skipped_reason(cfg.out / part)
         if reason:
             out[part] = reason
@@ -527,6 +570,9 @@ def build_pipeline(cfg: ReportConfig, study=None) -> Pipeline:
                   inputs=[*store_inputs, CODE["analysis"], params]))
     pipe.add(Step("drives", lambda: drives_step(cfg), outputs=[cfg.out / "drives"], after=after_store,
                   inputs=[*store_inputs, CODE["analysis"], params]))
+    if within_applies(study):
+        pipe.add(Step("within", lambda: within_step(cfg), outputs=[cfg.out / "within"], after=after_store,
+                      inputs=[*store_inputs, CODE["analysis"], params]))
     if cfg.compares():
         pipe.add(Step("scenarios", lambda: scenarios_step(cfg), outputs=[cfg.out / "scenarios"],
                       after=["drives", "comparison store"], inputs=[CODE["analysis"], params]))
@@ -567,6 +613,6 @@ def run_report(cfg: ReportConfig) -> ReportResult:
     with _open_store(cfg, read_only=True) as st:
         render_document(cfg.out, st, steps, skipped,
                         mode="reference study" if cfg.reference else "lab store", store_name=cfg.db.name,
-                        core=core_figures_apply(study))
+                        core=core_figures_apply(study), absent=absent_parts(study))
     files = sorted(p for p in cfg.out.rglob("*") if p.is_file())
     return ReportResult(cfg.out, steps, files, _verdict(cfg.out), skipped)

@@ -31,7 +31,8 @@ SECTIONS = ("Study", "Participant flow", "Methods", "Survey results", "Drive res
 #: software the methods name, as (label, distribution, the part of a run that uses it: None = every run, "survey" =
 #: the survey analysis, "simulation" = drives simulated by the report; the QP solver is the controller's backend)
 SOFTWARE = (("numpy", "numpy", None), ("pandas", "pandas", None), ("DuckDB", "duckdb", None),
-            ("semopy", "semopy", "survey"), ("statsmodels", "statsmodels", "survey"), ("QP", "qp", "simulation"),
+            ("semopy", "semopy", "survey"), ("statsmodels", "statsmodels", "survey"),
+            ("pingouin", "pingouin", "within"), ("statsmodels", "statsmodels", "within"), ("QP", "qp", "simulation"),
             ("SUMO", "eclipse-sumo", "simulation"), ("matplotlib", "matplotlib", None))
 #: the controller's QP backend -> (label, distribution)
 QP_SOLVERS = {"daqp": ("DAQP", "daqp"), "osqp": ("OSQP", "osqp")}
@@ -208,10 +209,10 @@ def _read_csv(path: Path) -> pd.DataFrame | None:
 
 def software_versions(parts=("survey", "simulation")) -> list[tuple[str, str]]:
     """(name, version) of Python and the libraries a run used (installed distributions): those every run uses and
-    those of the `parts` that ran ("survey", "simulation")."""
+    those of the `parts` that ran ("survey", "within", "simulation"), each once."""
     out = [("Python", platform.python_version())]
     for label, dist, part in SOFTWARE:
-        if part is not None and part not in parts:
+        if part is not None and part not in parts or any(label == name for name, _ in out):
             continue
         if dist == "qp":
             from pedas.params import CONTROLLER
@@ -335,6 +336,8 @@ CORE_FIGURES = ("aero_linearisation", "speed_correction", "power_map_fit", "dp_p
 SURVEY_TABLES = ("survey_table3", "survey_table4", "survey_table5", "survey_hypotheses", "survey_fit",
                  "survey_item_flags", "survey_loadings", "survey_reliability", "survey_correlations", "survey_htmt",
                  "survey_fornell_larcker", "survey_regressions", "survey_descriptives")
+#: the tables a model without regressions has nothing to show in
+NO_REGRESSION_TABLES = ("survey_table5", "survey_hypotheses", "survey_regressions")
 DRIVE_TABLES = ("drives_style_table", "drives_summary", "drives_bands", "drives_band_diagnostics",
                 "scenarios_bands", "scenarios_band_diagnostics",
                 "drives_participant_table", "drives_per_participant", "drives_kpis",
@@ -446,6 +449,14 @@ def _flow_section(out: Path, st, study, used_figs: set, used_tabs: set) -> list[
     return parts
 
 
+def _scale_text(ins, item: str) -> str:
+    """'7-point' of a rating scale, 'min-max slider in steps of k' of a slider/VAS item."""
+    lo, hi = ins.scale(item)
+    if str(ins.items.loc[item, "response_type"]) == "slider":
+        return f"{lo}-{hi} slider in steps of {ins.step(item)}"
+    return f"{hi - lo + 1}-point"
+
+
 def _methods_section(out: Path, st, study, ran: tuple[str, ...]) -> list[str]:
     parts = ["<h2 id=\"methods\">Methods</h2>"]
     sw = ", ".join(f"{esc(n)} {esc(v)}" for n, v in software_versions(ran))
@@ -456,7 +467,7 @@ def _methods_section(out: Path, st, study, ran: tuple[str, ...]) -> list[str]:
         settings = json.loads(sfile.read_text(encoding="utf-8"))
     if study.instruments:
         ins = study.instrument()
-        scales = sorted({f"{hi - lo + 1}-point" for lo, hi in (ins.scale(i) for i in ins.scaled_items)})
+        scales = sorted({_scale_text(ins, i) for i in ins.scaled_items})
         rev = ", ".join(ins.reverse_items) or "none"
         parts.append(f"<p><strong>Instrument.</strong> <code>{esc(ins.name)}</code>: {len(ins.items)} items, "
                      f"{len(ins.scaled_items)} on {esc(' and '.join(scales))} scales; reverse-scored: "
@@ -536,9 +547,46 @@ def _survey_section(out: Path, study, skipped: dict, used_figs: set, used_tabs: 
     if warnings.is_file() and warnings.read_text(encoding="utf-8").strip():
         items = "".join(f"<li>{esc(w)}</li>" for w in warnings.read_text(encoding="utf-8").splitlines() if w)
         parts.append(f"<p><strong>Warnings of the analysis</strong></p><ul>{items}</ul>")
+    ext_warnings = out / "survey" / "extended" / "warnings.txt"
+    if ext_warnings.is_file() and ext_warnings.read_text(encoding="utf-8").strip():
+        items = "".join(f"<li>{esc(w)}</li>" for w in ext_warnings.read_text(encoding="utf-8").splitlines() if w)
+        parts.append(f"<p><strong>Warnings of the extended statistics</strong></p><ul>{items}</ul>")
     parts += _figures(out, SURVEY_FIGURES, study, used_figs)
     stems = [s for s in SURVEY_TABLES] + sorted(p.stem for p in (out / "tables").glob("survey_*.md"))
+    regressions = _read_csv(out / "survey" / "regressions.csv")
+    if regressions is not None and regressions.empty:
+        parts.append("<p>The analysis model declares no regressions: no regression table and no hypotheses.</p>")
+        stems = [s for s in stems if s not in NO_REGRESSION_TABLES]
     parts += [t for t in (_md_table(out, s, used_tabs) for s in stems) if t]
+    return parts
+
+
+def _within_section(out: Path, skipped: dict, used_tabs: set) -> list[str]:
+    """The within-subjects comparison (analysis.within): the generated methods and results sentences, the order
+    counts, a figure of individual lines per variable and the test tables. Absent for a study without [within]."""
+    d = out / "within"
+    if "within" not in skipped and not d.exists():
+        return []
+    parts = ["<h2 id=\"within\">Within-subjects comparison</h2>"]
+    if "within" in skipped:
+        return parts + [_skipped(skipped["within"])]
+    text = (d / "methods.md").read_text(encoding="utf-8")
+    parts.append(markdown_to_html(text.split("\n", 1)[1], heading_offset=2))
+    for stem in ("orders", "descriptives", "anova", "friedman", "posthoc", "mixed", "mixed_fit", "reliability",
+                 "item_descriptives"):
+        md = d / f"{stem}.md"
+        if md.is_file() and len(pd.read_csv(d / f"{stem}.csv")):
+            used_tabs.add(f"within_{stem}")
+            parts.append(markdown_to_html(md.read_text(encoding="utf-8"), base="within/"))
+        if stem == "descriptives":
+            variables = pd.read_csv(d / "descriptives.csv")["variable"].drop_duplicates()
+            for variable in variables:
+                png = d / f"lines_{variable}.png"
+                if not png.is_file():
+                    continue
+                parts.append(f"<figure><img src=\"within/{esc(png.name)}\" alt=\"{esc(variable)} by condition\">"
+                             f"<figcaption>{esc(variable)} by condition: one grey line per participant, the "
+                             f"condition means with their 95 % confidence intervals in black.</figcaption></figure>")
     return parts
 
 
@@ -637,10 +685,11 @@ def _files_section(out: Path, steps, skipped: dict, used_figs: set, used_tabs: s
 
 
 def render_document(out: Path, st, steps, skipped: dict[str, str], mode: str = "lab store",
-                    store_name: str = "", core: bool = True) -> Path:
+                    store_name: str = "", core: bool = True, absent: set[str] = frozenset()) -> Path:
     """Write `out/index.html`: the whole report as one document (module docstring) for the study of the open
     store `st`; `steps` are the pipeline's StepResults, `skipped` the parts not produced with their reasons; `core`:
-    whether the simulation core's figures belong to the study (without them there is no such section)."""
+    whether the simulation core's figures belong to the study (without them there is no such section); `absent`:
+    the parts the study's declaration rules out (no section either, :func:`analysis.report.build.absent_parts`)."""
     from study.studies import definition
 
     out = Path(out)
@@ -652,12 +701,16 @@ def render_document(out: Path, st, steps, skipped: dict[str, str], mode: str = "
     body += _study_section(st, study, mode, store_name)
     body += _flow_section(out, st, study, used_figs, used_tabs)
     ran = (*(("survey",) if "survey" not in skipped else ()),
+           *(("within",) if (out / "within" / "anova.csv").is_file() and "within" not in skipped else ()),
            *(("simulation",) if mode == "reference study" else ()))
     body += _methods_section(out, st, study, ran)
-    body += _survey_section(out, study, skipped, used_figs, used_tabs)
+    if "survey" not in absent:
+        body += _survey_section(out, study, skipped, used_figs, used_tabs)
+    body += _within_section(out, skipped, used_tabs)
     body += _drives_section(out, study, skipped, used_figs, used_tabs)
     body += _core_section(out, study, skipped, used_figs, core)
-    body += _reproduction_section(out, skipped, used_tabs)
+    if "reproduction" not in absent:
+        body += _reproduction_section(out, skipped, used_tabs)
     body += _files_section(out, steps, skipped, used_figs, used_tabs, study)
     page = ("<!doctype html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
             "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">"

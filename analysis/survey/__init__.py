@@ -9,6 +9,7 @@ __all__, __getattr__, __dir__ = lazy_exports(__name__, __path__, {
                    "attributes_from_store", "covariate_frame", "covariates_of"),
     "extended": ("ExtendedAnalysis", "analyze_extended"),
     "scoring": ("score_responses", "composites", "resolve_instrument", "check_not_constant"),
+    "scores": ("compute_scores", "instrument_scores", "score_occasions", "scored_items"),
     "descriptives": ("item_descriptives",),
     "cfa": ("fit_cfa", "fit_indices", "srmr", "heywood_cases", "flag_items", "model_description"),
     "reliability": ("cronbach_alpha", "alpha_from_cov", "composite_reliability", "average_variance_extracted",

@@ -24,6 +24,8 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
+from analysis.survey.admissibility import improper
+
 SOLVERS = (("SLSQP", {"ftol": 1e-12, "maxiter": 2000}), ("L-BFGS-B", {"ftol": 1e-14, "gtol": 1e-10, "maxiter": 20000}))
 
 
@@ -250,7 +252,8 @@ def _standard_errors(model) -> dict:
 
 def heywood_cases(loadings: pd.DataFrame, psi: pd.DataFrame, S: pd.DataFrame, tag: str = "") -> list[str]:
     """Warnings for improper solutions: error variance <= 0 (or at its bound), |std loading| >= 1,
-    latent variance <= 0 or a latent covariance matrix that is not positive definite.
+    latent variance <= 0 or a latent covariance matrix that is not positive definite
+    (:func:`analysis.survey.admissibility.improper`).
 
     Examples
     --------
@@ -265,26 +268,10 @@ def heywood_cases(loadings: pd.DataFrame, psi: pd.DataFrame, S: pd.DataFrame, ta
     CFA final: Heywood case: error variance of x1 = -0.01 (<= 0)
     CFA final: Heywood case: standardized loading of x2 = 1.020 (|lambda| >= 1)
     """
-    out = []
-    for _, r in loadings.iterrows():
-        s_ii = S.loc[r["item"], r["item"]]
-        if r["error_var"] <= 1e-6 * s_ii:
-            # a variance at its bound is zero up to optimiser noise (~1e-18); print it as such
-            ev = 0.0 if abs(r["error_var"]) < 1e-10 else r["error_var"]
-            out.append(f"{tag}Heywood case: error variance of {r['item']} = {ev:.4g} (<= 0)")
-        elif abs(r["loading"]) >= 1.0:
-            out.append(f"{tag}Heywood case: standardized loading of {r['item']} = {r['loading']:.3f} (|lambda| >= 1)")
-    for c in psi.index:
-        if psi.loc[c, c] <= 0:
-            out.append(f"{tag}Heywood case: latent variance of {c} = {psi.loc[c, c]:.4g} (<= 0)")
-    if len(psi) > 1 and np.min(np.linalg.eigvalsh(psi.to_numpy())) <= 0:
-        sd = np.sqrt(np.abs(np.diag(psi.to_numpy())))
-        corr = psi.to_numpy() / np.outer(sd, sd)
-        np.fill_diagonal(corr, 0.0)
-        i, j = np.unravel_index(np.argmax(np.abs(corr)), corr.shape)
-        out.append(f"{tag}latent covariance matrix is not positive definite (largest latent correlation "
-                   f"{psi.index[i]}-{psi.index[j]} = {corr[i, j]:.3f})")
-    return out
+    items = list(loadings["item"])
+    return improper(tag, std_loadings=loadings[["item", "loading"]],
+                    error_var=pd.Series(loadings["error_var"].to_numpy(float), index=items),
+                    item_var=pd.Series(np.diag(S.loc[items, items].to_numpy(float)), index=items), latent_cov=psi)
 
 
 def flag_items(loadings: pd.DataFrame, scored: pd.DataFrame, constructs: dict[str, list[str]], *,

@@ -153,7 +153,7 @@ def group_series(attributes: pd.DataFrame | None, name: str) -> pd.Series:
 def analyze_extended(responses: pd.DataFrame, study, *, attributes: pd.DataFrame | None = None, instrument=None,
                      model=None, n_boot: int = 2000, seed: int = 20240101, group: str | None = None,
                      groups: pd.Series | None = None, level: float = 0.95, workers: int = 2,
-                     survey=None) -> ExtendedAnalysis:
+                     survey=None, collapse_empty: bool = False) -> ExtendedAnalysis:
     """Run the extended statistics (module docstring) on a wide survey frame of `study`.
 
     `group` names a participant attribute (of `attributes`) for the invariance steps; `groups` gives the grouping
@@ -164,6 +164,10 @@ def analyze_extended(responses: pd.DataFrame, study, *, attributes: pd.DataFrame
     `survey`: the :class:`analysis.survey.acceptance.SurveyAnalysis` of the same answers (listwise, the same
     final measurement model) this builds on; its final-stage ML CFA is taken instead of fitting it again (the
     results are those of a fresh fit). ValueError when it was fitted to other answers or another model.
+
+    `collapse_empty`: an item category that the analysed (complete) rows do not use although the data set has it
+    (answered only by a participant left out for a missing answer) is refused, as lavaan refuses it, unless this
+    merges it for the ordinal CFA (a warning names it; :func:`analysis.survey.ordinal.check_categories`).
     """
     from analysis.survey.acceptance import _model, _study, covariate_frame, survey_plan
     from analysis.survey.scoring import check_not_constant, resolve_instrument, score_responses
@@ -181,13 +185,18 @@ def analyze_extended(responses: pd.DataFrame, study, *, attributes: pd.DataFrame
     retained = plan.retained
     items = [i for v in retained.values() for i in v]
     check_not_constant(scored[items])
+    # the items' categories are the answers of the whole data set (lavaan's ordered= levels, before listwise
+    # deletion); an empty one is refused here, before any slow step, unless collapsed
+    full = score_responses(responses, inst, listwise=False).scored
+    categories = {it: sorted(full[it].dropna().unique()) for it in items}
+    cat_warn = _ord.check_categories(scored, items, categories, collapse_empty=collapse_empty)
     ml = None
     if survey is not None:
         if survey.fits is None:
             raise ValueError("the survey analysis to build on has no fitted models (it was read from files)")
         survey.fits.check(scored, True, retained)
         ml = survey.fits.final
-    warn: list[str] = []
+    warn: list[str] = list(cat_warn)
     group_var = group
     if group is not None and groups is None:
         groups = group_series(attributes, group)
@@ -213,28 +222,29 @@ def analyze_extended(responses: pd.DataFrame, study, *, attributes: pd.DataFrame
     pool = ProcessPoolExecutor(max_workers=1) if workers > 1 else None
     try:
         # the polychoric correlations run beside the bootstrap in a second process when there is a second core
-        pending = pool.submit(_ordinal_part, scored, retained) if pool else None
+        pending = pool.submit(_ordinal_part, scored, retained, categories) if pool else None
         return _run(pending, scored, retained, items, study, inst, amodel, plan, sample, covars, cov_cols, paths,
-                    paths_cols, groups, group_var, n_boot, seed, level, warn, timings, t_all, ml)
+                    paths_cols, groups, group_var, n_boot, seed, level, warn, timings, t_all, ml, categories)
     finally:
         if pool:
             pool.shutdown(cancel_futures=True)
 
 
-def _ordinal_part(scored, retained):
+def _ordinal_part(scored, retained, categories=None):
     from analysis.survey.acceptance import _single_threaded_blas
 
     with _single_threaded_blas():
         t = time.perf_counter()
         items = [i for v in retained.values() for i in v]
-        poly = _ord.polychoric(scored, items)
+        # empty categories were refused or their warnings taken by the caller: collapse what is left
+        poly = _ord.polychoric(scored, items, categories=categories, collapse_empty=True)
         uls = _ord.fit_ordinal_cfa(scored, retained, estimator="ULS", poly=poly)
         dwls = _ord.fit_ordinal_cfa(scored, retained, estimator="DWLS", poly=poly)
         return uls, dwls, time.perf_counter() - t
 
 
 def _run(pending, scored, retained, items, study, inst, amodel, plan, sample, covars, cov_cols, paths, paths_cols,
-         groups, group_var, n_boot, seed, level, warn, timings, t_all, ml=None):
+         groups, group_var, n_boot, seed, level, warn, timings, t_all, ml=None, categories=None):
     from analysis.survey.acceptance import _single_threaded_blas
     from analysis.survey.hypotheses import judge_hypotheses
     from analysis.survey.regression import ModelSpec, run_models
@@ -249,16 +259,19 @@ def _run(pending, scored, retained, items, study, inst, amodel, plan, sample, co
 
         t = time.perf_counter()
         ht = htmt2(scored, retained)
+        for r in ht[ht["htmt2"].isna()].itertuples():
+            warn.append(f"HTMT2 {r.a}-{r.b}: undefined (two items of {r.a} or of {r.b} correlate 0, so the geometric "
+                        f"mean of its monotrait correlations is 0)")
         boot = reliability_bootstrap(scored, retained, n_boot=n_boot, seed=seed, level=level)
         timings["bootstrap_reliability_htmt"] = time.perf_counter() - t
 
         t = time.perf_counter()
-        uls, dwls, t_ord = pending.result() if pending is not None else _ordinal_part(scored, retained)
+        uls, dwls, t_ord = pending.result() if pending is not None else _ordinal_part(scored, retained, categories)
         warn += uls.warnings + dwls.warnings
         lo = ml.loadings[["construct", "item", "loading"]].rename(columns={"loading": "loading_ml"})
         lo["loading_uls"] = uls.loadings["loading"].to_numpy()
         lo["loading_dwls"] = dwls.loadings["loading"].to_numpy()
-        ofit = pd.DataFrame([{**f.fit, "converged": f.converged} for f in (uls, dwls)])
+        ofit = pd.DataFrame([{**f.fit, "converged": f.converged, "admissible": f.admissible} for f in (uls, dwls)])
         om_ml = [omega_semtools(ml.loadings.set_index("item").loc[its, "estimate"], ml.psi.loc[c, c],
                                 ml.S.loc[its, its]) for c, its in retained.items()]
         omega = pd.DataFrame({"construct": list(retained), "omega_ml": om_ml,
@@ -282,7 +295,7 @@ def _run(pending, scored, retained, items, study, inst, amodel, plan, sample, co
         hb = {(r.hypothesis): (r.beta, r.p) for r in hyp.itertuples()}
         sp["beta_regression"] = [hb.get(h, (np.nan, np.nan))[0] if h else np.nan for h in sp["hypothesis"]]
         sp["p_regression"] = [hb.get(h, (np.nan, np.nan))[1] if h else np.nan for h in sp["hypothesis"]]
-        sem_fit = pd.DataFrame([{**sem.fit, "converged": sem.converged}])
+        sem_fit = pd.DataFrame([{**sem.fit, "converged": sem.converged, "admissible": sem.admissible}])
         timings["sem"] = time.perf_counter() - t
 
         t = time.perf_counter()
@@ -308,7 +321,8 @@ def _run(pending, scored, retained, items, study, inst, amodel, plan, sample, co
             warn += inv.warnings
         else:
             inv_steps = pd.DataFrame(columns=["step", "chi2", "df", "p", "cfi", "tli", "rmsea", "n_params",
-                                              "converged", "delta_chi2", "delta_df", "p_delta", "delta_cfi", "holds"])
+                                              "converged", "delta_chi2", "delta_df", "p_delta", "delta_cfi", "holds",
+                                              "delta_rmsea", "reason"])
             inv_groups = pd.DataFrame(columns=["group", "n"])
         timings["invariance"] = time.perf_counter() - t
     failed = boot[boot["n_failed"] > 0]

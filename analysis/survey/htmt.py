@@ -9,6 +9,11 @@
   Cronbach's alpha per construct, one-factor ML omega per construct (:mod:`analysis.survey.omega`), HTMT and HTMT2 per
   construct pair. A resample in which an item has no variance (likely at N ~ 35 with 5-point items) makes the
   statistics that use that item NaN: a counted failure (``n_failed``), the interval from the other resamples.
+* Zero correlations: a correlation of integer answers is exactly 0 when their cross-products cancel, but floating
+  point gives ~1e-17, whose logarithm made HTMT2 explode (bootstrap upper bounds of 456). |r| < ``ZERO_R`` is
+  therefore 0 (a non-zero |r| of N integer answers on a K-point scale is at least 4/(N^2 (K-1)^2): its numerator
+  N sum xy - sum x sum y is a non-zero integer; 2e-4 at N = 35, K = 5, far above it). A zero heterotrait correlation gives HTMT2 = 0 (its limit); a zero monotrait
+  correlation makes the construct's geometric mean 0 and HTMT2 undefined: NaN (a counted failure in a resample).
 """
 from __future__ import annotations
 
@@ -20,6 +25,8 @@ import pandas as pd
 from analysis.survey.bootstrap import bootstrap
 from analysis.survey.omega import omega_stack
 from analysis.survey.validity import HTMT_LIBERAL, HTMT_STRICT
+
+ZERO_R = 1e-12  # |r| below this is a zero correlation up to rounding (module docstring)
 
 
 def _corr_stack(X: np.ndarray) -> np.ndarray:
@@ -35,8 +42,10 @@ def _corr_stack(X: np.ndarray) -> np.ndarray:
 
 
 def _htmt_stack(R: np.ndarray, constructs: dict[str, list[str]], items: list[str], geometric: bool) -> np.ndarray:
-    """(B, n_pairs) HTMT (arithmetic) or HTMT2 (geometric) from stacked correlation matrices."""
+    """(B, n_pairs) HTMT (arithmetic) or HTMT2 (geometric) from stacked correlation matrices; NaN where a
+    construct's mean monotrait correlation is 0 (undefined)."""
     A = np.abs(R)
+    A = np.where(A < ZERO_R, 0.0, A)  # rounding noise of an exact zero (module docstring); NaN stays NaN
     pos = {i: k for k, i in enumerate(items)}
 
     def mean(block):
@@ -54,13 +63,15 @@ def _htmt_stack(R: np.ndarray, constructs: dict[str, list[str]], items: list[str
     for a, b in combinations(constructs, 2):
         ia, ib = [pos[i] for i in constructs[a]], [pos[i] for i in constructs[b]]
         het = mean(A[:, ia][:, :, ib].reshape(A.shape[0], -1))
+        den = np.sqrt(mono[a] * mono[b])
         with np.errstate(divide="ignore", invalid="ignore"):
-            out.append(het / np.sqrt(mono[a] * mono[b]))
+            out.append(np.where(den > 0, het / den, np.nan))
     return np.stack(out, axis=1)
 
 
 def htmt2(scored: pd.DataFrame, constructs: dict[str, list[str]]) -> pd.DataFrame:
-    """a, b, htmt, htmt2, above_085, above_090 (the flags on HTMT2) of every construct pair (complete rows).
+    """a, b, htmt, htmt2, above_085, above_090 (the flags on HTMT2) of every construct pair (complete rows);
+    htmt2 NaN (flags False) where a construct has a zero monotrait correlation (module docstring).
 
     Examples
     --------

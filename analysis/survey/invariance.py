@@ -14,9 +14,19 @@ chi2 = N F, df = G (p(p+1)/2 + p) - free parameters. Baseline: independence per 
 chi2_b = sum_g N_g (sum log s_ii - log|S_g|) on G p(p-1)/2 df. CFI, TLI as :func:`analysis.survey.cfa.fit_indices`;
 RMSEA = sqrt(G) sqrt(max(chi2 - df, 0) / (df N)) (lavaan's multi-group RMSEA).
 
-Decisions between nested steps: Delta chi2 = chi2_restricted - chi2_free on Delta df, p from chi2(Delta df);
-invariance is rejected when Delta CFI = CFI_restricted - CFI_free < -0.01 (Cheung & Rensvold 2002), the
-decision this module reports; the Delta chi2 p is reported beside it (it is sensitive to N).
+Decisions (``holds``, with the reason in ``reason``):
+
+* configural: the model fits each group acceptably, CFI >= 0.90 and RMSEA <= 0.08 (the "acceptable fit" bounds
+  of Hu & Bentler 1999 and Browne & Cudeck 1993 that invariance studies use, Putnick & Bornstein 2016); a poorly
+  fitting configural model is a warning, and the later steps are not judged (nothing is invariant whose form does
+  not fit);
+* metric and scalar: the previous step holds and the restriction costs little fit, Delta CFI = CFI_restricted -
+  CFI_free >= -0.01 (Cheung & Rensvold 2002) and Delta RMSEA = RMSEA_restricted - RMSEA_free <= 0.015 (Chen 2007);
+  either criterion failing rejects the step. Delta chi2 = chi2_restricted - chi2_free on Delta df, with its p from
+  chi2(Delta df), is reported beside them (it is sensitive to N).
+
+Every step's solution is checked per group for admissibility (:mod:`analysis.survey.admissibility`; the residual
+and latent variances are bounded below at 1e-8, so a variance there is at its bound): each problem is a warning.
 
 A group must have more participants than the model has items (else S_g is singular and the step undefined):
 smaller groups are refused with a one-line error naming them.
@@ -29,8 +39,13 @@ import numpy as np
 import pandas as pd
 from scipy import optimize, stats
 
+from analysis.survey.admissibility import improper
+
 STEPS = ("configural", "metric", "scalar")
-DELTA_CFI = -0.01
+DELTA_CFI = -0.01       # Cheung & Rensvold 2002
+DELTA_RMSEA = 0.015     # Chen 2007
+CONFIGURAL_CFI = 0.90   # acceptable configural fit: CFI >= .90 and RMSEA <= .08
+CONFIGURAL_RMSEA = 0.08
 
 
 @dataclass
@@ -113,8 +128,8 @@ def _objective(x, L, groups, p, k, fac, markers, N):
 
 @dataclass
 class InvarianceResult:
-    """steps: step, chi2, df, p, cfi, tli, rmsea, converged, delta_chi2, delta_df, p_delta, delta_cfi, holds;
-    groups: group, n."""
+    """steps: step, chi2, df, p, cfi, tli, rmsea, n_params, converged, delta_chi2, delta_df, p_delta, delta_cfi,
+    holds, delta_rmsea, reason (why a step does not hold; empty when it holds); groups: group, n."""
 
     group_var: str
     steps: pd.DataFrame
@@ -149,7 +164,59 @@ def _fit_step(step, stats_g, p, k, fac, markers, N):
     # postcondition: a stationary point (projected gradient ~ 0 away from the bounds)
     free = np.array([not (b[0] is not None and x - b[0] < 1e-6) for x, b in zip(res.x, bounds)])
     converged = bool(res.success and np.isfinite(fval) and np.max(np.abs(grad[free])) < 1e-4)
-    return fval, L.n_par, converged, res
+    return fval, L, converged, res
+
+
+def _admissibility(step, x, L, stats_g, levels, items, names, p, k, fac, markers) -> list[str]:
+    """Improper estimates of one step, group by group (:func:`analysis.survey.admissibility.improper`)."""
+    out = []
+    for g, (S, _, _, _) in enumerate(stats_g):
+        lam, psi, theta, _, _ = _matrices(x, L, g, p, k, fac, markers)
+        sigma = lam @ psi @ lam.T + theta
+        std = [lam[i, fac[i]] * np.sqrt(psi[fac[i], fac[i]]) / np.sqrt(sigma[i, i]) if psi[fac[i], fac[i]] > 0
+               else np.nan for i in range(p)]
+        out += improper(f"invariance {step}, group {levels[g]}: ",
+                        std_loadings=pd.DataFrame({"item": items, "loading": std}),
+                        error_var=pd.Series(np.diag(theta), index=items), item_var=pd.Series(np.diag(S), index=items),
+                        latent_cov=pd.DataFrame(psi, index=names, columns=names))
+    return out
+
+
+def _decisions(steps: pd.DataFrame) -> tuple[list[bool], list[str]]:
+    """holds and reason of each step (module docstring: configural fit, then Delta CFI and Delta RMSEA).
+
+    Examples
+    --------
+    A configural CFI of .813 is poor fit, so nothing holds:
+
+    >>> import pandas as pd
+    >>> from analysis.survey.invariance import _decisions
+    >>> st = pd.DataFrame({"cfi": [0.813, 0.810, 0.790], "rmsea": [0.07, 0.07, 0.08],
+    ...                    "delta_cfi": [float("nan"), -0.003, -0.020], "delta_rmsea": [float("nan"), 0.0, 0.01]})
+    >>> _decisions(st)
+    ([False, False, False], ['CFI 0.813 < 0.90', 'the configural step does not hold', 'the metric step does not hold'])
+    >>> st["cfi"] = [0.953, 0.950, 0.930]
+    >>> _decisions(st)
+    ([True, True, False], ['', '', 'Delta CFI -0.020 < -0.01'])
+    """
+    holds, reasons = [], []
+    for k, r in enumerate(steps.itertuples()):
+        why = []
+        if k == 0:
+            if not r.cfi >= CONFIGURAL_CFI:
+                why.append(f"CFI {r.cfi:.3f} < {CONFIGURAL_CFI:.2f}")
+            if np.isfinite(r.rmsea) and r.rmsea > CONFIGURAL_RMSEA:
+                why.append(f"RMSEA {r.rmsea:.3f} > {CONFIGURAL_RMSEA:.2f}")
+        elif not holds[-1]:
+            why.append(f"the {STEPS[k - 1]} step does not hold")
+        else:
+            if not r.delta_cfi >= DELTA_CFI:
+                why.append(f"Delta CFI {r.delta_cfi:.3f} < {DELTA_CFI:g}")
+            if np.isfinite(r.delta_rmsea) and r.delta_rmsea > DELTA_RMSEA:
+                why.append(f"Delta RMSEA {r.delta_rmsea:.3f} > {DELTA_RMSEA:g}")
+        holds.append(not why)
+        reasons.append("; ".join(why))
+    return holds, reasons
 
 
 def invariance(scored: pd.DataFrame, constructs: dict[str, list[str]], groups: pd.Series, *,
@@ -191,9 +258,11 @@ def invariance(scored: pd.DataFrame, constructs: dict[str, list[str]], groups: p
     df_b = G * p * (p - 1) // 2
     rows, warn = [], []
     for step in STEPS:
-        fval, n_par, ok, res = _fit_step(step, stats_g, p, k, fac, markers, N)
+        fval, L, ok, res = _fit_step(step, stats_g, p, k, fac, markers, N)
+        n_par = L.n_par
         if not ok:
             warn.append(f"invariance {step}: the optimiser did not reach a stationary point ({res.message})")
+        warn += _admissibility(step, res.x, L, stats_g, levels, items, names, p, k, fac, markers)
         chi2 = max(N * fval, 0.0)
         df = G * (p * (p + 1) // 2 + p) - n_par
         d_m, d_b = max(chi2 - df, 0.0), max(chi2_b - df_b, 0.0)
@@ -211,10 +280,15 @@ def invariance(scored: pd.DataFrame, constructs: dict[str, list[str]], groups: p
     out["p_delta"] = [float(stats.chi2.sf(c, d)) if np.isfinite(c) and d > 0 else float("nan")
                       for c, d in zip(dchi, ddf)]
     out["delta_cfi"] = out["cfi"].diff()
-    holds = [True]
-    for dc in out["delta_cfi"].iloc[1:]:
-        holds.append(bool(holds[-1] and dc >= DELTA_CFI))
+    out["delta_rmsea"] = out["rmsea"].diff()
+    holds, reasons = _decisions(out)
     out["holds"] = holds
+    out["reason"] = reasons
+    if not holds[0]:
+        warn.append(f"invariance configural: the configural model fits poorly ({reasons[0]}); metric and scalar "
+                    f"invariance are not judged")
+    out = out[["step", "chi2", "df", "p", "cfi", "tli", "rmsea", "n_params", "converged", "delta_chi2", "delta_df",
+               "p_delta", "delta_cfi", "holds", "delta_rmsea", "reason"]]
     return InvarianceResult(group_var=group_var, steps=out,
                             groups=pd.DataFrame({"group": [str(lv) for lv in levels],
                                                  "n": [sizes[lv] for lv in levels]}), warnings=warn)

@@ -3,8 +3,12 @@ ordinal omega.
 
 * Bivariate normal probabilities (:func:`bvn_upper`): Drezner & Wesolowsky (1990) as refined by Genz (2004), with
   Gauss-Legendre quadrature (20 nodes), accurate to ~1e-15; deterministic (no Monte Carlo).
-* Thresholds of an item with observed categories c_1 < ... < c_m: tau_j = Phi^-1(share of answers <= c_j),
-  j = 1..m-1 (empty categories are not categories, as in lavaan).
+* Thresholds of an item with categories c_1 < ... < c_m: tau_j = Phi^-1(share of answers <= c_j), j = 1..m-1.
+  The categories are the answers the item has anywhere in the data set (lavaan's ``ordered=`` levels, taken
+  before listwise deletion; an answer of the scale nobody gave is not a category). A category without answers
+  among the analysed (complete) rows has no threshold (tau_j = tau_j+1 or -inf: a boundary solution), so it is
+  refused as lavaan refuses it ("some categories of variable ... are empty"), or merged with its neighbours only
+  when asked (``collapse_empty=True``), with a warning naming it (:func:`check_categories`).
 * Polychoric correlation (two-step, Olsson 1979, lavaan's ``lavCor(ordered=)``): thresholds fixed at their
   univariate estimates, rho maximises sum_ab n_ab log P_ab(rho), P_ab the bivariate normal probability of the cell
   rectangle; Brent's bounded search on (-1, 1) to 1e-10. The asymptotic variance of each rho (the DWLS weights)
@@ -15,7 +19,11 @@ ordinal omega.
   polychoric correlations, ``ULS`` (unit weights; the point estimates of lavaan ``estimator="ULSMV"``) or ``DWLS``
   (weights 1/avar(rho_ij), lavaan's diagonal WLS.V; the point estimates of lavaan ``estimator="WLSMV"``).
   The scaled-shifted test statistic of WLSMV is not computed; the fit reported is the weighted discrepancy and
-  the SRMR of the polychoric residuals.
+  the SRMR of the polychoric residuals, lavaan's categorical ``srmr``: sqrt(sum_{i<j} (r_ij - rho_ij)^2 /
+  (p(p+1)/2)), the p zero residuals of the unit diagonal counted as lavaan counts them.
+* Admissibility (:func:`analysis.survey.admissibility.improper`): an error variance 1 - lambda_i^2 <= 0 or a
+  factor correlation matrix that is not positive definite (e.g. a |correlation| > 1, which this unbounded
+  least-squares fit can reach) is a warning, and ``admissible`` is False.
 * Ordinal omega (Green & Yang 2009; semTools ``compRelSEM(ord.scale=TRUE)``):
   omega = sum_jj' [sum_cc' Phi2(tau_jc, tau_j'c'; r*_jj') - Phi(tau_jc)Phi(tau_j'c')] /
           sum_jj' [sum_cc' Phi2(tau_jc, tau_j'c'; rho_jj') - Phi(tau_jc)Phi(tau_j'c')],
@@ -35,6 +43,8 @@ import numpy as np
 import pandas as pd
 from scipy import optimize
 from scipy.special import ndtr, ndtri
+
+from analysis.survey.admissibility import improper
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(20)
 TWO_PI = 2.0 * np.pi
@@ -169,24 +179,74 @@ def polychoric_pair(cx: np.ndarray, cy: np.ndarray, tx: np.ndarray, ty: np.ndarr
     return float(res.x)
 
 
+def check_categories(data: pd.DataFrame, items: list[str], categories: dict | None = None, *,
+                     collapse_empty: bool = False) -> list[str]:
+    """Refuse (ValueError, one line) an item whose categories are not all answered among the complete rows of
+    `data`, as lavaan does; with `collapse_empty` return one warning per such item instead (its empty categories
+    are merged: the item is analysed with the categories it has).
+
+    `categories`: item -> its categories (the answers it has anywhere in the data set, e.g. before listwise
+    deletion); None: the answers of the complete rows themselves (then no category can be empty).
+
+    Examples
+    --------
+    Answer 3 was given to PU1 only by a participant left out for a missing answer elsewhere:
+
+    >>> import pandas as pd
+    >>> from analysis.survey.ordinal import check_categories
+    >>> rows = pd.DataFrame({"PU1": [1, 2, 2, 4, 5, 3], "PU2": [1, 2, 3, 4, 5, None]})
+    >>> cats = {"PU1": [1, 2, 3, 4, 5], "PU2": [1, 2, 3, 4, 5]}
+    >>> check_categories(rows, ["PU1", "PU2"], cats)
+    Traceback (most recent call last):
+    ...
+    ValueError: ordinal CFA: some categories of item PU1 are empty among the 5 complete rows (answers 1 2 3 4 5: frequencies [1 2 0 1 1]); pass collapse_empty (CLI --collapse-empty) to merge them
+    >>> check_categories(rows, ["PU1", "PU2"], cats, collapse_empty=True)
+    ['ordinal CFA: item PU1: empty category 3 among the 5 complete rows collapsed (4 of 5 categories analysed)']
+    """
+    if categories is None:
+        return []
+    x = data[items].dropna()
+    out = []
+    for it in items:
+        cats = np.sort(np.asarray(list(categories[it]), float))
+        freq = np.array([int((x[it] == c).sum()) for c in cats])
+        if np.all(freq > 0):
+            continue
+        shown = " ".join(f"{c:g}" for c in cats)
+        if not collapse_empty:
+            raise ValueError(f"ordinal CFA: some categories of item {it} are empty among the {len(x)} complete rows "
+                             f"(answers {shown}: frequencies [{' '.join(map(str, freq))}]); pass collapse_empty "
+                             f"(CLI --collapse-empty) to merge them")
+        empty = " ".join(f"{c:g}" for c in cats[freq == 0])
+        word = "category" if (freq == 0).sum() == 1 else "categories"
+        out.append(f"ordinal CFA: item {it}: empty {word} {empty} among the {len(x)} complete rows collapsed "
+                   f"({int((freq > 0).sum())} of {len(cats)} categories analysed)")
+    return out
+
+
 @dataclass
 class Polychoric:
     """items; R: polychoric correlation matrix (DataFrame, unit diagonal); thresholds: item -> tau array;
-    avar: asymptotic variance of each rho_ij (DataFrame, NaN diagonal) as N x var; n."""
+    avar: asymptotic variance of each rho_ij (DataFrame, NaN diagonal) as N x var; n; warnings: the collapsed
+    empty categories (:func:`check_categories`)."""
 
     items: list[str]
     R: pd.DataFrame
     thresholds: dict[str, np.ndarray]
     avar: pd.DataFrame
     n: int
+    warnings: list[str] = field(default_factory=list)
 
 
-def polychoric(data: pd.DataFrame, items: list[str], *, acov: bool = True) -> Polychoric:
+def polychoric(data: pd.DataFrame, items: list[str], *, acov: bool = True, categories: dict | None = None,
+               collapse_empty: bool = False) -> Polychoric:
     """Polychoric correlations of `items` (complete rows of integer answers), with the influence-function
-    asymptotic variances of the module docstring when `acov`.
+    asymptotic variances of the module docstring when `acov`. `categories`, `collapse_empty`: as
+    :func:`check_categories` (an empty category is refused unless collapsed).
 
-    Raises ValueError when an item has a single observed category.
+    Raises ValueError when an item has a single observed category or an empty category not collapsed.
     """
+    warn = check_categories(data, items, categories, collapse_empty=collapse_empty)
     x = data[items].dropna()
     n = len(x)
     cod, thr = {}, {}
@@ -205,7 +265,7 @@ def polychoric(data: pd.DataFrame, items: list[str], *, acov: bool = True) -> Po
         if acov:
             V[i, j] = V[j, i] = _avar(cod[a], cod[b], thr[a], thr[b], r)
     return Polychoric(items=list(items), R=pd.DataFrame(R, index=items, columns=items), thresholds=thr,
-                      avar=pd.DataFrame(V, index=items, columns=items), n=n)
+                      avar=pd.DataFrame(V, index=items, columns=items), n=n, warnings=warn)
 
 
 def _uni_scores(c: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -246,8 +306,9 @@ def _avar(cx, cy, tx, ty, rho, eps: float = 1e-6) -> float:
 @dataclass
 class OrdinalCFA:
     """loadings: construct, item, loading (standardized, delta parameterisation), error_var (1 - loading^2);
-    latent_corr; fit: estimator, n, f_min (weighted residual sum of squares), srmr (RMS of the off-diagonal
-    residual correlations), n_params, df; poly: the Polychoric input; converged; warnings."""
+    latent_corr; fit: estimator, n, f_min (weighted residual sum of squares), srmr (lavaan's: the residual
+    correlations over p(p+1)/2 elements), n_params, df; poly: the Polychoric input; converged (the optimiser's
+    postcondition); admissible (no improper estimate); warnings."""
 
     constructs: dict[str, list[str]]
     estimator: str
@@ -257,13 +318,18 @@ class OrdinalCFA:
     poly: Polychoric
     converged: bool
     warnings: list[str] = field(default_factory=list)
+    admissible: bool = True
 
 
 def fit_ordinal_cfa(data: pd.DataFrame, constructs: dict[str, list[str]], *, estimator: str = "DWLS",
-                    poly: Polychoric | None = None) -> OrdinalCFA:
+                    poly: Polychoric | None = None, categories: dict | None = None,
+                    collapse_empty: bool = False) -> OrdinalCFA:
     """Correlated-factors CFA on polychoric correlations (module docstring), estimator "DWLS" or "ULS".
+    `categories`, `collapse_empty`: as :func:`check_categories` (used when `poly` is not given; the warnings of
+    collapsed categories are the fit's only then, not repeated for a shared `poly`).
 
-    Raises ValueError on an unknown estimator, a construct with fewer than 2 items, or a failed optimisation.
+    Raises ValueError on an unknown estimator, a construct with fewer than 2 items, an empty category not
+    collapsed, or a failed optimisation.
     """
     if estimator not in ("DWLS", "ULS"):
         raise ValueError(f"ordinal CFA: unknown estimator {estimator!r} (DWLS or ULS)")
@@ -271,7 +337,10 @@ def fit_ordinal_cfa(data: pd.DataFrame, constructs: dict[str, list[str]], *, est
         if len(its) < 2:
             raise ValueError(f"ordinal CFA: construct {c} needs at least 2 items, has {len(its)}")
     items = [i for its in constructs.values() for i in its]
-    poly = poly if poly is not None else polychoric(data, items, acov=estimator == "DWLS")
+    own = poly is None
+    if own:
+        poly = polychoric(data, items, acov=estimator == "DWLS", categories=categories,
+                          collapse_empty=collapse_empty)
     R = poly.R.loc[items, items].to_numpy()
     p, names = len(items), list(constructs)
     k = len(names)
@@ -300,7 +369,7 @@ def fit_ordinal_cfa(data: pd.DataFrame, constructs: dict[str, list[str]], *, est
 
     start = np.concatenate([np.full(p, 0.7), np.full(len(ku[0]), 0.3)])
     res = optimize.least_squares(resid, start, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=20000)
-    warn: list[str] = []
+    warn: list[str] = list(poly.warnings) if own else []
     grad = res.jac.T @ res.fun
     converged = bool(res.status > 0 and np.all(np.isfinite(res.x)) and np.max(np.abs(grad)) < 1e-6)
     if not converged:
@@ -319,18 +388,18 @@ def fit_ordinal_cfa(data: pd.DataFrame, constructs: dict[str, list[str]], *, est
     rows = [{"construct": names[fac[i]], "item": it, "loading": float(lam[i]), "error_var": float(1 - lam[i] ** 2)}
             for i, it in enumerate(items)]
     loadings = pd.DataFrame(rows)
-    for r in rows:
-        if r["error_var"] <= 0:
-            warn.append(f"ordinal CFA ({estimator}): Heywood case: error variance of {r['item']} = "
-                        f"{r['error_var']:.4g} (<= 0)")
+    latent_corr = pd.DataFrame(phi, index=names, columns=names)
+    bad = improper(f"ordinal CFA ({estimator}): ", std_loadings=loadings[["item", "loading"]],
+                   error_var=loadings.set_index("item")["error_var"], item_var=pd.Series(1.0, index=items),
+                   latent_cov=latent_corr)
     resid_corr = r_obs - sigma[iu]
     n_params = p + len(ku[0])
+    # lavaan's categorical srmr: the p unit-diagonal residuals (all 0) count among the p(p+1)/2 elements
     fit = {"estimator": estimator, "n": poly.n, "f_min": float(np.sum(w * resid_corr ** 2)),
-           "srmr": float(np.sqrt(np.mean(resid_corr ** 2))), "n_params": n_params,
+           "srmr": float(np.sqrt(np.sum(resid_corr ** 2) / (p * (p + 1) / 2))), "n_params": n_params,
            "df": int(len(r_obs) - n_params)}
-    return OrdinalCFA(constructs=dict(constructs), estimator=estimator, loadings=loadings,
-                      latent_corr=pd.DataFrame(phi, index=names, columns=names), fit=fit, poly=poly,
-                      converged=converged, warnings=warn)
+    return OrdinalCFA(constructs=dict(constructs), estimator=estimator, loadings=loadings, latent_corr=latent_corr,
+                      fit=fit, poly=poly, converged=converged, warnings=warn + bad, admissible=not bad)
 
 
 def ordinal_omega(cfa: OrdinalCFA) -> pd.DataFrame:

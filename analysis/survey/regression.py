@@ -359,8 +359,15 @@ def hierarchical_regression(data: pd.DataFrame, model: ModelSpec, *, n_boot: int
     return pd.DataFrame(rows)
 
 
+#: the columns of :func:`hierarchical_regression`'s rows
+REGRESSION_COLUMNS = ["model", "step", "dv", "predictor", "r2", "adj_r2", "delta_r2", "f_change", "df1", "df2",
+                      "p_change", "b", "se_b", "beta", "t", "p", "ci_low", "ci_high", "boot_ci_low", "boot_ci_high",
+                      "n", "label"]
+
+
 def run_models(data: pd.DataFrame, models: list[ModelSpec], **kw) -> pd.DataFrame:
     """`hierarchical_regression` for every model, concatenated (validates the specs first)."""
     validate_models(models, data.columns)
     frames = [hierarchical_regression(data, m, model_index=i, **kw) for i, m in enumerate(models)]
-    return pd.concat(frames, ignore_index=True)
+    # a model file without regressions (a measurement model only) has an empty table, not an error
+    return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=REGRESSION_COLUMNS)

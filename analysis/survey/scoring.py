@@ -121,6 +121,11 @@ def score_responses(responses: pd.DataFrame, instrument: Instrument, *, listwise
         bad = col[(col < lo) | (col > hi) | (col != np.round(col))]
         if len(bad):
             raise ValueError(f"item {item}: answer {bad.iloc[0]:g} of {bad.index[0]} is outside {lo}..{hi}")
+        step = inst.step(item)   # a slider's grid (1 for every other item)
+        off = col[(col - lo) % step != 0]
+        if len(off):
+            raise ValueError(f"item {item}: answer {off.iloc[0]:g} of {off.index[0]} is not a step of {step} "
+                             f"from {lo}")
     n_input = len(raw)
     if listwise:
         keep = raw.notna().all(axis=1)

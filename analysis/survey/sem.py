@@ -6,7 +6,9 @@
   variables. The structure must be recursive (no variable predicts itself through a chain).
 * Latent SEM (:func:`fit_sem`): the measurement model of the model file plus these paths, semopy ``MLW``
   (= lavaan ML); fit indices in lavaan's conventions (:func:`analysis.survey.cfa.fit_indices`), standardized paths
-  (std.all), R^2 = 1 - standardized residual variance of each endogenous variable.
+  (std.all), R^2 = 1 - standardized residual variance of each endogenous variable. Every fit is checked for
+  admissibility (:mod:`analysis.survey.admissibility`): item residual variances at their bound 0, |std loading|
+  >= 1, R^2 = 1, and the implied latent covariance matrix; each problem is a warning and ``admissible`` is False.
 * Indirect effects (:func:`indirect_effects`): every directed chain x -> m1 -> ... -> y of length >= 2 in the path
   graph; its standardized effect is the product of the standardized paths on it (Alwin & Hauser 1975); the total
   indirect effect of x on y is the sum over its chains. Computed on the latent SEM and on the composite path model;
@@ -21,6 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from analysis.survey.admissibility import improper
 from analysis.survey.bootstrap import bootstrap
 from analysis.survey.cfa import fit_indices, model_description
 
@@ -114,7 +117,8 @@ def chains(paths: dict[str, list[str]]) -> list[tuple[str, ...]]:
 @dataclass
 class SEMResult:
     """paths: dv, predictor, estimate, se, std (std.all), p, hypothesis; r2: variable, r2; fit: lavaan-style
-    indices; description: the model syntax; indirect: chain, x, y, std (latent SEM)."""
+    indices; description: the model syntax; admissible: no improper estimate (a residual variance at its bound,
+    |std loading| >= 1, a latent covariance matrix that is not positive definite; see :func:`_admissibility`)."""
 
     description: str
     paths: pd.DataFrame
@@ -122,6 +126,7 @@ class SEMResult:
     fit: dict
     converged: bool
     warnings: list[str] = field(default_factory=list)
+    admissible: bool = True
 
 
 def fit_sem(data: pd.DataFrame, measurement: dict[str, list[str]], paths: dict[str, list[str]],
@@ -165,13 +170,35 @@ def fit_sem(data: pd.DataFrame, measurement: dict[str, list[str]], paths: dict[s
         if abs(r["std"]) >= 1.0:
             warn.append(f"SEM: standardized path {r['predictor']} -> {r['dv']} = {r['std']:.3f} (|beta| >= 1: "
                         f"the predictors are nearly collinear at the latent level)")
-    for r in r2:
-        if r["r2"] >= 1.0 - 1e-6:
-            warn.append(f"SEM: R^2 of {r['variable']} = {r['r2']:.4f} (residual variance at its bound)")
+    bad = [f"SEM: R^2 of {r['variable']} = {r['r2']:.4f} (residual variance at its bound)" for r in r2
+           if r["r2"] >= 1.0 - 1e-6]
     if min(np.linalg.eigvalsh(sigma)) <= 0:
-        warn.append("SEM: the implied covariance matrix is not positive definite")
+        bad.append("SEM: the implied covariance matrix is not positive definite")
+    bad += _admissibility(model, est, measurement, S)
     return SEMResult(description=desc, paths=pd.DataFrame(rows), r2=pd.DataFrame(r2), fit=fit, converged=converged,
-                     warnings=warn)
+                     warnings=warn + bad, admissible=not bad)
+
+
+def _admissibility(model, est: pd.DataFrame, measurement: dict[str, list[str]], S: np.ndarray) -> list[str]:
+    """The SEM's improper estimates (:func:`analysis.survey.admissibility.improper`): item error variances at or
+    below 0, |std loading| >= 1, and the latent covariance matrix the model implies,
+    Cov(eta) = (I - B)^-1 Psi (I - B)^-T, with a variance at or below 0 or not positive definite (an endogenous
+    construct's disturbance at its bound is the R^2 = 1 warning)."""
+    items = [i for v in measurement.values() for i in v]
+    obs = list(model.names_lambda[0])
+    theta = np.asarray(model.mx_theta, float)
+    ev = pd.Series([theta[obs.index(i), obs.index(i)] for i in items], index=items)
+    var = pd.Series([S[obs.index(i), obs.index(i)] for i in items], index=items)
+    lo = est[(est["op"] == "~") & est["lval"].isin(items) & est["rval"].isin(list(measurement))]
+    std = pd.DataFrame({"item": items, "loading": [float(lo.loc[lo["lval"] == i, "Est. Std"].iloc[0]) for i in items]})
+    eta = list(model.names_beta[0])
+    B = np.asarray(model.mx_beta, float)
+    inv = np.linalg.inv(np.eye(len(eta)) - B)
+    cov = inv @ np.asarray(model.mx_psi, float) @ inv.T
+    lat = [c for c in measurement if c in eta]
+    idx = [eta.index(c) for c in lat]
+    cov = pd.DataFrame(cov[np.ix_(idx, idx)], index=lat, columns=lat)
+    return improper("SEM: ", std_loadings=std, error_var=ev, item_var=var, latent_cov=cov)
 
 
 def _num(v) -> float:

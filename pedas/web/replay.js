@@ -1,6 +1,8 @@
 // The replay page of a participant's drives (analysis/replay.py embeds the data as JSON in #replay-data).
 // One time slider for all drives; per drive: the HUD as the driver saw it (<pedas-hud>), speed with advice and
-// limit, leader gap, controller, and a space-time strip with the signal states at the lights' stop lines.
+// limit, leader gap, controller, a timeline of what the HUD showed (arrow, band, countdown, icon, tone) and a
+// space-time strip with the signal states at the lights' stop lines. Under each drive's name: whether its HUD is the
+// one stored with the drive (exactly what was shown) or rebuilt from its log.
 // Every chart has a cursor at the slider's time; the state shown is the last sample at or before that time.
 (() => {
   const NS = "http://www.w3.org/2000/svg";
@@ -63,12 +65,54 @@
     return lo;
   }
 
+  const LANES = [
+    ["arrow", f => f.arrow > 0 ? "#0a9d3c" : f.arrow < 0 ? "#d2161e" : null],
+    ["band", f => f.in_band && f.advice !== null ? "#111" : null],
+    ["countdown", f => f.countdown === null || f.countdown === undefined ? null : (SIGNAL[f.light] || "#777")],
+    ["icon", f => ICON[f.icon] || null],
+    ["tone", f => f.warning ? "#d2161e" : null],
+  ];
+  const ICON = { green_wave: "#0a9d3c", stop_sign: "#8b0000", yield_sign: "#e07b00", curve: "#6a4fb3" };
+  const HUD_SOURCE = {
+    stored: "HUD as shown: the drive's stored HUD channels",
+    rebuilt: "HUD rebuilt from the drive log (no stored HUD channels: no green-wave or curve icon)",
+  };
+  function hudTimeline(parent, d) {
+    const h = 30 + 14 * LANES.length;
+    const c = chart(parent, "HUD shown", h, 0, 1, "arrow, band, countdown, icon, tone");
+    c.svg.classList.add("hud-timeline");
+    for (const tick of [...c.svg.querySelectorAll("text")]) if (tick.getAttribute("x") === String(PAD.l - 4)) tick.remove();   // no 0..1 ticks
+    const n = d.t.length, fr = i => frameAt(d, i);
+    LANES.forEach(([name, colour], k) => {
+      const y = PAD.t + 2 + 14 * k;
+      const lab = el("text", { x: PAD.l - 4, y: y + 10, "font-size": 10, "text-anchor": "end" }, c.svg);
+      lab.textContent = name === "countdown" ? "timer" : name;   // "countdown" does not fit the left margin
+      for (let a = 0; a < n;) {
+        const col = colour(fr(a));
+        let b = a;
+        while (b + 1 < n && colour(fr(b + 1)) === col) b++;
+        if (col !== null) {
+          const x0 = c.x(d.t[a]), x1 = c.x(d.t[Math.min(b + 1, n - 1)]);
+          el("rect", { x: x0, y, width: Math.max(x1 - x0, 0.5), height: 11, fill: col, class: `lane-${name}`,
+                       "data-t0": d.t[a], "data-t1": d.t[b] }, c.svg);
+        }
+        a = b + 1;
+      }
+    });
+    c.svg.appendChild(c.cursor);
+    return c;
+  }
+
   const views = data.drives.map(d => {
     const sec = document.createElement("section");
     sec.className = "drive";
     sec.dataset.condition = d.condition;
-    sec.innerHTML = `<h2></h2><pedas-hud></pedas-hud><p class="readout"></p>`;
+    sec.innerHTML = `<h2></h2><p class="hud-source"></p><pedas-hud></pedas-hud><p class="readout"></p>`;
     sec.querySelector("h2").textContent = d.condition;   // a study's own condition name, shown as text
+    // where the HUD comes from: the drive's stored HUD channels (exactly what was shown) or rebuilt from its log
+    sec.dataset.hudSource = d.hud_source;
+    sec.querySelector(".hud-source").textContent = HUD_SOURCE[d.hud_source] ||
+      `HUD as shown (stored HUD channels) ${d.hud_source.replace(/^stored /, "")}, rebuilt from the log elsewhere`;
     document.getElementById("drives").appendChild(sec);
     const vmax = Math.max(...finite(d.v), ...finite(d.limit), ...finite(d.advice), 10);
     const speed = chart(sec, "speed", 170, 0, vmax, "km/h");
@@ -89,6 +133,9 @@
       a = b + 1;
     }
     ctrl.svg.appendChild(ctrl.cursor);
+    // what the HUD showed over time (one lane per element, a coloured span per run of equal values): the arrow
+    // (green up, red down), the band (black digits), the countdown (its phase's colour), the icon, the tone
+    const hudLanes = hudTimeline(sec, d);
     // space-time strip: the trajectory s(t) and, at each light's stop line, its state over time
     const sMax = Math.max(...d.s);
     const st = chart(sec, "space-time", 230, 0, sMax, "m");
@@ -101,7 +148,7 @@
     line(st, d.t, d.s, "#111", 1.2);
     const dot = el("circle", { r: 4, fill: "#d2161e", class: "position" }, st.svg);
     return { d, sec, hud: sec.querySelector("pedas-hud"), readout: sec.querySelector(".readout"),
-             charts: [speed, gap, ctrl, st], st, dot };
+             charts: [speed, gap, ctrl, hudLanes, st], st, dot };
   });
 
   const slider = document.getElementById("slider");

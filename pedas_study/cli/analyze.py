@@ -1,4 +1,4 @@
-"""`pedas-study analyze survey | drives`: the acceptance statistics and the objective KPIs of the study data.
+"""`pedas-study analyze survey | drives | within | extended`: the acceptance statistics and the objective KPIs of the study data.
 Handlers are thin; the work is in `analysis.survey.acceptance` and `analysis.drives.analyze`."""
 from __future__ import annotations
 
@@ -123,7 +123,8 @@ def _extended(args) -> int:
             raise ValueError("the store has no survey answers of included participants")
         source = f"store {db}"
     ext = analyze_extended(responses, study, attributes=attrs, instrument=args.instrument, n_boot=args.bootstrap,
-                           seed=args.seed, group=args.group, workers=args.workers)
+                           seed=args.seed, group=args.group, workers=args.workers,
+                           collapse_empty=args.collapse_empty)
     paths = ext.write(args.out)
     print(f"extended survey statistics of {ext.n} participants ({source}) -> {args.out}: {len(paths)} files")
     ind = ext.indirect[~ext.indirect["chain"].str.contains("total", regex=False)]
@@ -141,6 +142,28 @@ def _extended(args) -> int:
           f"HTMT {t['bootstrap_reliability_htmt']:.1f} s, ordinal CFA {t['ordinal']:.1f} s, indirect effects "
           f"{t['indirect_bootstrap']:.2f} s)")
     return 0
+
+
+def _within(args) -> None:
+    from analysis.within.analyze import analyze_store_within
+
+    with open_store(args, read_only=True) as st:
+        res, data = analyze_store_within(st)
+    paths = res.write(args.out, data)
+    print(f"within-subjects comparison of {len(res.variables)} variable(s) across {', '.join(res.conditions)} "
+          f"-> {args.out}: {len(paths)} files")
+    for v in res.variables["variable"]:
+        print(f"  {result_sentence_short(res, v)}")
+    for w in res.warnings:
+        print(f"  warning: {w}")
+
+
+def result_sentence_short(res, variable: str) -> str:
+    a = res.anova[res.anova["variable"] == variable].iloc[0]
+    f = res.friedman[res.friedman["variable"] == variable].iloc[0]
+    return (f"{variable}: n = {int(a['n'])}, F({a['df1']:g}, {a['df2']:g}) = {a['f']:.2f}, p = {a['p']:.3g} "
+            f"(GG p = {a['p_gg']:.3g}), partial eta2 = {a['np2']:.3f}; Friedman chi2({f['df']:g}) = {f['chi2']:.2f}, "
+            f"p = {f['p']:.3g}, W = {f['kendall_w']:.3f}")
 
 
 def register(cli) -> None:
@@ -176,6 +199,11 @@ def register(cli) -> None:
                    help="participant whose drives the single-participant figures and the replay page show "
                         "(default: the study's [comparison] participant in kpis.toml; none: not drawn)")
 
+    p = g.command("within", "within-subjects comparison of the conditions as study.toml's [within] declares it: "
+                  "scores and KPIs by condition, rm-ANOVA with sphericity corrections, Friedman, paired post-hocs, "
+                  "mixed model, methods sentences", _within)
+    p.add_argument("--out", metavar="DIR", required=True, help="output directory (tables, figures, methods.md)")
+
     p = g.command("extended", "extended acceptance statistics: ordinal CFA and omega, HTMT2, bootstrap CIs (BCa) of "
                   "alpha/omega/HTMT, the structural model as one SEM with indirect effects, VIF, full-collinearity "
                   "VIF, Harman's test and (with --group) measurement invariance", _extended)
@@ -193,3 +221,6 @@ def register(cli) -> None:
     p.add_argument("--instrument", default=None, help="instrument name (default: the study's instrument)")
     p.add_argument("--workers", type=int, default=2, metavar="N",
                    help="processes (default 2: the polychoric correlations beside the bootstrap; 1 = one process)")
+    p.add_argument("--collapse-empty", action="store_true",
+                   help="merge an item's answer category that the complete rows do not use (refused by default, "
+                        "as lavaan refuses it) for the ordinal CFA; a warning names it")

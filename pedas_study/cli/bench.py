@@ -43,6 +43,17 @@ def _export(args) -> None:
     print(json.dumps(r.as_dict(), indent=1) if args.json else to_text(r))
 
 
+def _hud(args) -> None:
+    import json
+
+    from pedas_study.bench.hud_channels import bench_hud_channels
+
+    if args.copies < 1:
+        raise ValueError("--copies must be >= 1")
+    r = bench_hud_channels(args.copies)
+    print(json.dumps(r.as_dict(), indent=1) if args.json else r.to_text())
+
+
 # ---------------------------------------------------------------------------------------------- bench mpc
 def _mpc(args) -> int:
     import json
@@ -240,6 +251,11 @@ def register(cli) -> None:
     p.add_argument("--log-rows", type=int, default=5_000_000, metavar="N", help="rows of the imported CSV log "
                    "(default 5000000)")
     p.add_argument("--no-peers", action="store_true", help="skip the DuckDB floors and the DataFrame peer")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+
+    p = g.command("hud", "cost of storing the seven HUD channels with a pEDAS drive: import time and store size per "
+                  "drive, with and without them", _hud)
+    p.add_argument("--copies", type=int, default=10, metavar="N", help="drives imported into each store (default 10)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
 
     p = g.command("mpc", "controller-step time and accuracy of the MPCs with each QP backend (DAQP, OSQP) on a "

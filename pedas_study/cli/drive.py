@@ -19,7 +19,7 @@ def _import(args) -> None:
     with open_store(args) as st:
         r = import_drive_file(st, args.id, args.condition, args.file, replace=args.replace, route=args.route,
                               progress=progress if args.verbose else None, mapping=args.map, fmt=args.log_format,
-                              vehicle=args.vehicle, force=args.force)
+                              vehicle=args.vehicle, force=args.force, net=args.net)
     extra = f"; ignored columns: {', '.join(r.ignored_columns)}" if r.ignored_columns else ""
     if r.status == "unchanged":
         print(f"{args.id} {args.condition}: unchanged (same log already stored as drive {r.drive_id})")
@@ -82,15 +82,19 @@ def register(cli) -> None:
     g = cli.group("drive", "drive logs")
     p = g.command("import", "import a drive log (CSV, Parquet or SUMO FCD XML) for a participant", _import)
     p.add_argument("id", metavar="ID")
-    p.add_argument("condition", metavar="CONDITION", help="a condition the study declares")
+    p.add_argument("condition", metavar="CONDITION", help="a condition the study declares, or a drive phase without "
+                                                          "one (familiarisation)")
     p.add_argument("file", metavar="FILE")
     p.add_argument("--map", default=None, metavar="FILE",
                    help="log mapping (TOML) for this file instead of the study's; 'none' = a canonical log")
     p.add_argument("--format", dest="log_format", default=None, choices=("csv", "parquet", "sumo-fcd"),
                    help="log format (default: from the file name; .xml = sumo-fcd)")
     p.add_argument("--vehicle", default=None, metavar="ID", help="the vehicle of a SUMO FCD file")
+    p.add_argument("--net", default=None, metavar="FILE",
+                   help="the SUMO network (.net.xml) of a SUMO FCD file: limits and lights from there")
     p.add_argument("--force", default=None, metavar="REASON",
-                   help="import despite plausibility problems (distance, sampling); the reason is recorded")
+                   help="import despite plausibility problems (distance, sampling) or a condition other than the "
+                        "participant's current drive phase; the reason is recorded")
     p.add_argument("--replace", action="store_true", help="replace a different log stored for this drive")
     p.add_argument("--route", default=None, help="route name stored with the drive (default: the study's route)")
     p.add_argument("--verbose", "-v", action="store_true", help="report progress on stderr")

@@ -13,6 +13,10 @@ def _serve(args) -> None:
 
     from study.store import StoreHolder
 
+    for flag, value in (("--udp-idle", args.udp_idle), ("--max-rate", args.max_rate)):
+        if not value > 0:   # also refuses nan
+            raise UserError(f"{flag} must be a positive number, got {value:g}")
+
     st = None
     if not args.no_log:
         # a missing store fails before the route is loaded; then the store is open only while a drive log writes
@@ -30,10 +34,14 @@ def _serve(args) -> None:
         def ready(port: int) -> None:
             where = "no drive log" if st is None else f"drive logs into {db_path(args)}"
             print(f"listening on ws://{args.host}:{port}/ and udp://{args.host}:{port} (route {live.name}, {where}); "
-                  f"HUD page http://{args.host}:{port}/", flush=True)
+                  f"HUD page http://{args.host}:{port}/?pair=CODE with the code each session prints", flush=True)
+
+        def announce(line: str) -> None:   # a session's pairing code and HUD page, a UDP session's end
+            print(line, flush=True)
 
         server = LiveServer(live, args.host, args.port, logger_factory=None if st is None else drive_log,
-                            on_ready=ready)
+                            on_ready=ready, announce=announce, rate=args.max_rate,
+                            burst=max(1, round(args.max_rate / 2)), udp_idle=args.udp_idle)
         try:
             server.run()
         except OSError as exc:   # address in use, no such interface: the operator's input
@@ -64,7 +72,8 @@ def _drive(args) -> None:
           f"{time.perf_counter() - t0:.1f} s; round trip median {np.median(lat):.2f} ms, "
           f"p99 {np.percentile(lat, 99):.2f} ms; logged as drive {ctrl.done['drive_id']}")
     if args.compare:
-        ref = drive(args.seed, args.style, "pedas", traffic_seed=args.traffic_seed)
+        # the socket's drive log has no HUD channels (the server logs what it showed): compare the drive logs
+        ref = drive(args.seed, args.style, "pedas", traffic_seed=args.traffic_seed, hud_channels=False)
         same = ref.equals(df)
         print(f"in-process drive with the same seeds: {'identical' if same else 'DIFFERENT'} log "
               f"({len(ref)} samples)")
@@ -74,6 +83,7 @@ def _drive(args) -> None:
 
 def register(cli) -> None:
     """Declare the `live` group."""
+    from pedas.live_limits import RATE, UDP_IDLE
     from pedas.vocabulary import STYLES
 
     g = cli.group("live", "live pEDAS advice for a driving simulator (WebSocket/UDP, docs/hud.md)")
@@ -84,6 +94,10 @@ def register(cli) -> None:
     p.add_argument("--port", type=int, default=8765, help="WebSocket/HTTP and UDP port (default 8765; 0 = any)")
     p.add_argument("--no-log", action="store_true", help="log no drives (no store needed)")
     p.add_argument("--replace", action="store_true", help="a session may replace a stored drive")
+    p.add_argument("--max-rate", dest="max_rate", type=float, default=RATE, metavar="HZ",
+                   help=f"messages/s one client may send; faster ones are slowed (UDP: dropped) (default {RATE:g})")
+    p.add_argument("--udp-idle", dest="udp_idle", type=float, default=UDP_IDLE, metavar="S",
+                   help=f"seconds without a datagram after which a UDP session ends (default {UDP_IDLE:g})")
     p = g.command("drive", "reference client: a virtual participant drives in SUMO with advice from a live server",
                   _drive)
     p.add_argument("--url", default="ws://127.0.0.1:8765/", help="the server (default ws://127.0.0.1:8765/)")

@@ -46,21 +46,10 @@ def _add(args) -> None:
 
 
 def _import(args) -> int | None:
-    from pathlib import Path
-
-    from pedas_study.cli.bulk import refused
-    from study.bulk_rows import BadRows, read_rows
+    from pedas_study.cli.bulk import apply_file
     from study.participants import import_roster
 
-    path = Path(args.roster)
-    try:
-        frame = read_rows(path)
-        with open_store(args) as st:
-            n = import_roster(st, frame, source=path.name)
-    except BadRows as exc:
-        return refused(exc)
-    print(f"registered {n} participants from {args.roster}")
-    return None
+    return apply_file(args, "roster", import_roster, lambda n: f"registered {n} participants from {args.roster}")
 
 
 def _list(args) -> None:

@@ -24,21 +24,12 @@ def _advance(args) -> int | None:
 
 
 def _advance_from(args) -> int | None:
-    from pathlib import Path
-
-    from pedas_study.cli.bulk import refused
-    from study.bulk_rows import BadRows, read_rows
+    from pedas_study.cli.bulk import apply_file
     from study.protocol import apply_events
 
-    path = Path(args.events)
-    try:
-        frame = read_rows(path)
-        with open_store(args) as st:
-            done = apply_events(st, frame, source=path.name)
-    except BadRows as exc:
-        return refused(exc)
-    print(f"applied {len(done)} events for {done['participant_id'].nunique()} participants from {args.events}")
-    return None
+    return apply_file(args, "events", apply_events,
+                      lambda done: f"applied {len(done)} events for {done['participant_id'].nunique()} participants "
+                                   f"from {args.events}")
 
 
 def _abort(args) -> None:

@@ -159,6 +159,16 @@ def summary(study) -> str:
     parts.append("model: none" if model is None else
                  f"model: {len(model.measurement)} constructs, {len(model.regressions)} regressions, "
                  f"{len(model.hypotheses)} hypotheses")
+    from study.scores import study_scores
+    from study.within_spec import within_spec
+
+    scores = [s.name for s in study_scores(study)]
+    if scores:
+        parts.append(f"scores {', '.join(scores)}")
+    within = within_spec(study)
+    if within is not None:
+        parts.append(f"within-subjects: {len(within.scores) + len(within.kpis)} variables across "
+                     f"{'|'.join(within.conditions)}")
     return f"study {study.study_id} OK: " + ", ".join(parts)
 
 

@@ -12,16 +12,17 @@ def _import(args):
     from study.survey_import import import_survey
 
     with open_store(args) as st:
-        r = import_survey(st, args.file, entry=args.entry, instrument=args.instrument)
+        r = import_survey(st, args.file, entry=args.entry, instrument=args.instrument, occasion=args.occasion)
     kind = f"entry round {r.entry_round} of a double entry" if r.double_entry else "single electronic entry (final)"
-    print(f"imported {r.participants} participants ({r.answers} answers, {r.missing} missing) as {kind}")
+    at = f" at {len(r.occasions)} occasions ({', '.join(r.occasions)})" if len(r.occasions) > 1 else ""
+    print(f"imported {r.participants} participants{at} ({r.answers} answers, {r.missing} missing) as {kind}")
 
 
 def _link(args):
     from study import survey as sv
 
     with open_store(args) as st:
-        token = sv.issue_link(st, args.participant_id, args.instrument)
+        token = sv.issue_link(st, args.participant_id, args.instrument, args.occasion)
     print(f"{args.base_url.rstrip('/')}/s/{token}")
 
 
@@ -29,7 +30,7 @@ def _revoke(args):
     from study import survey as sv
 
     with open_store(args) as st:
-        n = sv.revoke_links(st, args.participant_id, args.instrument)
+        n = sv.revoke_links(st, args.participant_id, args.instrument, args.occasion)
     print(f"{args.participant_id}: {n} survey link{'s' if n != 1 else ''} revoked")
 
 
@@ -37,7 +38,7 @@ def _status(args):
     from study import survey as sv
 
     with open_store(args, read_only=True) as st:
-        df = sv.survey_status(st, args.instrument)
+        df = sv.survey_status(st, args.instrument, args.occasion)
     print(format_frame(df, args.format))
 
 
@@ -45,7 +46,7 @@ def _discrepancies(args):
     from study import survey as sv
 
     with open_store(args, read_only=True) as st:
-        df = sv.discrepancies(st, args.instrument)
+        df = sv.discrepancies(st, args.instrument, args.occasion)
     print(format_frame(df, args.format))
 
 
@@ -53,7 +54,7 @@ def _resolve(args):
     from study import survey as sv
 
     with open_store(args) as st:
-        a = sv.resolve(st, args.participant_id, args.item_id, args.value, args.note, args.instrument)
+        a = sv.resolve(st, args.participant_id, args.item_id, args.value, args.note, args.instrument, args.occasion)
     shown = a.text if a.text is not None else ("missing" if a.value is None else a.value)
     print(f"{args.participant_id} {args.item_id}: final value {shown}")
 
@@ -64,7 +65,7 @@ def _final(args):
     from study import survey as sv
 
     with open_store(args, read_only=True) as st:
-        df = sv.final_responses(st, args.instrument)
+        df = sv.final_responses(st, args.instrument, args.occasion)
     for item in df.columns[1:]:
         col = df[item]
         if col.dtype == "float64" and (col.dropna() % 1 == 0).all():
@@ -72,7 +73,9 @@ def _final(args):
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     df.to_csv(out, index=False, lineterminator="\n")
-    print(f"wrote {len(df)} participants to {out}")
+    rows = f"{len(df)} rows ({df['participant_id'].nunique()} participants)" if "occasion" in df else \
+        f"{len(df)} participants"
+    print(f"wrote {rows} to {out}")
 
 
 def _serve(args):
@@ -109,18 +112,23 @@ def _serve(args):
     print("survey server stopped")
 
 
-def _instrument_option(p) -> None:
-    p.add_argument("--instrument", default=None, help="instrument name (default: the study's instrument)")
+def _instrument_option(p, occasion: str = "the instrument's only one") -> None:
+    p.add_argument("--instrument", default=None, help="instrument name (default: the study's instrument, or the "
+                                                      "occasion's)")
+    if occasion:
+        p.add_argument("--occasion", default=None, metavar="PHASE",
+                       help=f"the questionnaire phase answered in (default: {occasion})")
 
 
 def register(cli) -> None:
     """Declare the `survey` group."""
     g = cli.group("survey", "survey instrument, web form and data entry")
-    p = g.command("import", "import a wide survey CSV (docs/contracts.md), all or nothing", _import)
+    p = g.command("import", "import a survey CSV, wide or long, with or without an occasion or condition column "
+                  "(docs/survey.md), all or nothing", _import)
     p.add_argument("file", metavar="FILE")
     p.add_argument("--entry", type=int, choices=(1, 2), default=None,
                    help="paper-form double entry round; without it the file is a single electronic entry (final)")
-    _instrument_option(p)
+    _instrument_option(p, "the file's occasion or condition column, else the instrument's only one")
 
     p = g.command("serve", "run the survey web form (participant links + researcher data entry)", _serve)
     p.add_argument("--host", default="127.0.0.1", help="address to bind (default 127.0.0.1: this machine only)")
@@ -129,12 +137,12 @@ def register(cli) -> None:
                    help="behind N reverse proxies (TLS): believe their X-Forwarded-For/-Proto (default 0)")
     p.add_argument("--secure-cookies", action="store_true",
                    help="always mark the session cookie Secure (default: when the request came over HTTPS)")
-    _instrument_option(p)
+    _instrument_option(p, "")
 
     p = g.command("link", "issue a one-time survey link for a participant (revokes earlier ones)", _link)
     p.add_argument("participant_id", metavar="ID")
     p.add_argument("--base-url", default="http://127.0.0.1:8000", help="address of `survey serve` (default %(default)s)")
-    _instrument_option(p)
+    _instrument_option(p, "the instrument's only one, else the questionnaire phase the participant is in")
 
     p = g.command("revoke", "revoke a participant's survey link (a new one can be issued later)", _revoke)
     p.add_argument("participant_id", metavar="ID")
@@ -142,11 +150,11 @@ def register(cli) -> None:
 
     p = g.command("status", "per participant: link, entries, discrepancies, final", _status)
     add_format_option(p)
-    _instrument_option(p)
+    _instrument_option(p, "every occasion of the instrument")
 
     p = g.command("discrepancies", "every item where double entry 1 and 2 differ", _discrepancies)
     add_format_option(p)
-    _instrument_option(p)
+    _instrument_option(p, "every occasion of the instrument")
 
     p = g.command("resolve", "record the final value of a double-entry discrepancy (audited)", _resolve)
     p.add_argument("participant_id", metavar="ID")
@@ -157,4 +165,4 @@ def register(cli) -> None:
 
     p = g.command("final", "write the final answers as a wide CSV (survey CSV of docs/contracts.md)", _final)
     p.add_argument("--out", required=True, metavar="CSV")
-    _instrument_option(p)
+    _instrument_option(p, "every occasion of the instrument, one row per participant and occasion")

@@ -16,40 +16,59 @@ from __future__ import annotations
 import secrets
 from pathlib import Path
 
-from flask import Flask, g, render_template, request
+from flask import Flask, current_app, g, jsonify, render_template, request
 from flask.sessions import SecureCookieSessionInterface
+from werkzeug.exceptions import HTTPException
 
 from study.errors import UserError
-from study.instrument import is_scaled
 from study.webapp import console, participant, researcher
-from study.webapp.context import install, new_state
-from study.webapp.server import SurveyServer
+from study.webapp.context import install, message, new_state
+from study.webapp.server import SurveyServer, redact
 from study.webapp.signin import SignIn, SignInSettings
+from study.webapp.widgets import check_renderable, widget
 
-__all__ = ["create_app", "SurveyServer"]
+__all__ = ["create_app", "SurveyServer", "check_renderable", "widget"]
 HERE = Path(__file__).parent
 CSP = ("default-src 'self'; script-src 'self'; style-src 'self'; img-src 'self'; form-action 'self'; "
        "frame-ancestors 'none'")
 
 
-def widget(response_type: str) -> str:
-    """The form widget of a codebook response type: 'scale' (k radios), 'choice', 'number' or 'text'.
+class _App(Flask):
+    """Flask, whose error log never shows a participant's link token (the path and the traceback redacted)."""
 
-    A type the form cannot show raises UserError: a question without inputs must never be offered."""
-    if is_scaled(response_type):
-        return "scale"
-    if response_type in ("choice", "number", "text"):
-        return response_type
-    raise UserError(f"the web form cannot show response type {response_type!r}")
+    def log_exception(self, exc_info) -> None:
+        import traceback
+
+        text = "".join(traceback.format_exception(*exc_info)) if exc_info[0] else ""
+        self.logger.error(redact(f"Exception on {request.path} [{request.method}]\n{text}".rstrip()))
 
 
-def check_renderable(ins) -> None:
-    """UserError naming the first item of `ins` the web form cannot show (checked before the server starts)."""
-    for item, kind in ins.items["response_type"].items():
-        try:
-            widget(kind)
-        except UserError as exc:
-            raise UserError(f"instrument {ins.name}, item {item}: {exc}") from None
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split())
+
+
+def _refused(status: int, title: str, text: str, headers=()):
+    """A refused request: JSON {"error"} for the answer endpoint (a script reads it), else the message page."""
+    if request.path.endswith("/answer"):
+        resp = jsonify(error=text)
+        resp.status_code = status
+    else:
+        resp = current_app.make_response(message(title, text, status))
+    for name, value in headers:
+        resp.headers[name] = value
+    return resp
+
+
+def http_error(exc: HTTPException):
+    """Every HTTP error (404, 405, 413, ...) as one line, keeping the headers that belong to it (Allow, ...)."""
+    keep = [(k, v) for k, v in exc.get_headers() if k in ("Allow", "Retry-After", "WWW-Authenticate")]
+    return _refused(exc.code or 400, exc.name, _one_line(exc.description or exc.name), keep)
+
+
+def user_error(exc: UserError):
+    """A UserError a view did not answer itself: bad input, so 4xx with its one-line message (a link's own status)."""
+    status = getattr(exc, "status", 400)
+    return _refused(status if 400 <= status < 500 else 400, "Not possible", _one_line(str(exc)))
 
 
 class _SessionInterface(SecureCookieSessionInterface):
@@ -63,9 +82,11 @@ class _SessionInterface(SecureCookieSessionInterface):
 def create_app(st, researcher_password: str, instrument: str | None = None,
                secret_key: str | None = None, signin: SignInSettings | None = None) -> Flask:
     """The Flask app over the store of the open, writable Store `st`, showing the store's study (title,
-    description) and `instrument` (None = the study's). Requests open the store's file themselves (as `st`'s
+    description). A participant link shows the form of its own instrument (every instrument of the study, so one
+    server serves every questionnaire phase); `instrument` (None = the study's first) is the one the researcher's
+    survey-status, paper-entry and discrepancy pages work on. Requests open the store's file themselves (as `st`'s
     actor); `st` may be closed once the app is made. `signin` = how researcher sign-in is guarded and whether a
-    TLS proxy is trusted (default :class:`SignInSettings`)."""
+    TLS proxy is trusted (default :class:`SignInSettings`). An instrument the form cannot show -> UserError."""
     from study.studies import definition
     from study.survey import instrument_of
 
@@ -74,10 +95,14 @@ def create_app(st, researcher_password: str, instrument: str | None = None,
     study = definition(st)
     ins = instrument_of(st, instrument)
     check_renderable(ins)
-    app = Flask(__name__, template_folder=str(HERE / "templates"), static_folder=str(HERE / "static"))
+    for other in study.instruments:   # refused at start, never as a link that cannot be shown
+        check_renderable(study.instrument(other))
+    app = _App(__name__, template_folder=str(HERE / "templates"), static_folder=str(HERE / "static"))
     app.config.update(SECRET_KEY=secret_key or secrets.token_hex(32), SESSION_COOKIE_SAMESITE="Strict",
                       SESSION_COOKIE_HTTPONLY=True, MAX_CONTENT_LENGTH=256 * 1024)
-    app.extensions["survey"] = new_state(st, ins)
+    app.extensions["survey"] = new_state(st, ins, study)
+    app.register_error_handler(HTTPException, http_error)
+    app.register_error_handler(UserError, user_error)
     install(app)
     app.extensions["signin"] = SignIn(researcher_password, signin)
     app.session_interface = _SessionInterface()

@@ -10,18 +10,19 @@ flashed message, except the survey link (shown once, with its QR code) and the e
 * ``participants``: the list (`participant list`) and registration with the study's attributes (`participant add`);
 * ``p/<id>``: the protocol phases with start / end / abort buttons stamped with the server's clock (`session
   advance|complete|abort`), exclusions (`exclude`), drive-log upload (`drive import`), survey link issue / revoke
-  (`survey link|revoke`);
+  (`survey link|revoke`), one row per questionnaire occasion (:mod:`study.webapp.occasion_rows`);
 * ``completeness`` (`participant completeness`), ``export`` (`export`, as a ZIP download).
 """
 from __future__ import annotations
 
 import io
+import re
 import tempfile
 import zipfile
 from datetime import date, datetime, timedelta
 from pathlib import Path
 
-from flask import Blueprint, flash, jsonify, redirect, render_template, request, send_file, url_for
+from flask import Blueprint, flash, g, jsonify, redirect, render_template, request, send_file, url_for
 from werkzeug.utils import secure_filename
 
 from study.errors import UserError
@@ -30,6 +31,9 @@ from study.webapp.researcher import actor, researcher
 
 bp = Blueprint("console", __name__, url_prefix="/r")
 DRIVE_UPLOAD_MAX = 512 * 1024 * 1024  # bytes of one uploaded drive log (a 2 h drive at 100 Hz is ~100 MB of CSV)
+FLASH_MAX = 300    # characters of a flashed message: it travels in the session cookie (browsers keep <= 4 kB)
+REFILL_MAX = 200   # characters of a refused form's field shown again; a longer one comes back empty
+_PID = re.compile(r"[A-Za-z0-9_.-]{1,64}")  # a participant id a redirect may carry (the store allows 1-64 chars)
 
 
 @bp.before_request
@@ -44,14 +48,39 @@ def _records(df) -> list[dict]:
     return df.astype(object).where(df.notna(), None).to_dict("records")
 
 
+def _short(text: str) -> str:
+    """`text` on one line, at most FLASH_MAX characters (a message quoting a 70 kB field must not fill the cookie)."""
+    text = " ".join(str(text).split())
+    return text if len(text) <= FLASH_MAX else text[:FLASH_MAX - 1] + "…"
+
+
+def _target(endpoint: str, values: dict) -> str:
+    """The address a console redirect goes to. Request data reaches it only as a canonical day (``date``) or a
+    plain participant id (``pid``); anything else is dropped (a bad pid goes to the participant list), so a
+    redirect never echoes arbitrary request data into a Location header."""
+    clean = {}
+    day = values.get("date")
+    if isinstance(day, str):
+        try:
+            clean["date"] = date.fromisoformat(day).isoformat()
+        except ValueError:
+            pass
+    if "pid" in values:
+        if not (isinstance(values["pid"], str) and _PID.fullmatch(values["pid"])):
+            return url_for("console.participants")
+        clean["pid"] = values["pid"]
+    return url_for(endpoint, **clean)
+
+
 def _done(endpoint: str, text: str | None = None, error: str | None = None, **values):
     """Post/redirect/get with a flashed message; a script's upload request (XHR) gets the address as JSON instead
-    of a redirect, so that it can show progress and then load the page (and the message) itself."""
+    of a redirect, so that it can show progress and then load the page (and the message) itself. `values`: only
+    ``date`` and ``pid`` (checked by :func:`_target`)."""
     if error:
-        flash(error, "error")
+        flash(_short(error), "error")
     elif text:
-        flash(text, "ok")
-    url = url_for(endpoint, **values)
+        flash(_short(text), "ok")
+    url = _target(endpoint, values)
     if request.headers.get("X-Requested-With") == "XMLHttpRequest":
         return jsonify(next=url, ok=error is None)
     return redirect(url, 303)
@@ -99,7 +128,7 @@ def book():
                                                      simulator=f.get("simulator") or DEFAULT_SIMULATOR),
                 lambda r: f"{r['participant_id']}: {r['simulator']} booked {r['starts_at']:%Y-%m-%d %H:%M}-"
                           f"{r['ends_at']:%H:%M}",
-                date=f.get("at", "")[:10] or None)
+                date=f.get("at", "")[:10])
 
 
 @bp.post("/appointment")
@@ -138,8 +167,9 @@ def participants():
     with store() as s:
         people = list_participants(s)
         study = definition(s)
+    refill, g.researcher.refill = g.researcher.refill, {}  # a refused registration's values, shown once
     return render_template("c_participants.html", people=_records(people), columns=list(people.columns),
-                           attributes=study.attributes, protocols=list(study.protocols), form=request.args)
+                           attributes=study.attributes, protocols=list(study.protocols), form=refill)
 
 
 @bp.post("/participants")
@@ -150,25 +180,27 @@ def register():
 
     f = request.form
     pid = f.get("participant_id", "").strip()
+    names: list[str] = []
     try:
         with store(actor()) as s:
             names = [a.name for a in definition(s).attributes]
             attrs = {n: f[n] for n in names if f.get(n, "").strip()}  # an empty field = not given
             add_participant(s, pid, attrs, protocol=f.get("protocol") or None)
-    except UserError as exc:  # the form comes back filled in
-        flash(str(exc), "error")
-        return redirect(url_for("console.participants", **{k: v for k, v in f.items() if k != "csrf"}), 303)
+    except UserError as exc:  # the form comes back filled in: the values wait in the server-side session
+        g.researcher.refill = {k: f[k] for k in ("participant_id", "protocol", *names)
+                               if k in f and len(f[k]) <= REFILL_MAX}
+        return _done("console.participants", error=str(exc))
     return _done("console.participant", f"participant {pid} added", pid=pid)
 
 
 @bp.get("/p/<pid>")
 @researcher
 def participant(pid: str):
-    from study import survey as sv
     from study.exclusions import REASONS, SCOPES, list_exclusions
     from study.participants import participant_attributes, require
     from study.protocol import protocol_of, status
     from study.studies import definition
+    from study.webapp.occasion_rows import participant_occasions
 
     ins = state()["instrument"].name
     try:
@@ -179,9 +211,9 @@ def participant(pid: str):
             exclusions = list_exclusions(s, pid)
             drives = s.df("SELECT condition, source, n_samples, duration_s, distance_m, file_name, created_at "
                           "FROM drives WHERE participant_id = ? ORDER BY condition", [pid])
-            survey = sv.survey_status(s, ins).set_index("participant_id").loc[pid]
             attrs = _records(participant_attributes(s, [pid]).drop(columns="participant_id"))[0]
             study = definition(s)
+            occasions = participant_occasions(s, study, ins, pid, proto, phases)
     except UserError as exc:
         return _done("console.participants", error=str(exc))
     closed = "all" in set(exclusions["scope"])  # advance refuses then; no buttons that can only fail
@@ -194,8 +226,8 @@ def participant(pid: str):
         next_phase=None if pending.empty else pending.iloc[0]["phase"],
         exclusions=_records(exclusions), scopes=SCOPES, reasons=REASONS,
         drives=_records(drives), conditions=study.condition_names,
-        drive_conditions=[p.condition for p in drive_phases], survey=survey.to_dict(), attributes=attrs,
-        upload_max_mb=DRIVE_UPLOAD_MAX // (1024 * 1024))
+        drive_conditions=[p.condition for p in drive_phases], survey=occasions[0], occasions=occasions,
+        attributes=attrs, upload_max_mb=DRIVE_UPLOAD_MAX // (1024 * 1024))
 
 
 @bp.post("/p/<pid>/start")
@@ -254,9 +286,16 @@ def unexclude(pid: str):
 @researcher
 def revoke_link(pid: str):
     from study import survey as sv
+    from study.studies import definition
+    from study.webapp.occasion_rows import occasion_field
 
-    return _act("console.participant", lambda s: sv.revoke_links(s, pid, state()["instrument"].name),
-                lambda r: f"{pid}: survey link revoked", pid=pid)
+    def revoke(s):
+        occasion = occasion_field(definition(s), request.form.get("occasion"))
+        sv.revoke_links(s, pid, None if occasion else state()["instrument"].name, occasion)
+        return occasion
+
+    return _act("console.participant", revoke,
+                lambda occasion: f"{pid}: survey link{f' of {occasion}' if occasion else ''} revoked", pid=pid)
 
 
 @bp.post("/p/<pid>/drive")
@@ -327,7 +366,11 @@ def export():
             return _done("console.export_form", error=str(exc))
         with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as z:
             for name in sorted([*r.files, "manifest.json"]):
-                z.write(Path(tmp) / name, name)
+                if deid:  # the entries' times would tell when the export was made: a fixed one instead
+                    z.writestr(zipfile.ZipInfo(name, date_time=(1980, 1, 1, 0, 0, 0)),
+                               (Path(tmp) / name).read_bytes(), zipfile.ZIP_DEFLATED)
+                else:
+                    z.write(Path(tmp) / name, name)
     buf.seek(0)
     stamp = date.today().isoformat()
     return send_file(buf, mimetype="application/zip", as_attachment=True,

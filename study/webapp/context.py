@@ -14,14 +14,15 @@ BUSY = "The study store is busy (a command is using it). Please try again in a m
 
 
 def state() -> dict:
-    """The app's survey state: {"lock" (the :class:`StoreHolder`), "instrument"}; the researcher password lives
-    (hashed) in the sign-in extension (:mod:`study.webapp.signin`)."""
+    """The app's survey state: {"lock" (the :class:`StoreHolder`), "instrument", "study" (the store's study when
+    the app was made)}; the researcher password lives (hashed) in the sign-in extension
+    (:mod:`study.webapp.signin`)."""
     return current_app.extensions["survey"]
 
 
-def new_state(st, instrument) -> dict:
+def new_state(st, instrument, study=None) -> dict:
     # the server keeps no connection between requests: each request opens the store under the holder's lock
-    return {"lock": StoreHolder(st.path, st.actor), "instrument": instrument}
+    return {"lock": StoreHolder(st.path, st.actor), "instrument": instrument, "study": study}
 
 
 def install(app) -> None:

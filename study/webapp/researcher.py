@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import hmac
 import math
+import re
 import secrets
 from functools import wraps
 
@@ -17,8 +18,27 @@ from markupsafe import Markup
 from study import survey as sv
 from study.errors import UserError
 from study.webapp.context import message, state, store
+from study.webapp.signin import WrongPassword
 
 bp = Blueprint("researcher", __name__, url_prefix="/r")
+# where sign-in may send the researcher back to: a console path of plain characters (never a header's CR/LF, never
+# another host, never a long echo of the request)
+_NEXT = re.compile(r"/r/[A-Za-z0-9_./-]{0,200}")
+
+
+def same_token(given, expected: str) -> bool:
+    """Constant-time comparison of a posted CSRF token with the expected one; any text (non-ASCII included) or a
+    missing value compares as unequal instead of failing (hmac.compare_digest refuses non-ASCII str)."""
+    if not isinstance(given, str) or not expected:
+        return False
+    return hmac.compare_digest(given.encode("utf-8", "surrogatepass"), expected.encode("utf-8"))
+
+
+def safe_next(path: str | None) -> str | None:
+    """`path` when it is a console path sign-in may redirect to (:data:`_NEXT`, no ``..``), else None."""
+    if isinstance(path, str) and _NEXT.fullmatch(path) and ".." not in path and "//" not in path:
+        return path
+    return None
 
 
 def signin():
@@ -38,8 +58,9 @@ def researcher(view):
         g.researcher = signin().sessions.get(session.get("sid"))
         if g.researcher is None:
             session.pop("sid", None)
-            return redirect(url_for("researcher.login", next=request.path))
-        if request.method == "POST" and not hmac.compare_digest(request.form.get("csrf", ""), g.researcher.csrf):
+            back = safe_next(request.path) if request.method == "GET" else None
+            return redirect(url_for("researcher.login", next=back) if back else url_for("researcher.login"))
+        if request.method == "POST" and not same_token(request.form.get("csrf"), g.researcher.csrf):
             return message("Form expired", "Please reload the page and try again.", 400)
         return view(*a, **kw)
     return wrapped
@@ -60,7 +81,7 @@ def login():
     if request.method == "GET":
         return _login_form()
     expected = session.get("login_csrf")
-    if not expected or not hmac.compare_digest(request.form.get("csrf", ""), expected):
+    if not isinstance(expected, str) or not same_token(request.form.get("csrf"), expected):
         return _login_form("The sign-in form expired. Please try again.", 400)
     name = request.form.get("name", "").strip()
     si = signin()
@@ -74,11 +95,11 @@ def login():
     if not name:
         return _login_form("Please enter your name.", 401)
     si.throttle.succeeded(keys)
+    target = safe_next(request.args.get("next")) or url_for("console.today")  # decided before a session exists
     si.sessions.end(session.get("sid"))
     session.clear()
     session["sid"] = si.sessions.create(name)
-    nxt = request.args.get("next", "")
-    return redirect(nxt if nxt.startswith("/r/") else url_for("console.today"), 303)
+    return redirect(target, 303)
 
 
 @bp.post("/logout")
@@ -92,20 +113,34 @@ def logout():
 @bp.route("/password", methods=["GET", "POST"])
 @researcher
 def password():
-    """Change the researcher password: every session ends, the one changing it gets a new one."""
-    error = None
+    """Change the researcher password: every session ends, the one changing it gets a new one. A wrong current
+    password counts as a failed sign-in of the researcher's name and address (same lockout and back-off)."""
+    error, status, wait = None, 400, 0.0
     if request.method == "POST":
         f = request.form
-        try:
-            signin().change_password(f.get("current", ""), f.get("new", ""), f.get("confirm", ""))
-        except UserError as exc:
-            error = str(exc)
+        si = signin()
+        keys = si.keys(actor(), request.remote_addr)
+        wait = si.throttle.locked_for(keys)
+        if wait > 0:  # refused before the current password is checked, as sign-in is
+            status, error = 429, f"Too many wrong passwords. Please wait {math.ceil(wait)} s and try again."
         else:
-            session.clear()
-            session["sid"] = signin().sessions.create(actor())
-            flash("Password changed. Every other session has been signed out.")
-            return redirect(url_for("researcher.index"), 303)
-    return render_template("r_password.html", error=error), (400 if error else 200)
+            try:
+                si.change_password(f.get("current", ""), f.get("new", ""), f.get("confirm", ""))
+            except WrongPassword as exc:
+                si.throttle.failed(keys)
+                error = str(exc)
+            except UserError as exc:
+                error = str(exc)
+            else:
+                si.throttle.succeeded(keys)
+                session.clear()
+                session["sid"] = si.sessions.create(actor())
+                flash("Password changed. Every other session has been signed out.")
+                return redirect(url_for("researcher.index"), 303)
+    resp = current_app.make_response((render_template("r_password.html", error=error), status if error else 200))
+    if error and wait > 0:
+        resp.headers["Retry-After"] = str(math.ceil(wait))
+    return resp
 
 
 @bp.get("/")
@@ -119,14 +154,27 @@ def index():
 @bp.post("/link")
 @researcher
 def link():
+    """A new link of one participant for one questionnaire: the form's ``occasion`` (a questionnaire phase), by
+    default the instrument's only occasion or the questionnaire phase the participant is in; earlier links of the
+    same occasion stop working (`survey link`)."""
+    from study.occasions import study_occasions
+    from study.studies import definition
+    from study.webapp.occasion_rows import occasion_field, rated_label
+
     pid = request.form.get("participant_id", "").strip()
     try:
         with store(actor()) as s:
-            token = sv.issue_link(s, pid, state()["instrument"].name)
+            study = definition(s)
+            occasion = occasion_field(study, request.form.get("occasion"))
+            # a named occasion names its instrument (any of the study's); else the app's instrument
+            token = sv.issue_link(s, pid, None if occasion else state()["instrument"].name, occasion)
+            occasion = sv.resolve_token(s, token).occasion
+            several = len(study_occasions(study)) > 1
     except UserError as exc:
         return message("No link issued", str(exc), 400)
     url = url_for("participant.page", token=token, _external=True)
-    return render_template("r_link.html", participant_id=pid, url=url, qr=qr_svg(url))
+    return render_template("r_link.html", participant_id=pid, url=url, qr=qr_svg(url),
+                           occasion=occasion if several else None, rates=rated_label(study, occasion))
 
 
 def qr_svg(text: str) -> Markup:
@@ -139,17 +187,25 @@ def qr_svg(text: str) -> Markup:
 @bp.route("/entry/<pid>/<int:entry_round>", methods=["GET", "POST"])
 @researcher
 def entry(pid: str, entry_round: int):
+    """One entry round of a paper form; ``?occasion=PHASE`` names the questionnaire phase it was filled in (the
+    form posts back to the same address, so both the page and the save carry it)."""
+    from study.studies import definition
+    from study.webapp.occasion_rows import occasion_field, rated_label
+
     if entry_round not in (1, 2):
         abort(404)
     ins = state()["instrument"]
     items = sv.response_items(ins)
     error = None
     with store(actor()) as s:
+        study = definition(s)
+        occasion = occasion_field(study, request.args.get("occasion"))
         if request.method == "POST":
             raw = {i: request.form.get(i, "") for i in items}
             try:
-                sv.save_entry(s, pid, entry_round, raw, instrument=ins.name, replace=True)
-                return redirect(url_for("researcher.index") + f"#row-{pid}", 303)
+                sv.save_entry(s, pid, entry_round, raw, instrument=ins.name, replace=True, occasion=occasion)
+                row = f"{pid}-{occasion}" if occasion and len(sv.occasions(s, ins.name)) > 1 else pid
+                return redirect(url_for("researcher.index") + f"#row-{row}", 303)
             except UserError as exc:
                 error, answers = str(exc), raw
         else:
@@ -157,9 +213,9 @@ def entry(pid: str, entry_round: int):
                 return message("Unknown participant", f"There is no participant {pid}.", 404)
             # blind double entry: each round shows only its own earlier values, never the other round's
             answers = {i: (a.text if a.text is not None else ("" if a.value is None else str(a.value)))
-                       for i, a in sv.entry_answers(s, pid, entry_round, ins.name).items()}
+                       for i, a in sv.entry_answers(s, pid, entry_round, ins.name, occasion).items()}
     return render_template("r_entry.html", pid=pid, entry_round=entry_round, items=items, answers=answers,
-                           error=error), (400 if error else 200)
+                           error=error, occasion=occasion, rates=rated_label(study, occasion)), (400 if error else 200)
 
 
 @bp.get("/discrepancies")
@@ -173,11 +229,15 @@ def discrepancies():
 @bp.post("/resolve")
 @researcher
 def resolve():
+    from study.studies import definition
+    from study.webapp.occasion_rows import occasion_field
+
     pid, item = request.form.get("participant_id", ""), request.form.get("item_id", "")
     try:
         with store(actor()) as s:
+            occasion = occasion_field(definition(s), request.form.get("occasion"))
             sv.resolve(s, pid, item, request.form.get("value", ""), request.form.get("note") or None,
-                       state()["instrument"].name)
+                       state()["instrument"].name, occasion)
     except UserError as exc:
         return message("Not resolved", str(exc), 400)
     return redirect(url_for("researcher.discrepancies"), 303)

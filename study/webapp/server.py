@@ -9,6 +9,11 @@ from flask import Flask
 _TOKEN_PATH = re.compile(r"/s/[A-Za-z0-9_-]+")
 
 
+def redact(text: str) -> str:
+    """`text` with every participant link path ``/s/<token>`` shown as ``/s/<token>`` (log lines never carry one)."""
+    return _TOKEN_PATH.sub("/s/<token>", text)
+
+
 class SurveyServer:
     """``port=0`` picks a free port; :attr:`url` is the base address; :meth:`close` stops the server."""
 
@@ -53,12 +58,16 @@ def _handler(quiet: bool):
         def log_request(self, code="-", size="-"):
             if quiet:
                 return
-            path = _TOKEN_PATH.sub("/s/<token>", getattr(self, "path", "") or "?")
+            path = redact(getattr(self, "path", "") or "?")
             self.log("info", '"%s %s %s" %s %s', getattr(self, "command", "-"), path,
                      getattr(self, "request_version", "-"), code, size)
 
         def log_error(self, *args):
             if not quiet:
                 super().log_error(*args)
+
+        def log(self, type, message, *args):
+            # every line redacted: http.server puts the raw request line into some errors ("Bad request syntax")
+            super().log(type, "%s", redact(message % args if args else message))
 
     return Handler

@@ -21,6 +21,10 @@ MIN_NEW_PASSWORD = 10  # characters of a password set on the console
 MAX_KEYS = 10_000      # failure records kept before stale ones are dropped
 
 
+class WrongPassword(UserError):
+    """A password change whose current password is wrong (counted by the throttle like a failed sign-in)."""
+
+
 @dataclass(frozen=True)
 class SignInSettings:
     """How sign-in is guarded.
@@ -133,6 +137,7 @@ class Session:
     name: str
     csrf: str = field(default_factory=lambda: secrets.token_urlsafe(24))
     last_seen: float = 0.0
+    refill: dict[str, str] = field(default_factory=dict)  # a refused form's values, shown once (kept server-side)
 
 
 class Sessions:
@@ -200,10 +205,10 @@ class SignIn:
         return check_password(password, stored)
 
     def change_password(self, current: str, new: str, confirm: str) -> None:
-        """Set a new password and end every session; UserError (nothing changed) when `current` is wrong, the two
-        new ones differ or the new one is shorter than MIN_NEW_PASSWORD characters."""
+        """Set a new password and end every session; UserError (nothing changed) when `current` is wrong
+        (:class:`WrongPassword`), the two new ones differ or the new one is shorter than MIN_NEW_PASSWORD characters."""
         if not self.check(current):
-            raise UserError("The current password is wrong.")
+            raise WrongPassword("The current password is wrong.")
         if new != confirm:
             raise UserError("The two new passwords differ.")
         if len(new) < MIN_NEW_PASSWORD:

@@ -94,6 +94,46 @@
     clearTimeout(timers[el.name]);
     timers[el.name] = setTimeout(function () { save(el.name, el.value); updateProgress(); }, 800);
   });
+  // Sliders: the range input has no name; the number field beside it carries the answer. The range is shown only
+  // with JavaScript (here), starts "unset" (no visible thumb) until the participant moves it, clicks it or presses a
+  // key on it, and every committed position is saved like any other answer.
+  function commitSlider(range) {
+    var field = document.getElementById(range.dataset.for);
+    range.parentNode.classList.remove("unset");
+    var hint = field.parentNode.querySelector(".not-yet");
+    if (hint) { hint.remove(); }
+    field.value = range.value;
+    if (range.dataset.saved !== range.value) {        // each committed position is saved once
+      range.dataset.saved = range.value;
+      save(field.name, field.value);
+      updateProgress();
+    }
+  }
+  form.querySelectorAll("input[type=range][data-for]").forEach(function (range) {
+    var field = document.getElementById(range.dataset.for);
+    range.dataset.saved = field.value;
+    range.parentNode.hidden = false;
+    range.addEventListener("input", function () {
+      field.value = range.value;                      // shown while dragging; saved when the thumb is let go
+      range.parentNode.classList.remove("unset");
+    });
+    range.addEventListener("change", function () { commitSlider(range); });
+    // a click on the unset slider's starting position changes nothing, so no change event: commit it here
+    range.addEventListener("pointerup", function () { commitSlider(range); });
+    range.addEventListener("keyup", function (ev) {
+      if (/^(Arrow|Page|Home|End)/.test(ev.key)) { commitSlider(range); }
+    });
+  });
+  // typing in a slider's number field moves the slider with it (the field itself is saved like any number)
+  form.addEventListener("input", function (ev) {
+    var el = ev.target;
+    if (el.dataset && el.dataset.range && el.value !== "") {
+      var range = document.getElementById(el.dataset.range);
+      range.value = el.value;
+      range.dataset.saved = el.value;
+      range.parentNode.classList.remove("unset");
+    }
+  });
   var summary = document.getElementById("error-summary");
   if (summary) { summary.focus(); }
 })();

@@ -1,0 +1,177 @@
+"""The third example study (studies/takeover, a within-subjects design) end to end through the CLI on a temporary
+store, as that lab would run it: check the folder, create the store, import the roster of 19 participants, assign the
+Latin square's orders, walk each through the familiarisation drive and the three condition drives with a post-drive
+questionnaire after each (TOR-A19 breaks off before the third drive), import the 20 Hz logs (ms, mph, ft) with the
+takeover flags, import the questionnaires as one wide file with a condition column, then `analyze within` and the
+report. The statistics are compared with R's (tests/data/takeover/within_reference.json: afex/aov with Error(),
+friedman.test, paired tests, lme4::lmer), the takeover-time KPI with the log generator's truth. Every command and what
+it printed is written to tests/output/takeover_e2e.txt."""
+from __future__ import annotations
+
+import json
+import re
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from tests.conftest import OUTPUT, REPO
+from tests.takeover_logs import RATE_HZ, TOR_AT_S, takeover_time, write_log
+
+STUDY = REPO / "studies" / "takeover"
+DATA = REPO / "tests" / "data" / "takeover"
+CONDITIONS = ("none", "visual", "audiovisual")
+DROPOUT = "TOR-A19"        # motion sickness in the third drive: two drives and two questionnaires
+#: our score name -> the R reference's
+R_NAME = {"sus": "sus", "tlx_raw": "tlx", "trust": "trust"}
+
+pytestmark = [pytest.mark.slow]
+
+
+class Transcript:
+    """Runs `pedas-study --db DB ...` in-process and records each command with its output."""
+
+    def __init__(self, db, capsys):
+        self.db, self.capsys, self.lines = db, capsys, []
+
+    def __call__(self, *args, db: bool = True, quiet: bool = False, code: int = 0) -> str:
+        from pedas_study.cli import main
+
+        argv = ([f"--db={self.db}"] if db else []) + [str(a) for a in args]
+        self.capsys.readouterr()
+        try:
+            got = main(argv)
+        except SystemExit as exc:
+            got = exc.code if isinstance(exc.code, int) else 2
+        got = got or 0
+        cap = self.capsys.readouterr()
+        shown = [a.replace(str(self.db.parent) + "/", "").replace(str(REPO) + "/", "") for a in argv]
+        if not quiet:
+            self.lines.append("$ pedas-study " + " ".join(shown))
+            text = (cap.out + cap.err).replace(str(self.db.parent) + "/", "")
+            self.lines += [f"  {ln}" for ln in text.rstrip("\n").splitlines()]
+            if got:
+                self.lines.append(f"  (exit {got})")
+        assert got == code, f"`pedas-study {' '.join(shown)}` exit {got}, wanted {code}: {cap.err.strip()}"
+        return cap.out + cap.err
+
+    def write(self) -> str:
+        text = "\n".join(self.lines) + "\n"
+        OUTPUT.mkdir(exist_ok=True)
+        (OUTPUT / "takeover_e2e.txt").write_text(text, encoding="utf-8")
+        return text
+
+
+@pytest.fixture(scope="module")
+def reference():
+    return json.loads((DATA / "within_reference.json").read_text())
+
+
+def test_takeover_study_end_to_end(tmp_path, capsys, reference):
+    db = tmp_path / "tor.duckdb"
+    run = Transcript(db, capsys)
+    items = pd.read_csv(DATA / "items.csv")
+    people = items.drop_duplicates("participant")["participant"].tolist()
+    logs = tmp_path / "logs"
+    logs.mkdir()
+    try:
+        assert run("study", "check", STUDY, db=False).startswith("study takeover OK")
+        run("init", "--study", STUDY)
+        roster = tmp_path / "roster.csv"
+        pd.DataFrame({"participant_id": people, "age": [21 + 2 * k for k in range(len(people))]}).to_csv(
+            roster, index=False)
+        assert "registered 19 participants" in run("participant", "import", roster)
+        orders = {pid: run("session", "assign", pid, quiet=k > 2).strip().rsplit(" ", 1)[-1]
+                  for k, pid in enumerate(people)}
+        want = items.drop_duplicates("participant").set_index("participant")["order"]
+        assert orders == want.to_dict()          # the Latin square's three orders in turn: 7/6/6 with TOR-A19
+
+        protocol = json.loads((STUDY / "protocol.json").read_text())
+        for k, pid in enumerate(people):
+            for phase in protocol["orders"][orders[pid]]:
+                run("session", "advance", pid, phase, quiet=k > 0)
+                if phase.startswith("drive_") or phase == "familiarisation":
+                    condition = None if phase == "familiarisation" else phase.removeprefix("drive_")
+                    path = write_log(logs, pid, condition)
+                    if pid == DROPOUT and condition == "audiovisual":
+                        run("session", "abort", pid, "--reason", "motion sickness")
+                        break
+                    run("drive", "import", pid, condition or phase, path, quiet=k > 0)
+            else:
+                run("session", "complete", pid, quiet=k > 0)
+
+        # a log for a condition other than the participant's current phase is refused (no --force)
+        out = run("drive", "import", "TOR-A01", "none", logs / "TOR-A01_none.csv", code=2)
+        assert "TOR-A01" in out
+
+        # the post-drive questionnaires of everyone, one wide file with a condition column
+        answers = items.rename(columns={"participant": "participant_id"}).drop(columns=["order", "period"])
+        wide = tmp_path / "post_drive.csv"
+        answers.to_csv(wide, index=False)
+        run("survey", "import", wide)
+
+        out = run("analyze", "within", "--out", tmp_path / "within")
+        assert "across none, visual, audiovisual" in out
+        run("report", "--out", tmp_path / "reports", "--bootstrap", "0", "--cache-dir", tmp_path / "cache")
+    finally:
+        print(run.write())
+
+    res = tmp_path / "within"
+    diffs = r_differences(res, reference)
+    (OUTPUT / "takeover_vs_r.md").write_text(diffs.to_markdown(index=False) + "\n", encoding="utf-8")
+    print(diffs.to_string(index=False))
+    # lmer's fixed effects: the REML optimum agrees to ~1e-8 (statsmodels' BFGS vs lme4's bobyqa); the rest is exact
+    assert (diffs["max_abs_diff"] < np.where(diffs["group"] == "lmer fixed effects", 1e-6, 1e-9)).all(), diffs
+
+    # the takeover time of every condition drive: the first 20 Hz sample with the hands on, after the request
+    kpi = pd.read_csv(res / "descriptives.csv")
+    truth = pd.DataFrame([{"participant": pid, "condition": c,
+                           "value": np.ceil(takeover_time(pid, c) * RATE_HZ - 1e-9) / RATE_HZ}
+                          for pid in people for c in CONDITIONS if not (pid == DROPOUT and c == "audiovisual")])
+    means = truth.groupby("condition")["value"].mean()
+    got = kpi[kpi["variable"] == "takeover_time"].set_index("condition")["mean"]
+    assert np.allclose(got.loc[list(CONDITIONS)], means.loc[list(CONDITIONS)], atol=1e-9)
+    assert TOR_AT_S > 0
+
+    doc = (tmp_path / "reports" / "index.html").read_text(encoding="utf-8")
+    assert "Within-subjects comparison" in doc and "Simulation core" not in doc
+    assert re.search(r"pingouin \d", doc) and "DAQP" not in doc and "SUMO" not in doc
+
+
+def total(pair) -> float:
+    """n (n + 1) / 2 over the non-zero differences: the sum of both signed-rank sums."""
+    return pair["n_nonzero"] * (pair["n_nonzero"] + 1) / 2
+
+
+def r_differences(res, reference) -> pd.DataFrame:
+    """group, variable, max |ours - R| over the quantities of that group (test_within's conventions)."""
+    anova, friedman = pd.read_csv(res / "anova.csv"), pd.read_csv(res / "friedman.csv")
+    posthoc, mixed = pd.read_csv(res / "posthoc.csv"), pd.read_csv(res / "mixed.csv")
+    rows = []
+    for ours, theirs in R_NAME.items():
+        r = reference["variables"][theirs]
+        a = anova[anova["variable"] == ours].iloc[0]
+        f = friedman[friedman["variable"] == ours].iloc[0]
+        afex = r["afex"]
+        rows.append(("rm-ANOVA F, p, eta2, Mauchly, GG/HF", ours, max(
+            abs(a["f"] - r["aov"]["f"]), abs(a["p"] - r["aov"]["p"]), abs(a["np2"] - afex["pes"]),
+            abs(a["ng2"] - afex["ges"]), abs(a["mauchly_w"] - afex["mauchly_w"]),
+            abs(a["mauchly_p"] - afex["mauchly_p"]), abs(a["eps_gg"] - afex["gg_eps"]),
+            abs(a["p_gg"] - afex["gg_p"]), abs(a["p_hf"] - afex["hf_p"]))))
+        rows.append(("Friedman chi2, p, W", ours, max(abs(f["chi2"] - r["friedman"]["chi2"]),
+                                                     abs(f["p"] - r["friedman"]["p"]),
+                                                     abs(f["kendall_w"] - r["friedman"]["kendall_w"]))))
+        worst = 0.0
+        for pair in r["pairs"]:
+            t = posthoc[(posthoc["variable"] == ours) & (posthoc["a"] == pair["a"]) & (posthoc["b"] == pair["b"])]
+            tt, ww = t[t["test"] == "t"].iloc[0], t[t["test"] == "wilcoxon"].iloc[0]
+            worst = max(worst, abs(tt["statistic"] - pair["t"]), abs(tt["p"] - pair["p_t"]),
+                        abs(tt["p_holm"] - pair["p_t_holm"]), abs(tt["dz"] - pair["dz"]),
+                        # R's V is the positive rank sum, pingouin's W the smaller of the two
+                        abs(ww["statistic"] - min(pair["v"], total(pair) - pair["v"])),
+                        abs(ww["p_holm"] - pair["p_w_holm"]))
+        rows.append(("paired t / Wilcoxon, Holm, d_z", ours, worst))
+        m = mixed[mixed["variable"] == ours].reset_index(drop=True)
+        coef = [t["coef"] for t in r["lmer_all"]["terms"]]
+        rows.append(("lmer fixed effects", ours, float(np.max(np.abs(m["coef"].to_numpy() - np.array(coef))))))
+    return pd.DataFrame(rows, columns=["group", "variable", "max_abs_diff"])
