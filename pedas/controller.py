@@ -512,17 +512,21 @@ class PedasController:
         cfg = self.settings
         self._unfollowed = update_unfollowed(self._unfollowed, self._last_arrow, a_meas, dt_real,
                                              not_decel=cfg.not_decel)
+        ctx = self._hud_context(s, v, pred, obj, sol)
+        hud = advisory(HudState(v=v, a=a_meas, slow_unfollowed=self._unfollowed), plan_v, ctx, **self._hud_kw)
+        self._last_arrow = hud.hud_arrow
+        return hud
+
+    def _hud_context(self, s: float, v: float, pred: _Prediction, obj: _Objects, sol: _Solution) -> HudContext:
+        """What the HUD shows besides the advice: the mode, the next light, stop sign and (slower) curve ahead."""
         curve_d = None
         if self._curve_list:
             j = bisect_left(self._curve_list, s)
             if j < self._curve_s.size and self._curve_v[j] < v:
                 curve_d = float(self._curve_s[j] - s)
-        ctx = HudContext(mode=sol.mode, tl_distance=obj.d_tl, tl_remaining=obj.tl_remaining, stop_distance=obj.d_ss,
-                         curve_distance=curve_d, psi=sol.psi, speed_limit=pred.limit,
-                         tl_state=obj.tl.state_at(self._t_prev) if obj.tl_remaining is not None else None)
-        hud = advisory(HudState(v=v, a=a_meas, slow_unfollowed=self._unfollowed), plan_v, ctx, **self._hud_kw)
-        self._last_arrow = hud.hud_arrow
-        return hud
+        return HudContext(mode=sol.mode, tl_distance=obj.d_tl, tl_remaining=obj.tl_remaining, stop_distance=obj.d_ss,
+                          curve_distance=curve_d, psi=sol.psi, speed_limit=pred.limit,
+                          tl_state=obj.tl.state_at(self._t_prev) if obj.tl_remaining is not None else None)
 
     # ------------------------------------------------------------------------------------------------------
     def _nongreen(self, state: str, changes: list[tuple[float, str]], t: float) -> np.ndarray:

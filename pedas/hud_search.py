@@ -10,13 +10,12 @@ on ties). :func:`search` drives the given people in order until every panel is f
 from __future__ import annotations
 
 import dataclasses
-from bisect import bisect_left
 from dataclasses import dataclass
 from typing import Callable
 
 from pedas.constants import KMH
 from pedas.controller import PedasController
-from pedas.hud import HudContext, HudState, advisory, update_unfollowed
+from pedas.hud import HudState, advisory, update_unfollowed
 
 
 class RecordingController(PedasController):
@@ -37,14 +36,7 @@ class RecordingController(PedasController):
         cfg = self.settings
         unfollowed = update_unfollowed(self._unfollowed, self._last_arrow, a_meas, dt_real, not_decel=cfg.not_decel)
         hud = super()._hud(s, v, a_meas, dt_real, pred, obj, sol, plan_v)
-        curve_d = None   # as PedasController._hud computes it
-        if self._curve_list:
-            j = bisect_left(self._curve_list, s)
-            if j < self._curve_s.size and self._curve_v[j] < v:
-                curve_d = float(self._curve_s[j] - s)
-        ctx = HudContext(mode=sol.mode, tl_distance=obj.d_tl, tl_remaining=obj.tl_remaining, stop_distance=obj.d_ss,
-                         curve_distance=curve_d, psi=sol.psi, speed_limit=pred.limit,
-                         tl_state=obj.tl.state_at(self._t_prev) if obj.tl_remaining is not None else None)
+        ctx = self._hud_context(s, v, pred, obj, sol)
         state = HudState(v=float(v), a=float(a_meas), slow_unfollowed=float(unfollowed))
         again = advisory(state, plan_v[:1], ctx, **self._hud_kw)
         if again != hud:   # postcondition: the recorded inputs give exactly what the controller showed

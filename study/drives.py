@@ -41,9 +41,16 @@ import pandas as pd
 
 from study import fcd_route, logmap, route_file
 from study.definition import STUDY_FILE
-from study.drive_columns import BOOL_OPTIONAL, COLUMNS, FLOAT_OPTIONAL, REQUIRED, TEXT_OPTIONAL
+from study.drive_columns import (
+    BOOL_OPTIONAL,
+    COLUMNS,
+    FLOAT_OPTIONAL,
+    REQUIRED,
+    TEXT_OPTIONAL,
+)
 from study.errors import UserError, check_choice
 from study.file_checks import register_file_check
+from study.numbers import column_floats
 from study.toml_lines import line_of
 
 SOURCES = ("import", "simulation")
@@ -272,14 +279,7 @@ def _numeric(df: pd.DataFrame, col: str, name: str | None = None, first_row: int
     if pd.api.types.is_bool_dtype(s) or not (pd.api.types.is_numeric_dtype(s) or s.dtype == object
                                               or pd.api.types.is_string_dtype(s)):
         raise UserError(f"{name} must be numeric (dtype {s.dtype})")
-    if pd.api.types.is_numeric_dtype(s):
-        return s.to_numpy(dtype="float64", na_value=np.nan)
-    conv = pd.to_numeric(s, errors="coerce")
-    bad = conv.isna() & s.notna() & (s.astype("string").str.strip() != "")
-    if bad.any():
-        i = int(np.flatnonzero(bad.to_numpy())[0])
-        raise UserError(f"{name} row {_row(first_row + i)}: {s.iloc[i]!r} is not a number")
-    return conv.to_numpy(dtype="float64", na_value=np.nan)
+    return column_floats(s, lambda i: f"{name} row {_row(first_row + i)}")
 
 
 def _first(mask: np.ndarray) -> int | None:

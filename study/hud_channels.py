@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 
 from study.errors import UserError
+from study.numbers import column_floats
 
 #: allowed values of the coded channels (NaN = not shown is allowed everywhere)
 _CODES = {"hud_light": (1.0, 2.0, 3.0), "hud_icon": (0.0, 1.0, 2.0, 3.0, 4.0), "hud_tone": (0.0, 1.0)}
@@ -45,14 +46,7 @@ def _values(s: pd.Series, name: str) -> np.ndarray:
     """A column as float64 (NaN = empty); a non-number -> UserError naming column and row."""
     if pd.api.types.is_bool_dtype(s):
         raise UserError(f"column {name} must be numeric (dtype {s.dtype})")
-    if pd.api.types.is_numeric_dtype(s):
-        return s.to_numpy(dtype="float64", na_value=np.nan)
-    conv = pd.to_numeric(s, errors="coerce")
-    bad = conv.isna() & s.notna() & (s.astype("string").str.strip() != "")
-    if bad.any():
-        i = int(np.flatnonzero(bad.to_numpy())[0])
-        raise UserError(f"column {name} row {i + 1}: {s.iloc[i]!r} is not a number")
-    return conv.to_numpy(dtype="float64", na_value=np.nan)
+    return column_floats(s, lambda i: f"column {name} row {i + 1}")
 
 
 def hud_extras(df: pd.DataFrame) -> tuple[pd.DataFrame | None, tuple]:

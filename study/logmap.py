@@ -39,6 +39,7 @@ import pandas as pd
 from study.drive_columns import COLUMNS
 from study.errors import UserError
 from study.file_checks import register_file_check
+from study.numbers import column_floats
 from study.units import parse_unit, units
 
 FORMATS = ("csv", "parquet", "sumo-fcd")
@@ -327,17 +328,7 @@ def convert(values: np.ndarray, unit: str, target: str, channel: str = "") -> np
 
 
 def _numbers(raw: pd.DataFrame, col: str, label: str) -> np.ndarray:
-    s = raw[col]
-    if pd.api.types.is_bool_dtype(s):
-        return s.to_numpy(dtype="float64")
-    if pd.api.types.is_numeric_dtype(s):
-        return s.to_numpy(dtype="float64", na_value=np.nan)
-    conv = pd.to_numeric(s, errors="coerce")
-    bad = conv.isna() & s.notna() & (s.astype("string").str.strip() != "")
-    if bad.any():
-        i = int(np.flatnonzero(bad.to_numpy())[0])
-        raise UserError(f"channel {label} row {i + 1}: {s.iloc[i]!r} is not a number")
-    return conv.to_numpy(dtype="float64", na_value=np.nan)
+    return column_floats(raw[col], lambda i: f"channel {label} row {i + 1}")
 
 
 def apply_mapping(raw: pd.DataFrame, mapping: Mapping) -> tuple[pd.DataFrame, pd.DataFrame, dict[str, str],
