@@ -11,11 +11,12 @@ import csv
 import io
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterable, Sequence
-
-import pandas as pd
+from typing import TYPE_CHECKING, Any, Iterable, Sequence
 
 from study.errors import UserError
+
+if TYPE_CHECKING:  # pandas only for the DataFrame of read_rows: a bulk command reads its file without it
+    import pandas as pd
 
 
 @dataclass(frozen=True)
@@ -53,9 +54,40 @@ def cell(value: Any) -> str | None:
     return text or None
 
 
+@dataclass(frozen=True)
+class BulkRows:
+    """The rows of a bulk CSV as text, without pandas: the header's column names and, per row, its line in the file
+    with {column: stripped text} ('' when empty). :func:`import_roster <study.participants.import_roster>` and
+    :func:`apply_events <study.protocol.apply_events>` take it as they take the DataFrame of :func:`read_rows`."""
+
+    columns: list[str]
+    rows: list[tuple[int, dict[str, str]]]
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+
+def records(frame: "pd.DataFrame | BulkRows") -> tuple[list[str], list[tuple[Any, dict[str, Any]]]]:
+    """(column names, [(row label, {column: cell})]) of a bulk frame: a :class:`BulkRows` as it is, a DataFrame by
+    its columns and ``iterrows()`` (the label is its index: the line in the file for :func:`read_rows`)."""
+    if isinstance(frame, BulkRows):
+        return list(frame.columns), frame.rows
+    return list(frame.columns), [(line, row.to_dict()) for line, row in frame.iterrows()]
+
+
 def read_rows(path: str | Path) -> pd.DataFrame:
+    """The rows of a bulk CSV as text (:func:`read_table`) in a DataFrame: one column per header name (stripped),
+    every cell stripped text ('' when empty), indexed by the row's line in the file (``line``)."""
+    import pandas as pd
+
+    table = read_table(path)
+    return pd.DataFrame([[r[c] for c in table.columns] for _, r in table.rows], columns=table.columns,
+                        dtype=object, index=pd.Index([line for line, _ in table.rows], name="line"))
+
+
+def read_table(path: str | Path) -> BulkRows:
     """The rows of a bulk CSV as text: one column per header name (stripped), every cell stripped text ('' when
-    empty), indexed by the row's line in the file (``line``; the header is line 1, blank lines are skipped).
+    empty), each row with its line in the file (the header is line 1, blank lines are skipped).
 
     Refused (UserError, one line): a missing file, text that is not UTF-8 (a BOM is accepted), malformed CSV, an
     empty or duplicate column name, no rows. Rows with more or fewer fields than the header -> :class:`BadRows`.
@@ -94,11 +126,11 @@ def read_rows(path: str | Path) -> pd.DataFrame:
                  for line, fields in body if len(fields) != len(header)]
     if malformed:
         raise BadRows(path.name, malformed)
-    return pd.DataFrame([fields for _, fields in body], columns=header, dtype=object,
-                        index=pd.Index([line for line, _ in body], name="line"))
+    return BulkRows(list(header), [(line, dict(zip(header, fields))) for line, fields in body])
 
 
-def check_columns(frame: pd.DataFrame, source: str, required: Sequence[str], optional: Sequence[str]) -> None:
+def check_columns(frame: "pd.DataFrame | BulkRows", source: str, required: Sequence[str],
+                  optional: Sequence[str]) -> None:
     """UserError naming the declared columns when `frame` has a column that is neither `required` nor `optional`,
     or lacks a `required` one."""
     declared = list(required) + [c for c in optional if c not in required]

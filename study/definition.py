@@ -24,11 +24,8 @@ from functools import cached_property
 from pathlib import Path
 from typing import Any
 
-import pandas as pd
-
 from study.errors import UserError, check_name
 from study.file_checks import run_file_checks
-from study.instrument import Instrument
 from study.instrument_library import included_files, included_instruments, is_library_key
 from study.problems import Problem, Problems, StudyError
 from study.protocol_file import parse_protocol
@@ -216,6 +213,8 @@ class StudyDefinition:
     def instruments(self) -> dict[str, Any]:
         """Instrument name -> :class:`study.instrument.Instrument` (the study's current versions), the default
         (first declared) first."""
+        from study.instrument import Instrument  # pandas: loaded by the commands that use a codebook
+
         return {name: Instrument.from_csv(name, self.files[rel], rel) for name, rel in self.instrument_files}
 
     @property
@@ -273,7 +272,7 @@ class StudyDefinition:
 
     @cached_property
     def model(self) -> AnalysisModel | None:
-        """The model file parsed on first use (:func:`parse_model`, which imports semopy's lavaan parser); None when
+        """The model file parsed on first use (:func:`parse_model`, with semopy's lavaan parser); None when
         the study declares none. A stored study is only parsed here, by the commands that use its model."""
         text = self.text("model")
         return None if text is None else parse_model(text, self.paths["model"], Problems(), strict=True)
@@ -323,9 +322,11 @@ def _declared(files_section: Any) -> list[str]:
     return [str(v) for v in out if isinstance(v, str)]
 
 
-def load(folder: str | Path) -> StudyDefinition:
-    """Read and check a study folder; any problem -> StudyError (first problem, and how many)."""
-    return from_files(read_folder(folder))
+def load(folder: str | Path, units: bool = True) -> StudyDefinition:
+    """Read and check a study folder; any problem -> StudyError (first problem, and how many). Without `units`, the
+    checks that read units (log mapping, route: pint's unit registry, about half a second) are left out: for a
+    command that uses neither (``analyze``, ``plan power``); ``study check`` and ``init`` check everything."""
+    return from_files(read_folder(folder), units=units)
 
 
 def check(folder: str | Path) -> list[Problem]:
@@ -339,10 +340,11 @@ def check(folder: str | Path) -> list[Problem]:
     return list(problems)
 
 
-def from_files(files: dict[str, str]) -> StudyDefinition:
-    """Parse stored or read texts and check every declared file; any problem -> StudyError."""
+def from_files(files: dict[str, str], units: bool = True) -> StudyDefinition:
+    """Parse stored or read texts and check every declared file (without `units`: not the checks that read units,
+    :func:`load`); any problem -> StudyError."""
     problems = Problems()
-    study = _parse(files, problems)
+    study = _parse(files, problems, units=units)
     if problems:
         raise StudyError(list(problems))
     return study
@@ -378,8 +380,10 @@ def _toml_field(text: str, line: int) -> str:
     return ".".join(x for x in (table, key) if x) or "toml"
 
 
-def _parse(files: dict[str, str], problems: Problems, check_files: bool = True) -> StudyDefinition | None:
-    """study.toml and, with `check_files`, the checks of its SQL rules and of every declared file."""
+def _parse(files: dict[str, str], problems: Problems, check_files: bool = True,
+           units: bool = True) -> StudyDefinition | None:
+    """study.toml and, with `check_files`, the checks of its SQL rules and of every declared file (with `units`,
+    also those that read units)."""
     text = files.get(STUDY_FILE, "")
     try:
         data = tomllib.loads(text)
@@ -506,7 +510,7 @@ def _parse(files: dict[str, str], problems: Problems, check_files: bool = True) 
                                    if k == STUDY_FILE or k in _declared(clean) or is_library_key(k)},
                             paths=clean)
     if check_files:
-        _check_files(study, problems)
+        _check_files(study, problems, units)
     return study
 
 
@@ -564,8 +568,13 @@ def _check_sql(checks: list[Check], attributes: list[Attribute], text: str, prob
         con.close()
 
 
-def _check_files(study: StudyDefinition, problems: Problems) -> None:
-    """Parse every declared file and cross-check names between them."""
+def _check_files(study: StudyDefinition, problems: Problems, units: bool = True) -> None:
+    """Parse every declared file and cross-check names between them (with `units`, also the checks that read
+    units)."""
+    import pandas as pd
+
+    from study.instrument import Instrument
+
     instrument = None   # the default (first) instrument: the model file's items are its items
     first = True
     for name, rel in study.instrument_files:
@@ -609,7 +618,7 @@ def _check_files(study: StudyDefinition, problems: Problems) -> None:
             pd.read_csv(io.StringIO(study.files[rel]))
         except Exception as exc:  # noqa: BLE001 - any parser error is a problem of the file
             problems.add(rel, None, "", f"not a readable CSV: {' '.join(str(exc).split())}")
-    run_file_checks(study, problems)  # the checks of the modules that own a declared file (log mapping, route, ...)
+    run_file_checks(study, problems, units)  # the checks of the modules that own a declared file (log mapping, route, ...)
 
 
 def _json_line(text: str, name: str) -> int | None:
@@ -643,7 +652,8 @@ def _check_item_attributes(study: StudyDefinition, instrument, rel: str, problem
 
 # ---------------------------------------------------------------------------------------------- model file
 def parse_model(text: str, rel: str, problems: Problems, strict: bool = False) -> AnalysisModel | None:
-    """Parse a model file in lavaan syntax (semopy's parser reads every line).
+    """Parse a model file in lavaan syntax (semopy's parser reads every line; :mod:`study.lavaan_parser` runs its
+    file without importing the rest of semopy).
 
     * ``C =~ i1 + i2 + ...``  the final measurement model (CFA): construct C measured by items.
     * ``Y ~ x1 + x2``         one step of a hierarchical regression; consecutive ``~`` lines with the same
@@ -652,7 +662,9 @@ def parse_model(text: str, rel: str, problems: Problems, strict: bool = False) -
     * ``H1*x``                a label on a predictor marks a hypothesis, read in that model at that step.
     * ``H1 > 0`` / ``H1 < 0`` the expected sign (one-sided verdict); a label without one is tested two-sided.
     """
-    from semopy.parser import parse_rvalues, separate_token
+    from study.lavaan_parser import parser
+
+    separate_token, parse_rvalues = parser().separate_token, parser().parse_rvalues
 
     n0 = len(problems)
     measurement: dict[str, tuple[str, ...]] = {}

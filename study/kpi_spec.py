@@ -544,4 +544,4 @@ def _check_study(study, problems) -> None:
         problems.add(rel, line, fld, message)
 
 
-register_file_check(_check_study)
+register_file_check(_check_study, units=True)  # it parses the log mapping, whose units pint reads

@@ -382,4 +382,4 @@ def _check_study(study, problems) -> None:
                 break
 
 
-register_file_check(_check_study)
+register_file_check(_check_study, units=True)

@@ -8,21 +8,23 @@ its place. Ties go to the order listed first in the protocol file, so the assign
 """
 from __future__ import annotations
 
-from typing import Any
-
-import pandas as pd
+from typing import TYPE_CHECKING, Any
 
 from study.errors import UserError
 from study.protocol_file import Protocol, ordered_protocol, protocol_orders
 from study.studies import definition
 
+if TYPE_CHECKING:  # pandas only for order_counts' DataFrame: assigning an order needs none
+    import pandas as pd
+
 
 def participant_row(st, participant_id: str) -> dict[str, Any]:
     """participant_id and protocol of a registered participant; unknown participant -> UserError."""
-    row = st.df("SELECT participant_id, protocol FROM participants WHERE participant_id = ?", [participant_id])
-    if row.empty:
+    row = st.con.execute("SELECT participant_id, protocol FROM participants WHERE participant_id = ?",
+                         [participant_id]).fetchone()
+    if row is None:
         raise UserError(f"unknown participant {participant_id}")
-    return row.iloc[0].to_dict()
+    return {"participant_id": row[0], "protocol": row[1]}
 
 
 def exclusion_of(st, participant_id: str) -> str | None:
@@ -41,8 +43,20 @@ def participant_protocol(st, participant_id: str) -> Protocol:
 
 def order_counts(st, protocol: str) -> pd.DataFrame:
     """Per order of `protocol`: assigned, dropped_out and active (= assigned − dropped out) participants."""
+    import pandas as pd
+
+    counts = _order_counts(st, protocol)
+    out = pd.DataFrame({"order_name": [c[0] for c in counts]})
+    out["assigned"] = [c[1] for c in counts]
+    out["dropped_out"] = [c[2] for c in counts]
+    out["active"] = out["assigned"] - out["dropped_out"]
+    return out
+
+
+def _order_counts(st, protocol: str) -> list[tuple[str, int, int, int]]:
+    """(order_name, assigned, dropped_out, active) per order of `protocol`, in the protocol file's order."""
     orders = list(protocol_orders(definition(st).protocol(protocol)))
-    df = st.df("""
+    found = {name: (int(assigned), int(dropped)) for name, assigned, dropped in st.con.execute("""
         SELECT a.order_name,
                count(*) AS assigned,
                count(*) FILTER (WHERE d.participant_id IS NOT NULL) AS dropped_out
@@ -56,11 +70,11 @@ def order_counts(st, protocol: str) -> pd.DataFrame:
               AND participant_id NOT IN (SELECT participant_id FROM phase_events)
         ) d USING (participant_id)
         WHERE a.protocol = ?
-        GROUP BY a.order_name""", [protocol]).set_index("order_name")
-    out = pd.DataFrame({"order_name": orders})
-    out["assigned"] = [int(df["assigned"].get(o, 0)) for o in orders]
-    out["dropped_out"] = [int(df["dropped_out"].get(o, 0)) for o in orders]
-    out["active"] = out["assigned"] - out["dropped_out"]
+        GROUP BY a.order_name""", [protocol]).fetchall()}
+    out = []
+    for o in orders:
+        assigned, dropped = found.get(o, (0, 0))
+        out.append((o, assigned, dropped, assigned - dropped))
     return out
 
 
@@ -74,9 +88,9 @@ def assign_order(st, participant_id: str) -> str:
         excluded = exclusion_of(st, participant_id)
         if excluded:
             raise UserError(f"{participant_id} is excluded ({excluded}); no order is assigned")
-        counts = order_counts(st, p["protocol"])
-        # fewest active participants; ties -> first order in the protocol file (idxmin keeps the first)
-        order = str(counts.loc[counts["active"].idxmin(), "order_name"])
+        counts = _order_counts(st, p["protocol"])
+        # fewest active participants; ties -> first order in the protocol file (min keeps the first)
+        order = str(min(counts, key=lambda c: c[3])[0])
         st.insert("order_assignments", {"participant_id": participant_id, "protocol": p["protocol"],
                                         "order_name": order})
     return order

@@ -10,12 +10,15 @@ and typed again by the declaration when read (:func:`participant_attributes`). O
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Mapping
-
-import pandas as pd
+from typing import TYPE_CHECKING, Any, Mapping
 
 from study.attributes import typed_attributes
 from study.errors import UserError
+
+if TYPE_CHECKING:  # pandas is imported by the functions that return DataFrames: registering needs none
+    import pandas as pd
+
+    from study.bulk_rows import BulkRows
 
 #: pandas dtype of each attribute type in the wide tables (integers keep missing values as <NA>)
 DTYPES = {"integer": "Int64", "number": "float64", "choice": "object", "text": "object"}
@@ -98,37 +101,39 @@ def add_participant(st, participant_id: str, attributes: Mapping[str, Any] | Non
     return {**row, **reg.values}
 
 
-def import_roster(st, frame: pd.DataFrame, source: str = "roster") -> int:
+def import_roster(st, frame: "pd.DataFrame | BulkRows", source: str = "roster") -> int:
     """Register every participant of a roster in one transaction (audited); returns how many.
 
     `frame`: one row per participant, column ``participant_id``, optionally one column per declared attribute
     (raw text or numbers; empty = not given) and ``protocol`` (empty = the first declared); its index names the row
-    in messages (:func:`study.bulk_rows.read_rows` sets it to the line in the file). A column that is neither ->
-    UserError naming the declared ones; a required attribute without a column -> UserError. Every row gets the
-    checks of :func:`add_participant` (:func:`check_registration`, then: not registered yet, and not twice in
-    the roster); if any row fails, :class:`study.bulk_rows.BadRows` (message ``SOURCE: N bad row(s)``) names
+    in messages (:func:`study.bulk_rows.read_rows` sets it to the line in the file); a
+    :class:`study.bulk_rows.BulkRows` (:func:`study.bulk_rows.read_table`) is taken the same way, its lines naming
+    the rows. A column that is neither -> UserError naming the declared ones; a required attribute without a
+    column -> UserError. Every row gets the checks of :func:`add_participant` (:func:`check_registration`, then:
+    not registered yet, and not twice in the roster); if any row fails, :class:`study.bulk_rows.BadRows` (message ``SOURCE: N bad row(s)``) names
     every bad row with its reason and nothing is stored.
     """
-    from study.bulk_rows import BadRow, BadRows, cell, check_columns
+    from study.bulk_rows import BadRow, BadRows, cell, check_columns, records
     from study.studies import version
 
     study = _study(st)
     names = [a.name for a in study.attributes]
+    columns, rows = records(frame)
     check_columns(frame, source, ["participant_id"], [*names, "protocol"])
-    lacking = [a.name for a in study.attributes if a.required and a.name not in frame.columns]
+    lacking = [a.name for a in study.attributes if a.required and a.name not in columns]
     if lacking:
         raise UserError(f"{source}: no column for the required attribute(s) {', '.join(lacking)}")
-    given = [n for n in names if n in frame.columns]
+    given = [n for n in names if n in columns]
     bad: list[BadRow] = []
     regs: list[Registration] = []
     first: dict[str, Any] = {}  # id -> line of its first row
     with st.transaction():  # the existence check and the inserts see the same store
-        known = set(st.df("SELECT participant_id FROM participants")["participant_id"])
-        for line, row in frame.iterrows():
+        known = {r[0] for r in st.con.execute("SELECT participant_id FROM participants").fetchall()}
+        for line, row in rows:
             pid = cell(row["participant_id"]) or ""
             try:
                 reg = check_registration(study, pid, {n: row[n] for n in given},
-                                         cell(row["protocol"]) if "protocol" in frame.columns else None)
+                                         cell(row["protocol"]) if "protocol" in columns else None)
                 if pid in first:
                     raise UserError(f"participant {pid} is also on line {first[pid]}")
                 if pid in known:
@@ -156,6 +161,8 @@ def participant_attributes(st, ids: list[str] | None = None) -> pd.DataFrame:
     """One row per participant (ordered by id; only `ids` when given): participant_id and one column per declared
     attribute, typed by its declaration (integer -> Int64, number -> float, choice/text -> str, missing -> NA).
     Stored values of attributes the study no longer declares are not shown."""
+    import pandas as pd
+
     study = _study(st)
     people = st.df("SELECT participant_id FROM participants ORDER BY participant_id")["participant_id"].tolist()
     if ids is not None:
@@ -175,22 +182,58 @@ def participant_attributes(st, ids: list[str] | None = None) -> pd.DataFrame:
     return out
 
 
+#: each participant's protocol position and exclusions, ordered by id (the columns after the attributes)
+_LISTING = """
+    WITH last AS (
+        SELECT participant_id, arg_max(phase, seq) AS phase, arg_max(outcome, seq) AS phase_outcome
+        FROM phase_events GROUP BY participant_id),
+    exc AS (
+        SELECT participant_id, string_agg(scope, ',' ORDER BY scope) AS excluded
+        FROM exclusions GROUP BY participant_id)
+    SELECT p.participant_id, p.protocol, last.phase, last.phase_outcome,
+           coalesce(exc.excluded, '') AS excluded, p.created_at
+    FROM participants p LEFT JOIN last USING (participant_id) LEFT JOIN exc USING (participant_id)
+    ORDER BY p.participant_id"""
+
+
 def list_participants(st) -> pd.DataFrame:
     """Participants with their attributes, protocol position and exclusions, one row each, ordered by id.
 
     Columns: participant_id, one per declared attribute (typed as :func:`participant_attributes`), protocol,
     phase (last phase entered), phase_outcome, excluded (comma-separated scopes, '' when none), created_at.
+    :func:`participant_rows` gives the same as Python rows.
     """
-    base = st.df("""
-        WITH last AS (
-            SELECT participant_id, arg_max(phase, seq) AS phase, arg_max(outcome, seq) AS phase_outcome
-            FROM phase_events GROUP BY participant_id),
-        exc AS (
-            SELECT participant_id, string_agg(scope, ',' ORDER BY scope) AS excluded
-            FROM exclusions GROUP BY participant_id)
-        SELECT p.participant_id, p.protocol, last.phase, last.phase_outcome,
-               coalesce(exc.excluded, '') AS excluded, p.created_at
-        FROM participants p LEFT JOIN last USING (participant_id) LEFT JOIN exc USING (participant_id)
-        ORDER BY p.participant_id""")
+    base = st.df(_LISTING)
     attrs = participant_attributes(st)
     return attrs.merge(base, on="participant_id", how="left")[list(attrs.columns) + list(base.columns[1:])]
+
+
+def _typed_text(kind: str, text: str | None) -> Any:
+    """A stored attribute text typed as :func:`participant_attributes` types it, as a Python value: integer -> int
+    (the number rounded half to even, as pandas rounds), number -> float, choice/text -> the text; missing or not
+    a finite number -> None."""
+    if text is None or kind in ("choice", "text"):
+        return text
+    try:
+        num = float(text)
+    except ValueError:
+        return None
+    if num != num or num in (float("inf"), float("-inf")):
+        return None
+    return int(round(num)) if kind == "integer" else num
+
+
+def participant_rows(st) -> tuple[list[str], list[tuple]]:
+    """:func:`list_participants` without pandas: (column names, one tuple per participant) with the same columns,
+    order and values as Python objects — int for an integer attribute, float for a number, str for choice/text,
+    None where the DataFrame has a missing value, datetime for created_at. For commands that print the listing
+    (``participant list``), which then load no pandas."""
+    study = _study(st)
+    cur = st.con.execute(_LISTING)
+    base_cols = [d[0] for d in cur.description]
+    base = cur.fetchall()
+    text = {(pid, name): value for pid, name, value in st.con.execute(
+        "SELECT participant_id, attribute, value FROM participant_attributes").fetchall()}
+    attrs = study.attributes
+    rows = [(r[0], *(_typed_text(a.type, text.get((r[0], a.name))) for a in attrs), *r[1:]) for r in base]
+    return [base_cols[0], *(a.name for a in attrs), *base_cols[1:]], rows

@@ -20,15 +20,18 @@ Semantics of the phase log (table ``phase_events``, one row per phase a particip
 from __future__ import annotations
 
 from datetime import datetime, timezone
-from typing import Any
-
-import pandas as pd
+from typing import TYPE_CHECKING, Any
 
 from study.audit_trail import not_in_future, utcnow
 from study.errors import UserError, check_choice
 from study.orders import ensure_order, participant_protocol
 from study.protocol_file import Protocol
 from study.studies import definition
+
+if TYPE_CHECKING:  # pandas for the DataFrames of status and apply_events: walking the protocol needs none
+    import pandas as pd
+
+    from study.bulk_rows import BulkRows
 
 
 def load_protocol(st, name: str | None = None) -> Protocol:
@@ -44,6 +47,13 @@ def protocol_of(st, participant_id: str) -> Protocol:
 
 def _events(st, participant_id: str) -> pd.DataFrame:
     return st.df("SELECT * FROM phase_events WHERE participant_id = ? ORDER BY seq", [participant_id])
+
+
+def _event_rows(st, participant_id: str) -> list[dict[str, Any]]:
+    """The participant's phase_events rows by seq, as dicts of Python values (what the writing steps read)."""
+    cur = st.con.execute("SELECT * FROM phase_events WHERE participant_id = ? ORDER BY seq", [participant_id])
+    names = [d[0] for d in cur.description]
+    return [dict(zip(names, r)) for r in cur.fetchall()]
 
 
 def _when(at: datetime | str | None) -> datetime:
@@ -63,11 +73,12 @@ def _closed_by_exclusion(st, participant_id: str) -> str | None:
     return st.one("SELECT reason FROM exclusions WHERE participant_id = ? AND scope = 'all'", [participant_id])
 
 
-def _end_current(st, participant_id: str, ev: pd.DataFrame, outcome: str, at: datetime, note: str | None) -> str | None:
-    cur = ev[ev["outcome"] == "in_progress"]
-    if cur.empty:
+def _end_current(st, participant_id: str, ev: list[dict[str, Any]], outcome: str, at: datetime,
+                 note: str | None) -> str | None:
+    cur = [e for e in ev if e["outcome"] == "in_progress"]
+    if not cur:
         return None
-    row = cur.iloc[-1]
+    row = cur[-1]
     if at < row["started_at"]:
         raise UserError(f"end time {at:%Y-%m-%d %H:%M:%S} is before the start of {row['phase']} "
                         f"({row['started_at']:%Y-%m-%d %H:%M:%S})")
@@ -93,8 +104,8 @@ def advance(st, participant_id: str, phase: str, note: str | None = None,
         ensure_order(st, participant_id)  # multi-order protocols: balanced assignment before the first phase
         proto = protocol_of(st, participant_id)
         idx = proto.index(phase)
-        ev = _events(st, participant_id)
-        done = list(ev["phase"])
+        ev = _event_rows(st, participant_id)
+        done = [e["phase"] for e in ev]
         if phase in done:
             raise UserError(f"{participant_id} already started {phase}")
         expected = proto.phases[len(done)] if len(done) < len(proto.phases) else None
@@ -102,7 +113,7 @@ def advance(st, participant_id: str, phase: str, note: str | None = None,
             raise UserError(f"phase out of order: {participant_id} is at "
                             f"{done[-1] if done else 'the start'}, next is {expected}, not {phase}")
         prev = _end_current(st, participant_id, ev, "completed", when, None)
-        if not ev.empty and when < ev["started_at"].max():
+        if ev and when < max(e["started_at"] for e in ev):
             raise UserError(f"start time {when:%Y-%m-%d %H:%M:%S} is before the previous phase started")
         st.insert("phase_events", {"participant_id": participant_id, "phase": phase, "seq": idx + 1,
                                    "started_at": when, "outcome": "in_progress", "note": note})
@@ -115,7 +126,8 @@ def abort(st, participant_id: str, reason: str, at: datetime | str | None = None
     if not reason or not reason.strip():
         raise UserError("an abort needs a reason")
     with st.transaction():
-        phase = _end_current(st, participant_id, _events(st, participant_id), "aborted", _when(at), reason.strip())
+        phase = _end_current(st, participant_id, _event_rows(st, participant_id), "aborted", _when(at),
+                             reason.strip())
         if phase is None:
             raise UserError(f"{participant_id} has no phase in progress to abort")
     return phase
@@ -125,7 +137,7 @@ def complete(st, participant_id: str, note: str | None = None, at: datetime | st
     """End the phase in progress with outcome 'completed' without starting another; returns the phase name."""
     protocol_of(st, participant_id)
     with st.transaction():
-        phase = _end_current(st, participant_id, _events(st, participant_id), "completed", _when(at), note)
+        phase = _end_current(st, participant_id, _event_rows(st, participant_id), "completed", _when(at), note)
         if phase is None:
             raise UserError(f"{participant_id} has no phase in progress to complete")
     return phase
@@ -137,6 +149,8 @@ def status(st, participant_id: str) -> pd.DataFrame:
     Phases not yet entered have outcome 'pending' (or 'skipped' when a later phase was entered, which the
     refusal of out-of-order steps normally prevents).
     """
+    import pandas as pd
+
     proto = protocol_of(st, participant_id)
     ev = _events(st, participant_id).set_index("phase")
     rows = []
@@ -200,15 +214,16 @@ def _usable(st) -> bool:
         return False
 
 
-def apply_events(st, frame: pd.DataFrame, source: str = "events") -> pd.DataFrame:
+def apply_events(st, frame: "pd.DataFrame | BulkRows", source: str = "events") -> pd.DataFrame:
     """Apply many phase events in file order in one transaction: what `session advance`, `session complete` and
     `session abort` do one at a time, all or nothing.
 
     `frame`: columns ``participant_id``, ``phase`` and optionally ``action`` (advance | complete | abort; empty =
     advance), ``at`` (ISO 8601 as ``--at``; empty = now), ``note`` (advance, complete) and ``reason`` (abort,
     required there); its index names the row in messages (:func:`study.bulk_rows.read_rows` sets it to the line in
-    the file). ``phase`` is the phase to start for advance; for complete and abort it may be empty, and when given
-    it must be the phase in progress. Each row gets the checks of its single command (protocol order, times not
+    the file; a :class:`study.bulk_rows.BulkRows` is taken the same way, its lines naming the rows). ``phase`` is
+    the phase to start for advance; for complete and abort it may be empty, and when given it must be the phase in
+    progress. Each row gets the checks of its single command (protocol order, times not
     going backwards nor in the future, exclusions, ...) against the store as the earlier rows left it, so one file
     can walk a participant through several phases. After a bad row, the same participant's later rows are not
     checked (each would fail for the first one). Any bad row -> :class:`study.bulk_rows.BadRows` naming each bad
@@ -217,16 +232,27 @@ def apply_events(st, frame: pd.DataFrame, source: str = "events") -> pd.DataFram
     Returns one row per event: line (the frame's index), participant_id, action, phase (started for advance,
     ended for complete and abort), completed (the phase an advance completed, else None).
     """
-    from study.bulk_rows import BadRow, BadRows, cell, check_columns
+    import pandas as pd
+
+    done = apply_event_rows(st, frame, source)
+    cols = ["line", "participant_id", "action", "phase", "completed"]
+    # object columns: `completed` keeps None (not NaN) where an event completed nothing
+    return pd.DataFrame({c: pd.Series([d[c] for d in done], dtype=None if c == "line" else object) for c in cols})
+
+
+def apply_event_rows(st, frame: "pd.DataFrame | BulkRows", source: str = "events") -> list[dict[str, Any]]:
+    """:func:`apply_events` without pandas: the applied events as dicts with the same keys, in file order."""
+    from study.bulk_rows import BadRow, BadRows, cell, check_columns, records
 
     check_columns(frame, source, EVENT_COLUMNS[:2], EVENT_COLUMNS[2:])
+    columns, rows = records(frame)
     bad: list[BadRow] = []
     unchecked: list[BadRow] = []
     failed: dict[str, Any] = {}   # participant -> line of their first bad row
     done = []
     with st.transaction():
-        for line, row in frame.iterrows():
-            get = {c: cell(row[c]) if c in frame.columns else None for c in EVENT_COLUMNS}
+        for line, row in rows:
+            get = {c: cell(row[c]) if c in columns else None for c in EVENT_COLUMNS}
             pid, action = get["participant_id"] or "", get["action"] or "advance"
             if not _usable(st):
                 unchecked.append(BadRow(line, pid, "not checked: the store refused an earlier row"))
@@ -244,6 +270,4 @@ def apply_events(st, frame: pd.DataFrame, source: str = "events") -> pd.DataFram
             done.append({"line": line, "participant_id": pid, "action": action, **r})
         if bad:
             raise BadRows(source, bad, unchecked)
-    cols = ["line", "participant_id", "action", "phase", "completed"]
-    # object columns: `completed` keeps None (not NaN) where an event completed nothing
-    return pd.DataFrame({c: pd.Series([d[c] for d in done], dtype=None if c == "line" else object) for c in cols})
+    return done

@@ -283,4 +283,4 @@ def _check_study(study, problems) -> None:
         problems.add(rel, line, fld, msg)
 
 
-register_file_check(_check_study)
+register_file_check(_check_study, units=True)

@@ -15,8 +15,6 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import pandas as pd
-
 from study import audit_trail
 from study.attributes import run_checks
 from study.definition import StudyDefinition, from_stored, load
@@ -27,9 +25,10 @@ _CACHE: dict[str, StudyDefinition] = {}
 
 
 def current(st) -> dict | None:
-    """The newest study_definitions row as a dict (None when the store has no study yet)."""
-    df = st.df("SELECT * FROM study_definitions ORDER BY version DESC LIMIT 1")
-    return None if df.empty else df.iloc[0].to_dict()
+    """The newest study_definitions row as a dict of Python values (None when the store has no study yet)."""
+    cur = st.con.execute("SELECT * FROM study_definitions ORDER BY version DESC LIMIT 1")
+    row = cur.fetchone()  # no DataFrame: every command reads this, most of them need no pandas
+    return None if row is None else dict(zip((d[0] for d in cur.description), row))
 
 
 def definition(st) -> StudyDefinition:
@@ -175,6 +174,8 @@ def _answered(st) -> set[str]:
 
 
 def _row_key(r: dict) -> tuple:
+    import pandas as pd
+
     def norm(v):
         if v is None or pd.isna(v):
             return None
@@ -188,6 +189,8 @@ def _row_key(r: dict) -> tuple:
 
 def _item_rows(ins) -> list[dict]:
     """Codebook rows as stored in `items` (empty text -> NULL, flags -> bool, bounds -> int)."""
+    import pandas as pd
+
     out = []
     items = ins.items.reset_index()
     for pos, r in enumerate(items.to_dict("records"), start=1):

@@ -12,6 +12,19 @@ import pytest
 from analysis.report.pipeline import Pipeline, Step, StepFailed, hash_inputs
 
 REPO = Path(__file__).resolve().parents[1]
+_DRIVES: dict[str, Path] = {}
+
+
+def _report_cache(tmp_path: Path, tmp_path_factory) -> Path:
+    """A report cache for one test whose drive cache is shared by the reference-cohort tests of this module (one
+    xdist group, so one process): the full cohort's run drives only the drives the reduced run has not driven. The
+    steps are cached per test."""
+    if "dir" not in _DRIVES:
+        _DRIVES["dir"] = tmp_path_factory.mktemp("reference-drives")
+    cache = tmp_path / "cache"
+    cache.mkdir()
+    (cache / "drives").symlink_to(_DRIVES["dir"], target_is_directory=True)
+    return cache
 
 
 # ---------------------------------------------------------------------------------------------- pipeline
@@ -116,13 +129,14 @@ def _check_tables_compile(tables: Path, work: Path) -> None:
 
 @pytest.mark.slow
 @pytest.mark.sumo
-def test_report_on_reduced_reference_cohort(tmp_path):
+@pytest.mark.xdist_group("reference_report")  # shares its drives with the full cohort's run
+def test_report_on_reduced_reference_cohort(tmp_path, tmp_path_factory):
     from analysis.report.build import ReportConfig, run_report
 
     ref = tmp_path / "reference"
     shutil.copytree(REPO / "data" / "reference", ref)
     cfg = ReportConfig(out=tmp_path / "reports", db=tmp_path / "study.duckdb", participants=4, workers=2,
-                       n_boot=200, cache_dir=tmp_path / "cache", reference_dir=ref)
+                       n_boot=200, cache_dir=_report_cache(tmp_path, tmp_path_factory), reference_dir=ref)
     res = run_report(cfg)
     out = cfg.out
     assert {s.status for s in res.steps} == {"ran"}
@@ -267,10 +281,14 @@ def test_missing_data_skips_its_part_with_a_reason_and_the_rest_is_produced(cli,
 
 @pytest.mark.slow
 @pytest.mark.sumo
-def test_full_reference_report_through_the_cli(cli, tmp_path):
-    """The whole reference study (34 drivers x 2 drives) once, as `make report` runs it, on a temporary store."""
+@pytest.mark.xdist_group("reference_report")  # shares its drives with the reduced cohort's run
+def test_full_reference_report_through_the_cli(cli, tmp_path, tmp_path_factory):
+    """The whole reference study (34 drivers x 2 drives) once, as `make report` runs it, on a temporary store and
+    cache: every published value met or explained. The second traffic scenario is left out here (its 68 drives
+    would double the test's time); the reduced cohort's run above checks that part of the report."""
     out = tmp_path / "reports"
-    r = cli("report", "--reference", "--out", out, "--workers", "2", db=tmp_path / "study.duckdb")
+    r = cli("report", "--reference", "--out", out, "--workers", "2", "--compare-scenario", "none", "--cache-dir",
+            _report_cache(tmp_path, tmp_path_factory), db=tmp_path / "study.duckdb")
     assert r.code == 0, r.err
     assert "reproduction:" in r.out and "miss" not in r.out
     rep = pd.read_csv(out / "reproduction.csv")

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 import re
+import shutil
 import signal
 import subprocess
 import sys
@@ -140,21 +141,40 @@ def _same_outputs(a: Path, b: Path) -> None:
         assert (a / name).read_bytes() == (b / name).read_bytes(), name
 
 
-@pytest.fixture(scope="module")
+_POOLED: dict[str, tuple[Path, Path]] = {}
+
+
+@pytest.fixture
 def pooled(tmp_path_factory):
-    """The tiny sweep without a Sobol phase on 2 local workers: (cache, out)."""
-    root = tmp_path_factory.mktemp("sweep")
-    p = _sweep(*TINY, "--sobol-n", "0", "--workers", "2", "--cache-dir", root / "cache", "--out", root / "out")
-    assert p.returncode == 0, p.stderr
-    print("local pool:", p.stdout)
-    return root / "cache", root / "out"
+    """The tiny sweep without a Sobol phase on 2 local workers: (cache, out, a copy of the cache as this run left
+    it). Run once per test process (kept in `_POOLED`, not by a module scope, which pytest may tear down and set up
+    again between the tests of the group)."""
+    if "run" not in _POOLED:
+        root = tmp_path_factory.mktemp("sweep")
+        p = _sweep(*TINY, "--sobol-n", "0", "--workers", "2", "--cache-dir", root / "cache", "--out", root / "out")
+        assert p.returncode == 0, p.stderr
+        print("local pool:", p.stdout)
+        shutil.copytree(root / "cache", root / "morris-cache")  # the cache, used by later runs, grows
+        _POOLED["run"] = root / "cache", root / "out", root / "morris-cache"
+    return _POOLED["run"]
+
+
+def _cache_without(cache: Path, into: Path, k: int) -> int:
+    """A copy of the drive cache `cache` in `into` without its first `k` drives (by name); the number kept."""
+    drives = sorted(cache.glob("*.parquet"))
+    assert len(drives) > k
+    into.mkdir(parents=True)
+    for d in drives[k:]:
+        for f in (d, d.with_suffix(".json")):
+            shutil.copy2(f, into / f.name)
+    return len(drives) - k
 
 
 @pytest.mark.slow
 @pytest.mark.sumo
-@pytest.mark.xdist_group("sweep")  # one worker: the module's pooled sweep is shared
+@pytest.mark.xdist_group("sweep")  # one worker: the pooled sweep is shared
 def test_tiny_sweep_end_to_end_with_sobol_and_reproducible(pooled, tmp_path):
-    cache, plain = pooled
+    cache, plain, _ = pooled
     first = _sweep(*TINY, *SOBOL, "--workers", "2", "--cache-dir", cache, "--out", tmp_path / "a")
     assert first.returncode == 0, first.stderr
     # the Morris points are the sweep above, cached; the Sobol phase's 2 x (1 + 2) points are new
@@ -174,26 +194,30 @@ def test_tiny_sweep_end_to_end_with_sobol_and_reproducible(pooled, tmp_path):
 
 @pytest.mark.slow
 @pytest.mark.sumo
-@pytest.mark.xdist_group("sweep")  # one worker: the module's pooled sweep is shared
+@pytest.mark.xdist_group("sweep")  # one worker: the pooled sweep is shared
 def test_local_cluster_gives_the_local_pool_points(pooled, tmp_path):
     from distributed import LocalCluster
 
-    _, plain = pooled
+    _, plain, morris = pooled
+    # the pool's cache less 2 drives: the cluster drives those two, and the points are the pool's
+    kept = _cache_without(morris, tmp_path / "cache", 2)
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as lc:
         p = _sweep(*TINY, "--sobol-n", "0", "--scheduler", lc.scheduler_address, "--cache-dir",
                    tmp_path / "cache", "--out", tmp_path / "out")
     assert p.returncode == 0, p.stderr
     print("LocalCluster:", p.stdout)
-    assert _cached(p.stdout) == [0]
+    assert _cached(p.stdout) == [kept]
+    assert len(list((tmp_path / "cache").glob("*.parquet"))) == 12
     _same_outputs(plain, tmp_path / "out")
 
 
 @pytest.mark.slow
 @pytest.mark.sumo
-@pytest.mark.xdist_group("sweep")  # one worker: the module's pooled sweep is shared
+@pytest.mark.xdist_group("sweep")  # one worker: the pooled sweep is shared
 def test_kill_9_then_resume(pooled, tmp_path):
-    _, plain = pooled
+    _, plain, morris = pooled
     cache, out = tmp_path / "cache", tmp_path / "out"
+    kept = _cache_without(morris, cache, 6)  # 6 drives left to drive: the kill comes among them
     args = [sys.executable, "-m", "pedas_study.cli", "simulate", "sweep", "--no-progress", *TINY, "--sobol-n", "0",
             "--workers", "2", "--cache-dir", str(cache), "--out", str(out)]
     proc = subprocess.Popen(args, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
@@ -203,12 +227,12 @@ def test_kill_9_then_resume(pooled, tmp_path):
         return [p for p in cache.glob("*.parquet") if p.with_suffix(".json").exists()] if cache.exists() else []
 
     deadline = time.monotonic() + 300
-    while len(done()) < 2 and time.monotonic() < deadline and proc.poll() is None:
+    while len(done()) < kept + 1 and time.monotonic() < deadline and proc.poll() is None:
         time.sleep(0.2)
     os.killpg(proc.pid, signal.SIGKILL)
     proc.wait()
     before = {p: (p.stat().st_ino, p.stat().st_mtime_ns) for q in done() for p in (q, q.with_suffix(".json"))}
-    assert 2 <= len(before) // 2 < 12, "the kill came before the first drive or after the last"
+    assert kept < len(before) // 2 < 12, "the kill came before the first new drive or after the last"
     assert not out.exists()
     rerun = _sweep(*TINY, "--sobol-n", "0", "--workers", "2", "--cache-dir", cache, "--out", out)
     assert rerun.returncode == 0, rerun.stderr
@@ -221,7 +245,7 @@ def test_kill_9_then_resume(pooled, tmp_path):
 
 @pytest.mark.slow
 @pytest.mark.sumo
-@pytest.mark.xdist_group("sweep")  # one worker: the module's pooled sweep is shared
+@pytest.mark.xdist_group("sweep")  # one worker: the pooled sweep is shared
 def test_committed_sweep_first_point_still_simulates_to_its_values(tmp_path):
     """data/sweep is the committed sweep the report analyses: its first design point, driven again with the
     committed sizes, gives the committed KPIs (so a change of the simulation that makes it stale fails)."""

@@ -102,21 +102,28 @@ def to_matrix(r: np.ndarray, pairs: list[tuple[int, int]], k: int) -> np.ndarray
 def top_gap(R: np.ndarray, lam: np.ndarray, method: str) -> float:
     """How far the eigenvalue λ belongs to lies above every other eigenvalue of the matrix the extraction
     decomposes (> 0 needed): μ minus the largest eigenvalue on the complement of λ's direction."""
+    return float(top_gaps(np.asarray(R, float)[None], lam, method)[0])
+
+
+def top_gaps(Rs: np.ndarray, lam: np.ndarray, method: str) -> np.ndarray:
+    """:func:`top_gap` of each matrix of the stack ``Rs`` (n x k x k), in one batched eigen-decomposition."""
     lam = np.asarray(lam, float)
     if method == "ml":
         psi = 1.0 - lam ** 2
         d = 1.0 / np.sqrt(psi)
-        m, v, mu = R * np.outer(d, d), lam * d, 1.0 + (lam ** 2 / psi).sum()
+        m, v, mu = Rs * np.outer(d, d), lam * d, 1.0 + (lam ** 2 / psi).sum()
     else:
-        m, v, mu = R.copy(), lam.copy(), (lam ** 2).sum()
+        m, v, mu = Rs.copy(), lam.copy(), (lam ** 2).sum()
         if method == "paf":
-            np.fill_diagonal(m, lam ** 2)
+            idx = np.arange(len(lam))
+            m[:, idx, idx] = lam ** 2
     v = v / np.linalg.norm(v)
     proj = np.eye(len(v)) - np.outer(v, v)
     others = np.linalg.eigvalsh(proj @ m @ proj)
     # the complement's eigenvalues plus the 0 that v contributes; drop that one 0
-    others = np.delete(others, np.argmin(np.abs(others)))
-    return float(mu - others.max())
+    zero = np.argmin(np.abs(others), axis=1)
+    others[np.arange(len(others)), zero] = -np.inf
+    return mu - others.max(axis=1)
 
 
 def is_solution(R: np.ndarray, lam: np.ndarray, method: str, tol: float = 1e-6) -> bool:
@@ -196,7 +203,7 @@ def _members(lam, sd, sub, method, r0, null, pairs, centre, half_width, steps):
     for p, (i, j) in enumerate(pairs):
         Rs[:, i, j] = Rs[:, j, i] = r[:, p]
     ok = np.linalg.eigvalsh(Rs)[:, 0] >= 0
-    ok[ok] = [top_gap(R, lam, method) > 0 for R in Rs[ok]]
+    ok[ok] = top_gaps(Rs[ok], lam, method) > 0
     T, Rs = T[ok], Rs[ok]
     cov = np.einsum("nij,i,j->nij", Rs, sd, sd)[:, sub][:, :, sub]
     kk = len(sub)

@@ -26,6 +26,8 @@ Everything runs on the *scored* scale (PEoU3 reversed, Table 3's convention); th
 """
 from __future__ import annotations
 
+import copy
+import functools
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -133,8 +135,19 @@ def choose_pair_counts(c1: np.ndarray, c2: np.ndarray, alpha: float, n: int) -> 
 
 
 def build_targets(published: pd.DataFrame | None = None, n: int = N_IMPLIED) -> Targets:
-    """Derive the reconstruction targets from the published values (see the module docstring)."""
-    pub = published if published is not None else P.load_published()
+    """Derive the reconstruction targets from the published values (see the module docstring); those of the
+    shipped published values are derived once per process (a copy each call: callers may change theirs)."""
+    if published is None:
+        return copy.deepcopy(_shipped_targets(n))
+    return _build_targets(published, n)
+
+
+@functools.lru_cache(maxsize=None)
+def _shipped_targets(n: int) -> Targets:
+    return _build_targets(P.load_published(), n)
+
+
+def _build_targets(pub: pd.DataFrame, n: int) -> Targets:
     inst = P.paper_study().instrument()
     t3 = P.table3(pub).set_index("item")
     tc = P.table3_constructs(pub).set_index("construct")

@@ -88,8 +88,9 @@ def improper(tag: str, *, std_loadings: pd.DataFrame, error_var: pd.Series, item
             with np.errstate(divide="ignore", invalid="ignore"):
                 corr = psi / np.outer(sd, sd)
             corr = np.nan_to_num(corr)
-            np.fill_diagonal(corr, 0.0)
-            i, j = np.unravel_index(np.argmax(np.abs(corr)), corr.shape)
+            # the upper triangle only: the fitted psi can be asymmetric in its last bits, which made the pair's
+            # order (X-Y or Y-X) vary between reruns of the same fit
+            i, j = np.unravel_index(np.argmax(np.triu(np.abs(corr), 1)), corr.shape)
             out.append(f"{tag}latent covariance matrix is not positive definite (largest latent correlation "
                        f"{latent_cov.index[i]}-{latent_cov.index[j]} = {corr[i, j]:.3f})")
     if residual_cov is not None and len(residual_cov) > 1:

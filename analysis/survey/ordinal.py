@@ -11,7 +11,9 @@ ordinal omega.
   when asked (``collapse_empty=True``), with a warning naming it (:func:`check_categories`).
 * Polychoric correlation (two-step, Olsson 1979, lavaan's ``lavCor(ordered=)``): thresholds fixed at their
   univariate estimates, rho maximises sum_ab n_ab log P_ab(rho), P_ab the bivariate normal probability of the cell
-  rectangle; Brent's bounded search on (-1, 1) to 1e-10. The asymptotic variance of each rho (the DWLS weights)
+  rectangle; Brent's bounded search on (-1, 1) to 1e-10 (scipy's steps; the searches of all pairs run in
+  lockstep, :mod:`analysis.survey.lockstep`, one vectorised probability call per round, each result bit for bit
+  that of the pair alone, :func:`polychoric_pair`). The asymptotic variance of each rho (the DWLS weights)
   follows Muthen (1984) as lavaan computes it (:func:`_avar`): the empirical variance of its influence function,
   with the thresholds' sampling error carried through, from outer products of the case-wise scores.
 * Ordinal CFA, delta parameterisation: rho_ij = lambda_i lambda_j phi_{c(i)c(j)} for i < j (standardized loadings
@@ -179,6 +181,68 @@ def polychoric_pair(cx: np.ndarray, cy: np.ndarray, tx: np.ndarray, ty: np.ndarr
     return float(res.x)
 
 
+def _cells_many(grids: list) -> list[np.ndarray]:
+    """:func:`_cells` of each (tx, ty, rho) in `grids`, from one :func:`bvn_upper` call on all their grid points
+    (elementwise, so each matrix equals its own :func:`_cells` bit for bit)."""
+    hs, ks, rs, shapes = [], [], [], []
+    for tx, ty, rho in grids:
+        h, k = _grid(tx, ty)
+        hs.append(h)
+        ks.append(k)
+        rs.append(np.full(h.size, rho, dtype=float))
+        shapes.append((len(tx) + 2, len(ty) + 2))
+    F_all = bvn_upper(np.concatenate(hs), np.concatenate(ks), np.concatenate(rs))
+    out, at = [], 0
+    for shape in shapes:
+        F = F_all[at:at + shape[0] * shape[1]].reshape(shape)
+        at += shape[0] * shape[1]
+        out.append(F[1:, 1:] - F[:-1, 1:] - F[1:, :-1] + F[:-1, :-1])
+    return out
+
+
+def _grid(tx, ty) -> tuple[np.ndarray, np.ndarray]:
+    """The flattened (h, k) of the bvn_upper call of :func:`_cells` (bvn_cdf(ex, ey) = bvn_upper(-ex, -ey))."""
+    ex = np.concatenate([[-np.inf], tx, [np.inf]])
+    ey = np.concatenate([[-np.inf], ty, [np.inf]])
+    return np.repeat(-ex, len(ey)), np.tile(-ey, len(ex))
+
+
+def _polychoric_pairs(pairs: list) -> list[float]:
+    """:func:`polychoric_pair` of every (cx, cy, tx, ty) in `pairs` (the same searches and results, bit for bit),
+    the searches run in lockstep (:func:`analysis.survey.lockstep.minimize_bounded_many`) so that each round
+    evaluates the trial correlations of all pairs in one vectorised call. ValueError (the first pair in order)
+    if a search fails."""
+    from analysis.survey.lockstep import minimize_bounded_many
+
+    counts, grids = [], []
+    for cx, cy, tx, ty in pairs:
+        n = np.zeros((len(tx) + 1, len(ty) + 1))
+        np.add.at(n, (cx, cy), 1.0)
+        counts.append(n)
+        grids.append(_grid(tx, ty))
+
+    def evaluate(idx, xs):
+        h = np.concatenate([grids[i][0] for i in idx])
+        k = np.concatenate([grids[i][1] for i in idx])
+        sizes = [grids[i][0].size for i in idx]
+        F_all = bvn_upper(h, k, np.repeat(xs, sizes))
+        out, at = [], 0
+        for i, size in zip(idx, sizes):
+            n = counts[i]
+            F = F_all[at:at + size].reshape(n.shape[0] + 1, n.shape[1] + 1)
+            at += size
+            p = F[1:, 1:] - F[:-1, 1:] - F[1:, :-1] + F[:-1, :-1]
+            with np.errstate(divide="ignore"):  # the negative log-likelihood of polychoric_pair's nll
+                out.append(-float(np.sum(n[n > 0] * np.log(np.clip(p[n > 0], 1e-300, None)))))
+        return out
+
+    results = minimize_bounded_many(evaluate, len(pairs), (-0.999999, 0.999999), xatol=1e-10, maxiter=500)
+    for res in results:
+        if not res.success or not np.isfinite(res.x):
+            raise ValueError(f"polychoric correlation: search did not converge ({res.message})")
+    return [res.x for res in results]
+
+
 def check_categories(data: pd.DataFrame, items: list[str], categories: dict | None = None, *,
                      collapse_empty: bool = False) -> list[str]:
     """Refuse (ValueError, one line) an item whose categories are not all answered among the complete rows of
@@ -258,12 +322,20 @@ def polychoric(data: pd.DataFrame, items: list[str], *, acov: bool = True, categ
     p = len(items)
     R = np.eye(p)
     V = np.full((p, p), np.nan)
-    for i, j in combinations(range(p), 2):
-        a, b = items[i], items[j]
-        r = polychoric_pair(cod[a], cod[b], thr[a], thr[b])
+    pairs = list(combinations(range(p), 2))
+    # every pair's search in lockstep (the same steps as polychoric_pair, one vectorised bvn call per round)
+    rhos = _polychoric_pairs([(cod[items[i]], cod[items[j]], thr[items[i]], thr[items[j]]) for i, j in pairs])
+    for (i, j), r in zip(pairs, rhos):
         R[i, j] = R[j, i] = r
-        if acov:
-            V[i, j] = V[j, i] = _avar(cod[a], cod[b], thr[a], thr[b], r)
+    if acov:
+        # the cell probabilities of every pair's influence function in one vectorised call, then each avar alone
+        requests = [_avar_requests(thr[items[i]], thr[items[j]], r) for (i, j), r in zip(pairs, rhos)]
+        cells = _cells_many([g for req in requests for g in req])
+        k = 0
+        for (i, j), r, req in zip(pairs, rhos, requests):
+            a, b = items[i], items[j]
+            V[i, j] = V[j, i] = _avar(cod[a], cod[b], thr[a], thr[b], r, cells=cells[k:k + len(req)])
+            k += len(req)
     return Polychoric(items=list(items), R=pd.DataFrame(R, index=items, columns=items), thresholds=thr,
                       avar=pd.DataFrame(V, index=items, columns=items), n=n, warnings=warn)
 
@@ -278,29 +350,44 @@ def _uni_scores(c: np.ndarray, t: np.ndarray) -> np.ndarray:
                             - (c[:, None] == m[None, :] + 1).astype(float)) / P[c][:, None]
 
 
-def _avar(cx, cy, tx, ty, rho, eps: float = 1e-6) -> float:
+def _avar(cx, cy, tx, ty, rho, eps: float = 1e-6, cells: list | None = None) -> float:
     """N x asymptotic variance of the two-step rho (Muthen 1984, as lavaan's ``lav_muthen1984``): the mean squared
     influence value IF_i = [s_i - sum_{x,y} E(s s_tau,biv') B_tau^-1 s_tau,uni,i] / E(s^2), with s_i the score of
     rho, s_tau,biv the scores of the bivariate likelihood in the thresholds, s_tau,uni the univariate threshold
     scores and B_tau = E(s_tau,uni s_tau,uni'); every expectation the sample mean of cross-products (outer-product
-    information), the scores of the bivariate likelihood by central differences."""
-    def logl(tx_, ty_, r):
-        return np.log(_cells(tx_, ty_, r)[cx, cy])
+    information), the scores of the bivariate likelihood by central differences.
 
-    s = (logl(tx, ty, rho + eps) - logl(tx, ty, rho - eps)) / (2 * eps)
+    `cells`: the :func:`_cells` of :func:`_avar_requests` (tx, ty, rho, eps), in its order, when computed
+    beforehand (e.g. for many pairs in one call); None computes them here."""
+    grids = _avar_requests(tx, ty, rho, eps)
+    if cells is None:
+        cells = [_cells(*g) for g in grids]
+    logl = [np.log(p[cx, cy]) for p in cells]
+    s = (logl[0] - logl[1]) / (2 * eps)
     infl = s.copy()
-    for which, t, c in (("x", tx, cx), ("y", ty, cy)):
+    at = 2
+    for t, c in ((tx, cx), (ty, cy)):
         su = _uni_scores(c, t)
         if_t = su @ np.linalg.inv(su.T @ su / len(c))
         sb = np.empty((len(c), len(t)))
         for m in range(len(t)):
+            sb[:, m] = (logl[at] - logl[at + 1]) / (2 * eps)
+            at += 2
+        infl = infl - if_t @ (s[:, None] * sb).mean(axis=0)
+    return float(np.mean((infl / np.mean(s ** 2)) ** 2))
+
+
+def _avar_requests(tx, ty, rho, eps: float = 1e-6) -> list[tuple]:
+    """The (tx, ty, rho) whose cell probabilities :func:`_avar` needs, in its order: rho +- eps, then each
+    threshold of x and then of y moved up and down by eps."""
+    out = [(tx, ty, rho + eps), (tx, ty, rho - eps)]
+    for which, t in (("x", tx), ("y", ty)):
+        for m in range(len(t)):
             up, dn = t.copy(), t.copy()
             up[m] += eps
             dn[m] -= eps
-            sb[:, m] = ((logl(up, ty, rho) - logl(dn, ty, rho)) if which == "x"
-                        else (logl(tx, up, rho) - logl(tx, dn, rho))) / (2 * eps)
-        infl = infl - if_t @ (s[:, None] * sb).mean(axis=0)
-    return float(np.mean((infl / np.mean(s ** 2)) ** 2))
+            out += [(up, ty, rho), (dn, ty, rho)] if which == "x" else [(tx, up, rho), (tx, dn, rho)]
+    return out
 
 
 @dataclass

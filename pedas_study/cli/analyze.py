@@ -39,7 +39,7 @@ def _survey(args) -> int:
         if args.study:
             from study.definition import load
 
-            study = load(args.study)
+            study = load(args.study, units=False)  # reads no drive log or route
         else:
             if not db.exists():
                 raise FileNotFoundError(f"store not found: {db} (pass --study DIR with --responses, or run "
@@ -104,7 +104,7 @@ def _extended(args) -> int:
             raise ValueError("--responses needs --study DIR (the study folder of the CSV)")
         from study.definition import load
 
-        study = load(args.study)
+        study = load(args.study, units=False)  # reads no drive log or route
         source = str(args.responses)
     else:
         if args.study or args.attributes:

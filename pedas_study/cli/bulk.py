@@ -15,20 +15,20 @@ def refused(exc) -> int:
     return 2
 
 
-
 def apply_file(args, name: str, apply, report) -> int | None:
-    """Read the bulk file ``args.<name>`` (study.bulk_rows.read_rows), hand its rows to ``apply(st, frame, source=)``
-    inside the store, then print ``report(result)``; a refused file is printed by :func:`refused` (its exit code)."""
+    """Read the bulk file ``args.<name>`` (study.bulk_rows.read_table: its rows as text, no pandas), hand them to
+    ``apply(st, rows, source=)`` inside the store, then print ``report(result)``; a refused file is printed by
+    :func:`refused` (its exit code)."""
     from pathlib import Path
 
     from pedas_study.cli.common import open_store
-    from study.bulk_rows import BadRows, read_rows
+    from study.bulk_rows import BadRows, read_table
 
     path = Path(getattr(args, name))
     try:
-        frame = read_rows(path)
+        rows = read_table(path)
         with open_store(args) as st:
-            result = apply(st, frame, source=path.name)
+            result = apply(st, rows, source=path.name)
     except BadRows as exc:
         return refused(exc)
     print(report(result))  # after closing: the store is held only while used

@@ -37,7 +37,7 @@ def open_store(args: argparse.Namespace, must_exist: bool = True, read_only: boo
     Another process (the survey server, another command) cannot open the store while a command holds it, so a
     handler imports what it uses before it calls this and closes the store before it formats and prints its
     output. This imports what nearly every command uses once the store is open, the reader of the stored study
-    (:func:`study.studies.definition`, with pandas for query results), before opening it."""
+    (:func:`study.studies.definition`, which needs no pandas), before opening it."""
     import study.studies  # noqa: F401 - loaded before the store is held, not while
     from study.store import Store
 
@@ -54,7 +54,8 @@ def add_format_option(p: argparse.ArgumentParser) -> None:
 
 def format_frame(df, fmt: str = "table") -> str:
     """A DataFrame as text: an aligned table (missing values as "-", floats with one decimal, times to the
-    second), CSV or JSON records (ISO dates)."""
+    second), CSV or JSON records (ISO dates). :func:`pedas_study.cli.rows_text.format_rows` prints rows of Python
+    values the same way without pandas."""
     if fmt == "csv":
         return df.to_csv(index=False).rstrip("\n")
     if fmt == "json":

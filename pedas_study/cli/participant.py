@@ -53,11 +53,12 @@ def _import(args) -> int | None:
 
 
 def _list(args) -> None:
-    from study.participants import list_participants
+    from pedas_study.cli.rows_text import format_rows
+    from study.participants import participant_rows
 
-    with open_store(args) as st:
-        df = list_participants(st)
-    print(format_frame(df, args.format))  # formatted after closing: the store is held only while read
+    with open_store(args) as st:  # rows, not a DataFrame: a listing loads no pandas (tests/test_cli_imports.py)
+        columns, rows = participant_rows(st)
+    print(format_rows(columns, rows, args.format))  # formatted after closing: the store is held only while read
 
 
 def _completeness(args) -> None:

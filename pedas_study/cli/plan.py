@@ -37,7 +37,7 @@ def _population(args):
             raise ValueError("--population needs --study DIR (the study whose model and hypotheses are planned)")
         from study.definition import load
 
-        study = load(args.study)
+        study = load(args.study, units=False)  # reads no drive log or route
         pop = ss.population_from_csv(args.population)
         plan, _ = ss.study_plan(study)
         return pop, plan, f"population {args.population}"
@@ -46,7 +46,7 @@ def _population(args):
             raise ValueError("--responses needs --study DIR (the study folder of the CSV)")
         from study.definition import load
 
-        study = load(args.study)
+        study = load(args.study, units=False)  # reads no drive log or route
         attrs = _read_csv(args.attributes, "attributes") if args.attributes else None
         pop, plan = ss.population_of_responses(_read_csv(args.responses, "survey"), study, attrs)
         return pop, plan, f"fitted to {args.responses}"

@@ -25,11 +25,11 @@ def _advance(args) -> int | None:
 
 def _advance_from(args) -> int | None:
     from pedas_study.cli.bulk import apply_file
-    from study.protocol import apply_events
+    from study.protocol import apply_event_rows
 
-    return apply_file(args, "events", apply_events,
-                      lambda done: f"applied {len(done)} events for {done['participant_id'].nunique()} participants "
-                                   f"from {args.events}")
+    return apply_file(args, "events", apply_event_rows,
+                      lambda done: f"applied {len(done)} events for {len({d['participant_id'] for d in done})} "
+                                   f"participants from {args.events}")
 
 
 def _abort(args) -> None:
