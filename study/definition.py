@@ -618,7 +618,8 @@ def _check_files(study: StudyDefinition, problems: Problems, units: bool = True)
             pd.read_csv(io.StringIO(study.files[rel]))
         except Exception as exc:  # noqa: BLE001 - any parser error is a problem of the file
             problems.add(rel, None, "", f"not a readable CSV: {' '.join(str(exc).split())}")
-    run_file_checks(study, problems, units)  # the checks of the modules that own a declared file (log mapping, route, ...)
+    # the checks of the modules that own a declared file (log mapping, route, ...)
+    run_file_checks(study, problems, units)
 
 
 def _json_line(text: str, name: str) -> int | None:

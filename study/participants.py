@@ -110,8 +110,8 @@ def import_roster(st, frame: "pd.DataFrame | BulkRows", source: str = "roster") 
     :class:`study.bulk_rows.BulkRows` (:func:`study.bulk_rows.read_table`) is taken the same way, its lines naming
     the rows. A column that is neither -> UserError naming the declared ones; a required attribute without a
     column -> UserError. Every row gets the checks of :func:`add_participant` (:func:`check_registration`, then:
-    not registered yet, and not twice in the roster); if any row fails, :class:`study.bulk_rows.BadRows` (message ``SOURCE: N bad row(s)``) names
-    every bad row with its reason and nothing is stored.
+    not registered yet, and not twice in the roster); if any row fails, :class:`study.bulk_rows.BadRows` (message
+    ``SOURCE: N bad row(s)``) names every bad row with its reason and nothing is stored.
     """
     from study.bulk_rows import BadRow, BadRows, cell, check_columns, records
     from study.studies import version

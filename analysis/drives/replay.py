@@ -277,6 +277,7 @@ def serve_file(path: Path, host: str = "127.0.0.1", port: int = 8018) -> None:
             pass
 
     srv = ThreadingHTTPServer((host, port), Handler)
+    srv.block_on_close = False  # Ctrl-C ends the process at once, whatever a client left open
     print(f"serving http://{host}:{srv.server_address[1]}/ (Ctrl-C stops)", flush=True)
     try:
         srv.serve_forever()
