@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import re
+import sys
 from numbers import Integral, Real
 from pathlib import Path
 from typing import Sequence
@@ -30,16 +31,28 @@ def pyplot():
     return plt
 
 
+def bare_figure(figsize: tuple[float, float]):
+    """A matplotlib Figure on the Agg canvas without pyplot, for a figure that is only saved: pyplot's import (its
+    backend and figure-manager machinery) is a third of matplotlib's start-up. :func:`save_figure` writes it as it
+    writes a pyplot figure, to the same bytes."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=figsize)
+    FigureCanvasAgg(fig)
+    return fig
+
+
 def save_figure(fig, out_dir: str | Path, stem: str, dpi: int = 150) -> list[Path]:
     """Write a matplotlib figure as `<stem>.png` and `<stem>.pdf` into `out_dir`; close it; return both paths."""
-    import matplotlib.pyplot as plt
-
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     paths = [out / f"{stem}.png", out / f"{stem}.pdf"]
     fig.savefig(paths[0], dpi=dpi, bbox_inches="tight", metadata=PNG_METADATA)
     fig.savefig(paths[1], bbox_inches="tight", metadata=PDF_METADATA)
-    plt.close(fig)
+    plt = sys.modules.get("matplotlib.pyplot")  # a figure of pyplot's is closed there; a bare one has nothing to close
+    if plt is not None:
+        plt.close(fig)
     return paths
 
 

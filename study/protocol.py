@@ -45,15 +45,16 @@ def protocol_of(st, participant_id: str) -> Protocol:
     return participant_protocol(st, participant_id)
 
 
+_EVENTS = "SELECT * FROM phase_events WHERE participant_id = ? ORDER BY seq"
+
+
 def _events(st, participant_id: str) -> pd.DataFrame:
-    return st.df("SELECT * FROM phase_events WHERE participant_id = ? ORDER BY seq", [participant_id])
+    return st.df(_EVENTS, [participant_id])
 
 
 def _event_rows(st, participant_id: str) -> list[dict[str, Any]]:
     """The participant's phase_events rows by seq, as dicts of Python values (what the writing steps read)."""
-    cur = st.con.execute("SELECT * FROM phase_events WHERE participant_id = ? ORDER BY seq", [participant_id])
-    names = [d[0] for d in cur.description]
-    return [dict(zip(names, r)) for r in cur.fetchall()]
+    return st.dicts(_EVENTS, [participant_id])
 
 
 def _when(at: datetime | str | None) -> datetime:

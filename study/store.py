@@ -304,9 +304,7 @@ class Store:
 
     def _fetch(self, table: str, key: Mapping[str, Any]) -> list[dict[str, Any]]:
         where, params = self._where(key)
-        cur = self.con.execute(f'SELECT * FROM "{table}" WHERE {where}', params)
-        names = [d[0] for d in cur.description]
-        return [dict(zip(names, r)) for r in cur.fetchall()]
+        return self.dicts(f'SELECT * FROM "{table}" WHERE {where}', params)
 
     def _write(self, sql: str, params: list[Any], table: str):
         try:
@@ -403,6 +401,12 @@ class Store:
     def df(self, sql: str, params: Sequence[Any] | Mapping[str, Any] | None = None):
         """Run a query and return a pandas DataFrame."""
         return self.con.execute(sql, params).df() if params is not None else self.con.execute(sql).df()
+
+    def dicts(self, sql: str, params: Sequence[Any] | None = None) -> list[dict[str, Any]]:
+        """Run a query and return its rows as dicts of Python values (no pandas: for the commands that load none)."""
+        cur = self.con.execute(sql, params or [])
+        names = [d[0] for d in cur.description]
+        return [dict(zip(names, r)) for r in cur.fetchall()]
 
     def one(self, sql: str, params: Sequence[Any] | None = None) -> Any:
         """First column of the first row (None when no row)."""

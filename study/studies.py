@@ -26,9 +26,8 @@ _CACHE: dict[str, StudyDefinition] = {}
 
 def current(st) -> dict | None:
     """The newest study_definitions row as a dict of Python values (None when the store has no study yet)."""
-    cur = st.con.execute("SELECT * FROM study_definitions ORDER BY version DESC LIMIT 1")
-    row = cur.fetchone()  # no DataFrame: every command reads this, most of them need no pandas
-    return None if row is None else dict(zip((d[0] for d in cur.description), row))
+    rows = st.dicts("SELECT * FROM study_definitions ORDER BY version DESC LIMIT 1")
+    return rows[0] if rows else None
 
 
 def definition(st) -> StudyDefinition:

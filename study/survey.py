@@ -499,10 +499,9 @@ def submission(st, participant_id: str, entry_round: int, instrument: str | None
                occasion: str | None = None) -> dict | None:
     """The survey_submissions row of one entry round of one occasion, or None."""
     ins, occasion = target(st, instrument, occasion)
-    cur = st.con.execute("SELECT * FROM survey_submissions WHERE participant_id = ? AND instrument = ? "
-                         "AND occasion = ? AND entry_round = ?", [participant_id, ins.name, occasion, entry_round])
-    row = cur.fetchone()
-    return None if row is None else dict(zip([d[0] for d in cur.description], row))
+    rows = st.dicts("SELECT * FROM survey_submissions WHERE participant_id = ? AND instrument = ? "
+                    "AND occasion = ? AND entry_round = ?", [participant_id, ins.name, occasion, entry_round])
+    return rows[0] if rows else None
 
 
 def entry_answers(st, participant_id: str, entry_round: int,

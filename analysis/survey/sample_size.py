@@ -617,15 +617,9 @@ def measurement_df(retained: dict[str, Sequence[str]]) -> int:
 def power_figure(power: pd.DataFrame, target: float, out_dir: str | Path, stem: str = "power_curve") -> list[Path]:
     """Power against N per hypothesis (a 95 % band where the power is simulated), with the target line (PNG and
     PDF via analysis.render.save_figure). Hypotheses without a power (other sign) are left out."""
-    # a bare Figure on the Agg canvas, not pyplot: the figure is only saved, and pyplot's import (its backend
-    # and figure-manager machinery) is a third of matplotlib's start-up; the files are the same bytes
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
+    from analysis.render import bare_figure, save_figure
 
-    from analysis.render import PDF_METADATA, PNG_METADATA
-
-    fig = Figure(figsize=(6.5, 4))
-    FigureCanvasAgg(fig)
+    fig = bare_figure((6.5, 4))
     ax = fig.subplots()
     methods = set(power["method"]) if "method" in power.columns else {"simulation"}
     for h, g in power.groupby("hypothesis", sort=False):
@@ -644,12 +638,7 @@ def power_figure(power: pd.DataFrame, target: float, out_dir: str | Path, stem: 
     if ax.get_legend_handles_labels()[0]:
         ax.legend(fontsize=7, loc="lower right")
     ax.grid(alpha=0.3)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    paths = [out / f"{stem}.png", out / f"{stem}.pdf"]  # as analysis.render.save_figure writes them
-    fig.savefig(paths[0], dpi=150, bbox_inches="tight", metadata=PNG_METADATA)
-    fig.savefig(paths[1], bbox_inches="tight", metadata=PDF_METADATA)
-    return paths
+    return save_figure(fig, out_dir, stem)
 
 
 @dataclass(frozen=True)

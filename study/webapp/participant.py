@@ -24,11 +24,10 @@ WITHDRAWN = "This survey link has been withdrawn by the researcher. Please ask t
 def _replaced(s, token: str) -> bool:
     """Whether the revoked link `token` was replaced by a newer one (issued when it was revoked, for the same
     participant and questionnaire) rather than withdrawn (`survey revoke`, the console's Revoke)."""
-    cur = s.con.execute("SELECT * FROM survey_tokens WHERE token_hash = ?", [sv.hash_token(token)])
-    names, found = [d[0] for d in cur.description], cur.fetchone()
-    if found is None:
+    found = s.dicts("SELECT * FROM survey_tokens WHERE token_hash = ?", [sv.hash_token(token)])
+    if not found:
         return False
-    r = dict(zip(names, found))
+    r = found[0]
     same = [c for c in ("participant_id", "instrument", "occasion") if c in r]
     where = " AND ".join(f'"{c}" IS NOT DISTINCT FROM ?' for c in same)
     return bool(s.one(f"SELECT count(*) FROM survey_tokens WHERE {where} AND issued_at >= ?",
