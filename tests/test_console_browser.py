@@ -57,13 +57,23 @@ def shot(page, name: str) -> None:
     page.screenshot(path=str(SHOTS / f"{name}.png"), full_page=True)
 
 
-def flash(page) -> str:
-    return page.inner_text(".flash")
+def flash(page, timeout: float = 30_000) -> str:
+    """The page's message, once it has one: a click returns before the page its form leads to is complete."""
+    shown = page.locator(".flash", has_text=re.compile(r"\S")).first
+    shown.wait_for(timeout=timeout)                             # a selector's wait outlives a navigation
+    return shown.inner_text()
 
 
 def forget_flash(page) -> None:
     """Remove the shown message, so that waiting for one waits for the next page's."""
     page.evaluate("document.querySelectorAll('.flash').forEach(e => e.remove())")
+
+
+def submit(page, selector: str) -> str:
+    """Click `selector` and return the message of the page it leads to, never the one still shown."""
+    forget_flash(page)
+    page.click(selector)
+    return flash(page)
 
 
 def sign_in(browser, srv, name: str):
@@ -84,9 +94,8 @@ def register(page, srv, pid: str, attrs: dict[str, str]) -> None:
             page.select_option(f"#a-{name}", value)
         else:
             page.fill(f"#a-{name}", value)
-    page.click("#register-form button[type=submit]")
+    assert submit(page, "#register-form button[type=submit]") == f"participant {pid} added"
     page.wait_for_selector(f"h1:has-text('Participant {pid}')")
-    assert flash(page) == f"participant {pid} added"
 
 
 def book(page, srv, pid: str, at: str, simulator: str) -> None:
@@ -95,14 +104,13 @@ def book(page, srv, pid: str, at: str, simulator: str) -> None:
     page.select_option("#book-pid", pid)
     page.fill("#book-at", at)
     page.fill("#book-sim", simulator)
-    page.click("#book-form button[type=submit]")
-    assert flash(page).startswith(f"{pid}: {simulator} booked {at.replace('T', ' ')}")
+    assert submit(page, "#book-form button[type=submit]").startswith(f"{pid}: {simulator} booked {at.replace('T', ' ')}")
 
 
 def start(page, srv, pid: str, phase: str) -> None:
     page.goto(f"{srv.url}/r/p/{pid}")
-    page.click("#start-btn")
-    assert flash(page).startswith(f"{pid}: {phase} started"), flash(page)
+    msg = submit(page, "#start-btn")
+    assert msg.startswith(f"{pid}: {phase} started"), msg
     assert page.get_attribute(f"tr[data-phase='{phase}']", "data-outcome") == "in_progress"
 
 
@@ -112,10 +120,7 @@ def upload(page, pid: str, condition: str, path: Path, force: str | None = None)
     if force:
         page.click("details summary")
         page.fill("#force", force)
-    forget_flash(page)
-    page.click("#upload-form button[type=submit]")
-    page.wait_for_selector(".flash")
-    return flash(page)
+    return submit(page, "#upload-form button[type=submit]")
 
 
 def drive_file(tmp_path: Path, name: str, n: int, seed: int) -> Path:
@@ -175,8 +180,7 @@ def test_one_participant_from_registration_to_submitted_survey(browser, served, 
     assert "34" in row and "female" in row and "normal" in row
     shot(page, "02_participants")
     page.fill("#participant_id", "P001")                        # the same id again: refused, form kept
-    page.click("#register-form button[type=submit]")
-    assert flash(page) == "participant P001 already exists"
+    assert submit(page, "#register-form button[type=submit]") == "participant P001 already exists"
 
     book(page, srv, "P001", slot(), "sim1")
     assert "booked" in page.inner_text("#agenda tr[data-participant='P001']")
@@ -197,8 +201,8 @@ def test_one_participant_from_registration_to_submitted_survey(browser, served, 
     page.click("#upload-form button[type=submit]")
     page.wait_for_selector(".upload-text:has-text('MB sent')")
     shot(page, "05_upload_progress")
-    page.wait_for_selector(".flash", timeout=60_000)
-    assert re.match(r"P001 baseline: imported drive \d+, 60000 samples", flash(page)), flash(page)
+    msg = flash(page, timeout=60_000)
+    assert re.match(r"P001 baseline: imported drive \d+, 60000 samples", msg), msg
     cdp.send("Network.emulateNetworkConditions", {"offline": False, "latency": 0, "downloadThroughput": -1,
                                                   "uploadThroughput": -1})
     assert "60000 samples" in page.inner_text("li[data-condition='baseline']")
@@ -215,8 +219,7 @@ def test_one_participant_from_registration_to_submitted_survey(browser, served, 
 
     page.goto(f"{srv.url}/r/p/P001")
     assert page.get_attribute("#survey-basis", "data-basis") == "single"
-    page.click("#end-btn")
-    assert flash(page) == "P001: survey completed"
+    assert submit(page, "#end-btn") == "P001: survey completed"
     assert page.inner_text(".phase-buttons").strip() == "protocol finished"
     shot(page, "08_participant_finished")
 
@@ -270,8 +273,8 @@ def test_two_participants_interleaved(browser, served, tmp_path):
     book(ann, srv, "P002", at, "sim1")
     book(ben, srv, "P003", at, "sim2")
     ann.goto(f"{srv.url}/r/today?date={at[:10]}")
-    ann.click("#agenda tr[data-participant='P003'] button:has-text('Attended')")
-    assert flash(ann) == "P003: appointment attended"
+    assert submit(ann, "#agenda tr[data-participant='P003'] button:has-text('Attended')") == \
+        "P003: appointment attended"
 
     start(ann, srv, "P002", "familiarisation")
     start(ben, srv, "P003", "familiarisation")
@@ -284,13 +287,11 @@ def test_two_participants_interleaved(browser, served, tmp_path):
     # P003: motion sickness in the baseline drive, aborted and excluded; the protocol is then closed
     ben.goto(f"{srv.url}/r/p/P003")
     ben.fill("#abort-reason", "motion sickness")
-    ben.click("button:has-text('Abort baseline drive')")
-    assert flash(ben) == "P003: baseline_drive aborted (motion sickness)"
+    assert submit(ben, "button:has-text('Abort baseline drive')") == "P003: baseline_drive aborted (motion sickness)"
     ben.select_option("#scope", "all")
     ben.select_option("#reason", "motion_sickness")
     ben.fill("#note", "stopped after 4 min")
-    ben.click("#exclude-form button[type=submit]")
-    assert flash(ben) == "P003: excluded (all, motion_sickness)"
+    assert submit(ben, "#exclude-form button[type=submit]") == "P003: excluded (all, motion_sickness)"
     assert ben.locator("#start-btn").count() == 0               # the protocol is closed: no start button
     assert "protocol closed" in ben.inner_text(".phase-buttons")
     shot(ben, "21_participant_excluded")
@@ -315,8 +316,7 @@ def test_two_participants_interleaved(browser, served, tmp_path):
     # a link issued, revoked (the tablet then refuses it), issued again and used
     first = issue_link(ann, srv, "P002")
     ann.goto(f"{srv.url}/r/p/P002")
-    ann.click("#revoke-link")
-    assert flash(ann) == "P002: survey link revoked" and ann.inner_text("#link-status") == "revoked"
+    assert submit(ann, "#revoke-link") == "P002: survey link revoked" and ann.inner_text("#link-status") == "revoked"
     tablet = browser.new_page()
     assert tablet.goto(first).status == 403
     tablet.close()
