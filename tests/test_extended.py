@@ -240,3 +240,21 @@ def test_cli_extended_from_the_paper_store(cli, paper_db, tmp_path):
     assert "indirect PEoU -> PU -> ATT" in r.out
     ind = pd.read_csv(out / "indirect.csv")
     assert (ind["n_boot"] == 100).all() and len(ind) == 8
+    both = tmp_path / "both"
+    r = cli("analyze", "survey", "--extended", "--out", both, "--bootstrap", "100", db=paper_db)
+    assert r.code == 0, r.err
+    assert "extended survey statistics of" in r.out and "indirect PEoU -> PU -> ATT" in r.out
+    # the fit taken from the survey analysis gives the files of a run of its own (only the timings differ)
+    files = sorted(p.name for p in out.iterdir() if p.name != "timings.json")
+    assert files == sorted(p.name for p in (both / "extended").iterdir() if p.name != "timings.json")
+    for name in files:
+        assert (both / "extended" / name).read_bytes() == (out / name).read_bytes(), name
+
+
+def test_cli_survey_extended_refuses_available_case_and_writes_nothing(cli, tmp_path):
+    out = tmp_path / "both"
+    r = cli("analyze", "survey", "--extended", "--available-case", "--responses",
+            REPO / "data" / "reference" / "survey.csv", "--study", PAPER, "--out", out, "--bootstrap", "0", db=None)
+    assert r.code == 2 and not out.exists()
+    assert r.err == ("pedas-study: error: --extended builds on the listwise analysis; it does not go with "
+                     "--available-case\n")

@@ -17,12 +17,16 @@ def _read_csv(path_text: str, what: str):
 
 
 def _survey(args) -> int:
+    import time
     from pathlib import Path
 
     from analysis.survey.acceptance import analyze_store, analyze_survey, attributes_from_store, covariates_of
 
     if args.bootstrap < 0:
         raise ValueError("--bootstrap must be >= 0")
+    if args.extended and args.available_case:
+        raise ValueError("--extended builds on the listwise analysis; it does not go with --available-case")
+    t0 = time.perf_counter()
     model = None
     if args.model:
         path = Path(args.model)
@@ -58,8 +62,19 @@ def _survey(args) -> int:
         if not db.exists():
             raise FileNotFoundError(f"store not found: {db} (run `pedas-study init` or pass --responses CSV)")
         with open_store(args, read_only=True) as st:
-            res, _ = analyze_store(st, **kw)
+            res, responses = analyze_store(st, **kw)
+            if args.extended:
+                from study.studies import definition
+
+                study, attrs = definition(st), attributes_from_store(st)
         source = f"store {db}"
+    ext = None
+    if args.extended:  # computed before anything is written: a refusal leaves no half-written output
+        from analysis.survey.extended import analyze_extended
+
+        # the same answers, model and final CFA: `analyze extended` without a group, minus one start-up and one fit
+        ext = analyze_extended(responses, study, attributes=attrs, instrument=args.instrument, model=model,
+                               n_boot=args.bootstrap, seed=args.seed, survey=res)
     paths = res.write(args.out)
     print(f"survey analysis of {res.n} participants ({source}) -> {args.out}: {len(paths)} files")
     signs = res.settings.get("hypothesis_signs", {})
@@ -71,6 +86,8 @@ def _survey(args) -> int:
         print(f"  {h['hypothesis']} {h['path']}{expect}: beta = {h['beta']:.3f}, p = {h['p']:.3g} -> {verdict}")
     for w in res.warnings:
         print(f"  warning: {w}")
+    if ext is not None:
+        _print_extended(ext, Path(args.out) / "extended", source, args.bootstrap, t0)
     return 0
 
 
@@ -125,11 +142,19 @@ def _extended(args) -> int:
     ext = analyze_extended(responses, study, attributes=attrs, instrument=args.instrument, n_boot=args.bootstrap,
                            seed=args.seed, group=args.group, workers=args.workers,
                            collapse_empty=args.collapse_empty)
-    paths = ext.write(args.out)
-    print(f"extended survey statistics of {ext.n} participants ({source}) -> {args.out}: {len(paths)} files")
+    _print_extended(ext, args.out, source, args.bootstrap, t0)
+    return 0
+
+
+def _print_extended(ext, out, source: str, n_boot: int, t0: float) -> None:
+    """Write `ext` into `out` and print its summary and timing lines."""
+    import time
+
+    paths = ext.write(out)
+    print(f"extended survey statistics of {ext.n} participants ({source}) -> {out}: {len(paths)} files")
     ind = ext.indirect[~ext.indirect["chain"].str.contains("total", regex=False)]
     for r in ind.itertuples():
-        print(f"  indirect {r.chain}: {r.std:.3f} [{r.ci_low:.3f}, {r.ci_high:.3f}] ({args.bootstrap} BCa resamples"
+        print(f"  indirect {r.chain}: {r.std:.3f} [{r.ci_low:.3f}, {r.ci_high:.3f}] ({n_boot} BCa resamples"
               f"{f', {r.n_failed} failed' if r.n_failed else ''})")
     for r in ext.invariance.itertuples():
         d = "" if r.step == "configural" else f", dCFI = {r.delta_cfi:+.3f}, dchi2({int(r.delta_df)}) = " \
@@ -141,7 +166,6 @@ def _extended(args) -> int:
     print(f"  time: {time.perf_counter() - t0:.1f} s in all; analysis {t['total']:.1f} s (bootstrap of alpha/omega/"
           f"HTMT {t['bootstrap_reliability_htmt']:.1f} s, ordinal CFA {t['ordinal']:.1f} s, indirect effects "
           f"{t['indirect_bootstrap']:.2f} s)")
-    return 0
 
 
 def _within(args) -> None:
@@ -188,6 +212,9 @@ def register(cli) -> None:
                    help="a model file in lavaan syntax instead of the study's (docs/study_folder.md)")
     p.add_argument("--available-case", action="store_true",
                    help="keep participants with missing answers (composites over answered items) instead of listwise")
+    p.add_argument("--extended", action="store_true",
+                   help="also the extended statistics of `analyze extended` (without a group) into OUT/extended, "
+                        "built on this run's final CFA")
     p.add_argument("--loadings", choices=("cfa", "pca", "paf"), default="cfa",
                    help="loadings of Table 3 and CR/AVE: cfa (standardized CFA loadings, default), pca (first "
                         "principal component per construct, SPSS FACTOR's default) or paf (principal axis factoring)")
