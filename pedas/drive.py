@@ -190,7 +190,7 @@ def study_route_and_reference(scenario: str | None = None):
     """(route, DP reference) of the study network in a traffic scenario (default
     :data:`pedas.scenario.DEFAULT_SCENARIO`), the network built when needed; cached per process."""
     sc = get_scenario(scenario)
-    return _setup(str(build_network(scenario=sc)), sc.name)
+    return _setup(str(build_network(scenario=sc)), sc.name, 1.0)  # the key a drive's own call uses
 
 
 def drive(participant_seed: int, style: str, condition: str, *, traffic_seed: int | None = None,
