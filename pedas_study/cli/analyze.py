@@ -87,7 +87,7 @@ def _survey(args) -> int:
     for w in res.warnings:
         print(f"  warning: {w}")
     if ext is not None:
-        _print_extended(ext, Path(args.out) / "extended", source, args.bootstrap, t0)
+        _write_extended(ext, Path(args.out) / "extended", source, args.bootstrap, t0)
     return 0
 
 
@@ -142,11 +142,11 @@ def _extended(args) -> int:
     ext = analyze_extended(responses, study, attributes=attrs, instrument=args.instrument, n_boot=args.bootstrap,
                            seed=args.seed, group=args.group, workers=args.workers,
                            collapse_empty=args.collapse_empty)
-    _print_extended(ext, args.out, source, args.bootstrap, t0)
+    _write_extended(ext, args.out, source, args.bootstrap, t0)
     return 0
 
 
-def _print_extended(ext, out, source: str, n_boot: int, t0: float) -> None:
+def _write_extended(ext, out, source: str, n_boot: int, t0: float) -> None:
     """Write `ext` into `out` and print its summary and timing lines."""
     import time
 
