@@ -177,7 +177,7 @@ def drive_name(participant_seed: int, style: str, condition: str, traffic_seed: 
 
 
 @lru_cache(maxsize=8)
-def _setup(net_file: str, scenario: str, dp_time_weight: float = 1.0):
+def _setup(net_file: str, scenario: str, dp_time_weight: float):
     """Route and DP reference of a scenario's network (the DP's time weight x `dp_time_weight`), once per process
     (the DP takes ~1 s)."""
     from pedas.dp import W_TIME_DEFAULT, dp_reference
@@ -190,7 +190,7 @@ def study_route_and_reference(scenario: str | None = None):
     """(route, DP reference) of the study network in a traffic scenario (default
     :data:`pedas.scenario.DEFAULT_SCENARIO`), the network built when needed; cached per process."""
     sc = get_scenario(scenario)
-    return _setup(str(build_network(scenario=sc)), sc.name, 1.0)  # the key a drive's own call uses
+    return _setup(str(build_network(scenario=sc)), sc.name, 1.0)
 
 
 def drive(participant_seed: int, style: str, condition: str, *, traffic_seed: int | None = None,

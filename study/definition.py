@@ -665,7 +665,8 @@ def parse_model(text: str, rel: str, problems: Problems, strict: bool = False) -
     """
     from study.lavaan_parser import parser
 
-    separate_token, parse_rvalues = parser().separate_token, parser().parse_rvalues
+    p = parser()
+    separate_token, parse_rvalues = p.separate_token, p.parse_rvalues
 
     n0 = len(problems)
     measurement: dict[str, tuple[str, ...]] = {}

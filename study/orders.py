@@ -20,11 +20,10 @@ if TYPE_CHECKING:  # pandas only for order_counts' DataFrame: assigning an order
 
 def participant_row(st, participant_id: str) -> dict[str, Any]:
     """participant_id and protocol of a registered participant; unknown participant -> UserError."""
-    row = st.con.execute("SELECT participant_id, protocol FROM participants WHERE participant_id = ?",
-                         [participant_id]).fetchone()
-    if row is None:
+    rows = st.dicts("SELECT participant_id, protocol FROM participants WHERE participant_id = ?", [participant_id])
+    if not rows:
         raise UserError(f"unknown participant {participant_id}")
-    return {"participant_id": row[0], "protocol": row[1]}
+    return rows[0]
 
 
 def exclusion_of(st, participant_id: str) -> str | None:
@@ -45,12 +44,7 @@ def order_counts(st, protocol: str) -> pd.DataFrame:
     """Per order of `protocol`: assigned, dropped_out and active (= assigned − dropped out) participants."""
     import pandas as pd
 
-    counts = _order_counts(st, protocol)
-    out = pd.DataFrame({"order_name": [c[0] for c in counts]})
-    out["assigned"] = [c[1] for c in counts]
-    out["dropped_out"] = [c[2] for c in counts]
-    out["active"] = out["assigned"] - out["dropped_out"]
-    return out
+    return pd.DataFrame(_order_counts(st, protocol), columns=["order_name", "assigned", "dropped_out", "active"])
 
 
 def _order_counts(st, protocol: str) -> list[tuple[str, int, int, int]]:

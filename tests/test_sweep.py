@@ -141,7 +141,7 @@ def _same_outputs(a: Path, b: Path) -> None:
         assert (a / name).read_bytes() == (b / name).read_bytes(), name
 
 
-_POOLED: dict[str, tuple[Path, Path]] = {}
+_POOLED: dict[str, tuple[Path, Path, Path]] = {}
 
 
 @pytest.fixture

@@ -359,9 +359,8 @@ def _avar(cx, cy, tx, ty, rho, eps: float = 1e-6, cells: list | None = None) -> 
 
     `cells`: the :func:`_cells` of :func:`_avar_requests` (tx, ty, rho, eps), in its order, when computed
     beforehand (e.g. for many pairs in one call); None computes them here."""
-    grids = _avar_requests(tx, ty, rho, eps)
     if cells is None:
-        cells = [_cells(*g) for g in grids]
+        cells = [_cells(*g) for g in _avar_requests(tx, ty, rho, eps)]
     logl = [np.log(p[cx, cy]) for p in cells]
     s = (logl[0] - logl[1]) / (2 * eps)
     infl = s.copy()

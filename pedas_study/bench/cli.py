@@ -105,10 +105,11 @@ def bench_cli(repeats: int = 5) -> CliBench:
                 _timed([*py, "-m", "pedas_study.cli", f"--db={fresh}", "participant", "import", str(small)], env))
             runs["plan power"].append(_timed([*cli, "plan", "power", "--responses", str(ANSWERS), "--study",
                                               str(STUDY), "--out", str(tmp / f"power{i}")], env))
-            survey = [*cli, "analyze", "survey", "--responses", str(ANSWERS), "--study", str(STUDY), "--bootstrap",
-                      "0", "--out", str(tmp / f"survey{i}")]
-            extended = [*cli, "analyze", "extended", "--responses", str(ANSWERS), "--study", str(STUDY),
-                        "--bootstrap", "0", "--out", str(tmp / f"extended{i}")]
-            runs["analyze survey --extended"].append(_timed([*survey[:-2], "--extended", *survey[-2:]], env))
-            runs["analyze survey; analyze extended"].append(_timed(survey, env) + _timed(extended, env))
+
+            def analyze(what: str, *extra: str) -> float:
+                return _timed([*cli, "analyze", what, "--responses", str(ANSWERS), "--study", str(STUDY),
+                               "--bootstrap", "0", "--out", str(tmp / f"{what}{i}-{len(extra)}"), *extra], env)
+
+            runs["analyze survey --extended"].append(analyze("survey", "--extended"))
+            runs["analyze survey; analyze extended"].append(analyze("survey") + analyze("extended"))
     return CliBench(repeats, statistics.median(python), {k: statistics.median(v) for k, v in runs.items()})
