@@ -17,11 +17,15 @@ LOCK_ARGS ?=
 .DEFAULT_GOAL := report
 .PHONY: report test bench serve clean venv lock refit sweep
 
+# uv installs the lock in parallel (a fresh 2-core machine: ~30 s against pip's ~90 s), .pyc files included as pip
+# writes them; where uv cannot install (no index it can reach), pip installs the same hashed lock
+UV_INSTALL = $(BIN)/uv pip install -q --python $(BIN)/python --compile-bytecode
+
 $(STAMP): pyproject.toml $(LOCK)
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install -q --upgrade pip
-	$(BIN)/python -m pip install -q --require-hashes -r $(LOCK)
-	$(BIN)/python -m pip install -q --no-deps -e .
+	$(BIN)/python -m pip install -q uv==$(UV_VERSION)
+	$(UV_INSTALL) --require-hashes -r $(LOCK) || $(BIN)/python -m pip install -q --require-hashes -r $(LOCK)
+	$(UV_INSTALL) --no-deps -e . || $(BIN)/python -m pip install -q --no-deps -e .
 	touch $(STAMP)
 
 # CPython 3.11 on x86-64 Linux, the runtime dependencies plus every extra (test, bench, dask), every file's sha256

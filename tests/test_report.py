@@ -295,6 +295,9 @@ def test_full_reference_report_through_the_cli(cli, tmp_path, tmp_path_factory):
     assert not (rep["status"] == "miss").any()
     per = pd.read_csv(out / "drives" / "per_participant.csv")
     assert per["participant_id"].nunique() == 34
+    # across the cohort (not necessarily per person), the pEDAS drives pass more lights in green without a stop
+    # than the same persons' baseline drives (pedas.drive.green_crossings, as the store's KPIs count them)
+    assert per["tl_green_passes_pedas"].sum() > per["tl_green_passes_baseline"].sum()
     bands = pd.read_csv(out / "drives" / "bands.csv")
     assert len(bands) == 4 and bands["our_value"].notna().all()
     _check_tables_parse(out / "tables")

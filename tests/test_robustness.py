@@ -126,11 +126,12 @@ def test_cli_prints_failures_by_kind_and_exits_1(cli, monkeypatch, tmp_path):
 @pytest.mark.sumo
 @pytest.mark.slow
 def test_ci_sweep_of_real_drives_has_no_failure(cli, tmp_path):
-    """12 drives (person seeds 2000-2001 fixed in advance x 3 styles x 2 conditions, own traffic) on 2 workers
-    through the CLI: every drive completes without a safety, liveness or timeout failure."""
+    """Real drives through the CLI on 2 workers (person seed 2000, fixed in advance, normal style, both conditions,
+    own traffic): every drive completes without a safety, liveness or timeout failure. Every style and condition
+    is driven by tests/test_drive.py (seed 31), through the same invariants."""
     out = tmp_path / "sweep.csv"
-    r = cli("bench", "robustness", "--seeds", "2000-2001", "--workers", "2", "--no-progress", "--out", out,
-            db=None)
+    r = cli("bench", "robustness", "--seeds", "2000-2000", "--styles", "normal", "--workers", "2", "--no-progress",
+            "--out", out, db=None)
     assert r.code == 0 and "failures: 0" in r.out, r.out + r.err
     df = pd.read_csv(out)
-    assert len(df) == 12 and df["ok"].all() and (df["kind"] == "ok").all() and (df["duration_s"] > 0).all()
+    assert len(df) == 2 and df["ok"].all() and (df["kind"] == "ok").all() and (df["duration_s"] > 0).all()

@@ -122,7 +122,7 @@ def test_cli_bad_input_is_one_line_exit_2_and_writes_nothing(cli, tmp_path, args
 # ------------------------------------------------------------------------------------------------ end to end
 TINY = ["--factors", "compliance_shift", "speeding_shift", "--trajectories", "2", "--participants", "1",
         "--styles", "normal", "--seed", "0"]
-SOBOL = ["--sobol-n", "2", "--top", "1"]
+SOBOL = ["--sobol-n", "1", "--top", "1"]
 ANALYSIS = ["design.csv", "points.csv", "indices.csv", "indices.md", "indices.tex", "region.csv", "region.md",
             "region.tex", "figures/sweep_indices.png", "figures/sweep_indices.pdf"]
 
@@ -177,18 +177,18 @@ def test_tiny_sweep_end_to_end_with_sobol_and_reproducible(pooled, tmp_path):
     cache, plain, _ = pooled
     first = _sweep(*TINY, *SOBOL, "--workers", "2", "--cache-dir", cache, "--out", tmp_path / "a")
     assert first.returncode == 0, first.stderr
-    # the Morris points are the sweep above, cached; the Sobol phase's 2 x (1 + 2) points are new
+    # the Morris points are the sweep above, cached; the Sobol phase's 1 x (1 + 2) points are new
     assert _cached(first.stdout) == [12, 0]
-    assert "12 design points, 24 drives" in first.stdout and "Sobol factors: " in first.stdout
+    assert "9 design points, 18 drives" in first.stdout and "Sobol factors: " in first.stdout
     points = pd.read_csv(tmp_path / "a" / "points.csv")
-    assert points["phase"].value_counts().to_dict() == {"morris": 6, "sobol": 6}
+    assert points["phase"].value_counts().to_dict() == {"morris": 6, "sobol": 3}
     assert points["saving_overall_pct"].notna().all()
     ind = pd.read_csv(tmp_path / "a" / "indices.csv")
     assert set(ind["phase"]) == {"morris", "sobol"} and len(ind[ind["phase"] == "sobol"]) == 6
     # the Morris phase's points do not depend on whether a Sobol phase follows
     pd.testing.assert_frame_equal(points.iloc[:6], pd.read_csv(plain / "points.csv"))
     again = _sweep(*TINY, *SOBOL, "--workers", "2", "--cache-dir", cache, "--out", tmp_path / "b")
-    assert _cached(again.stdout) == [12, 12]
+    assert _cached(again.stdout) == [12, 6]
     _same_outputs(tmp_path / "a", tmp_path / "b")
 
 
@@ -243,21 +243,48 @@ def test_kill_9_then_resume(pooled, tmp_path):
     _same_outputs(plain, out)
 
 
+POINT0 = REPO / "tests" / "data" / "sweep" / "point0_people.csv"
+
+
+def _point0_people(n: int, workers: int = 2, cache_dir: Path | None = None) -> pd.DataFrame:
+    """The first `n` people of the committed sweep's cohort at its first design point, driven now: their rows of
+    :func:`analysis.sweep.run.point_effects` (both drives' KPIs, the reductions)."""
+    from analysis.sweep.run import drive_points, point_effects, read_run, spec_of
+
+    design, _, meta = read_run(REPO / "data" / "sweep")
+    spec = spec_of(meta)
+    people = cohort(spec).iloc[:n]
+    tasks, logs = drive_points(design.iloc[:1], people, spec, workers=workers, cache_dir=cache_dir, progress=False,
+                               echo=lambda _: None)
+    return point_effects(design.iloc[:1], people, tasks, logs)
+
+
 @pytest.mark.slow
 @pytest.mark.sumo
 @pytest.mark.xdist_group("sweep")  # one worker: the pooled sweep is shared
 def test_committed_sweep_first_point_still_simulates_to_its_values(tmp_path):
-    """data/sweep is the committed sweep the report analyses: its first design point, driven again with the
-    committed sizes, gives the committed KPIs (so a change of the simulation that makes it stale fails)."""
+    """data/sweep is the committed sweep the report analyses. The reductions of its first design point's six people
+    (tests/data/sweep/point0_people.csv, written by `python -m tests.test_sweep`, which drives all 12 drives) give
+    the committed point's KPIs, and the first person's two drives, driven again, give that person's whole row: a
+    change of the simulation that makes the committed sweep stale fails, at the cost of 2 drives instead of 12."""
     from analysis.sweep.design import KPIS
-    from analysis.sweep.run import read_run, simulate_points, spec_of
+    from analysis.sweep.run import point_id, point_row, read_run, spec_of
 
-    design, points, meta = read_run(REPO / "data" / "sweep")
-    spec = spec_of(meta)
-    people = cohort(spec)
+    _, points, meta = read_run(REPO / "data" / "sweep")
+    people = cohort(spec_of(meta))
     assert list(people["participant_id"]) == meta["cohort"]
-    again = simulate_points(design.iloc[:1], people, spec, workers=2, cache_dir=tmp_path / "cache",
-                            progress=False, echo=lambda _: None)
-    for kpi in KPIS:
-        want, got = points.loc[0, kpi], again.loc[0, kpi]
-        assert (pd.isna(want) and pd.isna(got)) or got == pytest.approx(want, rel=1e-9, abs=1e-9), kpi
+    committed = pd.read_csv(POINT0)
+    assert committed["participant_id"].tolist() == [point_id(0, slot) for slot in range(len(people))]
+    row, _ = point_row(committed)
+    for kpi in KPIS:  # points.csv keeps 12 significant digits
+        want = points.loc[0, kpi]
+        assert (pd.isna(want) and pd.isna(row[kpi])) or row[kpi] == pytest.approx(want, rel=1e-10, abs=1e-10), kpi
+    again = _point0_people(1, cache_dir=tmp_path / "cache")
+    pd.testing.assert_frame_equal(again, committed.iloc[:1], check_dtype=False, rtol=1e-12, atol=0)
+
+
+if __name__ == "__main__":  # rewrite tests/data/sweep/point0_people.csv (all 12 drives of the point, 2 workers)
+    from analysis.sweep.run import read_run
+
+    _point0_people(len(read_run(REPO / "data" / "sweep")[2]["cohort"])).to_csv(POINT0, index=False,
+                                                                                float_format="%.17g")

@@ -16,6 +16,7 @@ import os
 import tempfile
 import time
 from dataclasses import replace
+from functools import lru_cache
 from pathlib import Path
 
 import pandas as pd
@@ -51,15 +52,13 @@ def count_cached(tasks, cache_dir) -> int:
     return sum(is_cached(t, cache_dir) for t in tasks)
 
 
-def point_kpis(design: pd.DataFrame, people: pd.DataFrame, tasks: list, logs: dict) -> pd.DataFrame:
-    """The points frame: the design's columns, then per point the KPIS, ``n_violation`` and ``n_red`` (people
-    whose violation / red-stop reduction is defined: the baseline drive has some), ``n_failed`` (drives that failed,
-    missing from `logs`: their person is left out of the point's KPIs), ``holds_<band>`` per band and
-    ``holds_all``; plus the bands' edges (``attrs['bands']``: key -> band, kpi, lo, hi; hi None =
-    no upper edge)."""
+def point_effects(design: pd.DataFrame, people: pd.DataFrame, tasks: list, logs: dict) -> pd.DataFrame:
+    """Every design point's people, one row each: ``point``, then the columns of
+    :func:`analysis.drives.savings.participant_effects` (both drives' KPIs side by side, the reductions). A person
+    with a failed drive (missing from `logs`) has no row."""
     from study.kpi_spec import study_spec
     from analysis.drives.kpis import store_kpis
-    from analysis.drives.savings import BAND_HIGHWAY, participant_effects, reproduction_bands, summarise
+    from analysis.drives.savings import participant_effects
     from analysis.paper.published import PAPER_STUDY_DIR
     from study.participants import add_participant
     from study.simulated import store_simulated
@@ -78,39 +77,77 @@ def point_kpis(design: pd.DataFrame, people: pd.DataFrame, tasks: list, logs: di
             store_simulated(st, done, logs)
         spec = study_spec(definition(st))
         kpis = store_kpis(st, spec=spec)
-    rows, edges = [], {}
+    frames = []
     for point in design["point"]:
         ids = {point_id(int(point), slot) for slot in range(len(people))}
         per = participant_effects(kpis[kpis["participant_id"].isin(ids)], spec.comparison)
-        summary = summarise(per, spec.comparison, {})
-        bands = reproduction_bands(summary).set_index("band")
-        mean = summary.set_index("metric")
-        row = {"point": int(point)}
-        for k in ("saving_overall_pct", "saving_urban_pct", "saving_highway_pct"):
-            row[k] = float(mean.loc[k, "mean"])
-        row["highway_minus_urban_pp"] = float(bands.loc[BAND_HIGHWAY, "our_value"])
-        for k in ("violation_reduction_pct", "red_stop_reduction_pct"):
-            row[k] = float(mean.loc[k, "mean"])
-        row["n_violation"] = int(mean.loc["violation_reduction_pct", "n"])
-        row["n_red"] = int(mean.loc["red_stop_reduction_pct", "n"])
-        row["n_failed"] = sum(t.participant_id in ids and (t.participant_id, t.condition) not in logs for t in tasks)
-        for key, (band, kpi) in BANDS.items():
-            row[f"holds_{key}"] = bool(bands.loc[band, "holds"])
-            hi = float(bands.loc[band, "hi"])
-            edges[key] = {"band": band, "kpi": kpi, "lo": float(bands.loc[band, "lo"]),
-                          "hi": hi if hi != float("inf") else None}  # None: no upper edge (plain JSON)
-        row["holds_all"] = all(row[f"holds_{k}"] for k in BANDS)
-        rows.append(row)
+        per.insert(0, "point", int(point))
+        frames.append(per)
+    return pd.concat(frames, ignore_index=True)
+
+
+def point_row(per: pd.DataFrame, n_failed: int = 0) -> tuple[dict, dict]:
+    """One design point from its people's rows of :func:`point_effects`: (the KPIS, ``n_violation`` and ``n_red``
+    (people whose violation / red-stop reduction is defined: the baseline drive has some), ``n_failed``,
+    ``holds_<band>`` per band and ``holds_all``; the bands' edges: key -> band, kpi, lo, hi, hi None = no upper
+    edge), through :func:`~analysis.drives.savings.summarise` and
+    :func:`~analysis.drives.savings.reproduction_bands` under the paper study's comparison."""
+    from analysis.drives.savings import BAND_HIGHWAY, reproduction_bands, summarise
+
+    summary = summarise(per.drop(columns="point"), _paper_comparison(), {})
+    bands = reproduction_bands(summary).set_index("band")
+    mean = summary.set_index("metric")
+    row: dict = {}
+    for k in ("saving_overall_pct", "saving_urban_pct", "saving_highway_pct"):
+        row[k] = float(mean.loc[k, "mean"])
+    row["highway_minus_urban_pp"] = float(bands.loc[BAND_HIGHWAY, "our_value"])
+    for k in ("violation_reduction_pct", "red_stop_reduction_pct"):
+        row[k] = float(mean.loc[k, "mean"])
+    row["n_violation"] = int(mean.loc["violation_reduction_pct", "n"])
+    row["n_red"] = int(mean.loc["red_stop_reduction_pct", "n"])
+    row["n_failed"] = n_failed
+    edges = {}
+    for key, (band, kpi) in BANDS.items():
+        row[f"holds_{key}"] = bool(bands.loc[band, "holds"])
+        hi = float(bands.loc[band, "hi"])
+        edges[key] = {"band": band, "kpi": kpi, "lo": float(bands.loc[band, "lo"]),
+                      "hi": hi if hi != float("inf") else None}  # None: no upper edge (plain JSON)
+    row["holds_all"] = all(row[f"holds_{k}"] for k in BANDS)
+    return row, edges
+
+
+@lru_cache(maxsize=1)
+def _paper_comparison():
+    """The comparison (control, treatment, reductions) the paper study's KPI file declares: the one the temporary
+    store of :func:`point_effects` serves."""
+    from analysis.paper.published import PAPER_STUDY_DIR
+    from study.definition import load
+    from study.kpi_spec import study_spec
+
+    return study_spec(load(PAPER_STUDY_DIR, units=False)).comparison
+
+
+def point_kpis(design: pd.DataFrame, people: pd.DataFrame, tasks: list, logs: dict) -> pd.DataFrame:
+    """The points frame: the design's columns, then per point :func:`point_row` of its people, with
+    ``n_failed`` the drives that failed (missing from `logs`: their person is left out of the point's KPIs); the
+    bands' edges in ``attrs['bands']``."""
+    per = point_effects(design, people, tasks, logs)
+    rows, edges = [], {}
+    for point in design["point"]:
+        ids = {point_id(int(point), slot) for slot in range(len(people))}
+        failed = sum(t.participant_id in ids and (t.participant_id, t.condition) not in logs for t in tasks)
+        row, edges = point_row(per[per["point"] == int(point)], failed)
+        rows.append({"point": int(point), **row})
     out = design.merge(pd.DataFrame(rows), on="point", how="left")
     out.attrs["bands"] = edges
     return out
 
 
-def simulate_points(design, people, spec, workers=None, scheduler=None, client=None, cache_dir=None,
-                    progress=True, echo=None, failures: list | None = None) -> pd.DataFrame:
-    """Drive every point of `design` (one simulate_cohort call) and return its points frame. A drive that fails
-    (pedas.drive.DriveError) does not stop the sweep: it is counted in the point's ``n_failed``, and appended to
-    `failures` as a dict (point, participant, seed, style, condition, kind, message)."""
+def drive_points(design, people, spec, workers=None, scheduler=None, client=None, cache_dir=None,
+                 progress=True, echo=None, failures: list | None = None) -> tuple[list, dict]:
+    """Drive every point of `design` (one simulate_cohort call): (the DriveTasks, their logs by (participant id,
+    condition)). A drive that fails (pedas.drive.DriveError) does not stop the sweep: it has no log, and is
+    appended to `failures` as a dict (point, participant, seed, style, condition, kind, message)."""
     from pedas.cohort import default_cache_dir, simulate_cohort
 
     cdir = Path(cache_dir or default_cache_dir())
@@ -127,6 +164,14 @@ def simulate_points(design, people, spec, workers=None, scheduler=None, client=N
         if failures is not None:
             failures.append({"participant": task.participant_id, "seed": task.seed, "style": task.style,
                              "condition": task.condition, "kind": exc.kind, "message": str(exc)})
+    return tasks, logs
+
+
+def simulate_points(design, people, spec, workers=None, scheduler=None, client=None, cache_dir=None,
+                    progress=True, echo=None, failures: list | None = None) -> pd.DataFrame:
+    """Drive every point of `design` (:func:`drive_points`) and return its points frame (:func:`point_kpis`); a
+    failed drive is counted in its point's ``n_failed``."""
+    tasks, logs = drive_points(design, people, spec, workers, scheduler, client, cache_dir, progress, echo, failures)
     return point_kpis(design, people, tasks, logs)
 
 
