@@ -49,32 +49,46 @@ def code_version(directory: Path = MIGRATIONS_DIR) -> int:
     return migrations[-1].version if migrations else 0
 
 
+def applied_versions(con) -> set[int]:
+    """The schema versions applied to an open store (empty for a file without ``schema_version``: a new store). One
+    plain query: asking DuckDB's catalog first (``duckdb_tables()``) cost ~7 ms of every store opening."""
+    import duckdb
+
+    try:
+        rows = con.execute("SELECT version FROM schema_version").fetchall()
+    except duckdb.CatalogException:
+        return set()
+    return {int(r[0]) for r in rows}
+
+
 def current_version(con) -> int:
     """Schema version of an open store (0 for an empty file)."""
-    has = con.execute("SELECT count(*) FROM duckdb_tables() WHERE table_name = 'schema_version'").fetchone()[0]
-    if not has:
-        return 0
-    return int(con.execute("SELECT coalesce(max(version), 0) FROM schema_version").fetchone()[0])
+    return max(applied_versions(con), default=0)
 
 
-def check_not_newer(con, directory: Path = MIGRATIONS_DIR) -> int:
-    have, know = current_version(con), code_version(directory)
+def _check_not_newer(have: int, directory: Path) -> int:
+    know = code_version(directory)
     if have > know:
         raise UserError(f"store schema v{have} is newer than this pedas-study (v{know}); upgrade pedas-study")
     return have
 
 
-def pending(con, directory: Path = MIGRATIONS_DIR) -> list[Migration]:
-    applied = set()
-    if current_version(con):
-        applied = {int(r[0]) for r in con.execute("SELECT version FROM schema_version").fetchall()}
+def check_not_newer(con, directory: Path = MIGRATIONS_DIR) -> int:
+    """The store's schema version; UserError when it is newer than the newest migration of `directory`."""
+    return _check_not_newer(current_version(con), directory)
+
+
+def pending(con, directory: Path = MIGRATIONS_DIR, applied: set[int] | None = None) -> list[Migration]:
+    """The migrations of `directory` not applied yet (`applied`: :func:`applied_versions`, if already read)."""
+    applied = applied_versions(con) if applied is None else applied
     return [m for m in discover(directory) if m.version not in applied]
 
 
 def migrate(con, directory: Path = MIGRATIONS_DIR) -> list[Migration]:
     """Apply all pending migrations in ONE transaction (all or nothing); returns those applied."""
-    check_not_newer(con, directory)
-    todo = pending(con, directory)
+    applied = applied_versions(con)
+    _check_not_newer(max(applied, default=0), directory)
+    todo = pending(con, directory, applied)
     if not todo:
         return []
     con.begin()

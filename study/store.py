@@ -251,12 +251,13 @@ class Store:
     def columns(self, table: str) -> list[str]:
         """Column names of `table` in order; unknown table -> UserError."""
         if table not in self._columns:
-            rows = self.con.execute(
-                "SELECT column_name FROM duckdb_columns() WHERE table_name = ? AND schema_name = 'main' "
-                "ORDER BY column_index", [table]).fetchall()
-            if not rows:
-                raise UserError(f"no table {table!r} in the store")
-            self._columns[table] = [r[0] for r in rows]
+            # the result's description, not duckdb_columns(): a catalog scan cost ~3 ms per table per command
+            name = table.replace('"', '""')
+            try:
+                cur = self.con.execute(f'SELECT * FROM main."{name}" LIMIT 0')
+            except duckdb.CatalogException:
+                raise UserError(f"no table {table!r} in the store") from None
+            self._columns[table] = [d[0] for d in cur.description]
         return self._columns[table]
 
     def key_columns(self, table: str) -> list[str]:

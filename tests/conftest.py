@@ -64,6 +64,22 @@ def lk_db(tmp_db, tmp_path_factory) -> Path:
     return initialised_store(tmp_db, LK_STUDY, tmp_path_factory)
 
 
+@pytest.fixture(autouse=True)
+def _one_parser_per_test(monkeypatch):
+    """`main()` builds the whole parser for every call (~25 ms, most of it argparse looking up translations); the
+    in-process calls of one test share the parser its first call builds, after any handler the test patched."""
+    import pedas_study.cli as entry
+
+    build, built = entry.build_parser, []
+
+    def once():
+        if not built:
+            built.append(build())
+        return built[0]
+
+    monkeypatch.setattr(entry, "build_parser", once)
+
+
 @pytest.fixture
 def cli(tmp_db, capsys):
     """Run `pedas-study --db tmp_db ARGS...` in-process; returns CliResult(code, out, err)."""
