@@ -258,11 +258,13 @@ def write_replay(st, participant_id: str, condition: str, out: str | Path, other
 
 def serve_file(path: Path, host: str = "127.0.0.1", port: int = 8018) -> None:
     """Serve this one page (and nothing else of its folder) at http://host:port/ until interrupted (Ctrl-C)."""
-    from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+    from http.server import BaseHTTPRequestHandler, HTTPServer
 
     body = Path(path).read_bytes()
 
     class Handler(BaseHTTPRequestHandler):
+        timeout = 10  # s: a client that connects and sends nothing does not hold the server
+
         def do_GET(self):  # noqa: N802 (http.server's name)
             if self.path not in ("/", "/" + Path(path).name):
                 self.send_error(404)
@@ -276,8 +278,9 @@ def serve_file(path: Path, host: str = "127.0.0.1", port: int = 8018) -> None:
         def log_message(self, *args) -> None:  # quiet
             pass
 
-    srv = ThreadingHTTPServer((host, port), Handler)
-    srv.block_on_close = False  # Ctrl-C ends the process at once, whatever a client left open
+    # one thread: with request threads running Python code, CPython 3.11 can lose a Ctrl-C that lands in another
+    # thread (the signal stays pending until the next one; observed: a server alive 30 s after SIGINT)
+    srv = HTTPServer((host, port), Handler)
     print(f"serving http://{host}:{srv.server_address[1]}/ (Ctrl-C stops)", flush=True)
     try:
         srv.serve_forever()
