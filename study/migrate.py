@@ -66,29 +66,21 @@ def current_version(con) -> int:
     return max(applied_versions(con), default=0)
 
 
-def _check_not_newer(have: int, directory: Path) -> int:
+def check_not_newer(con, directory: Path = MIGRATIONS_DIR, applied: set[int] | None = None) -> int:
+    """The store's schema version (`applied`: :func:`applied_versions`, if already read); UserError when it is newer
+    than the newest migration of `directory`."""
+    have = max(applied_versions(con) if applied is None else applied, default=0)
     know = code_version(directory)
     if have > know:
         raise UserError(f"store schema v{have} is newer than this pedas-study (v{know}); upgrade pedas-study")
     return have
 
 
-def check_not_newer(con, directory: Path = MIGRATIONS_DIR) -> int:
-    """The store's schema version; UserError when it is newer than the newest migration of `directory`."""
-    return _check_not_newer(current_version(con), directory)
-
-
-def pending(con, directory: Path = MIGRATIONS_DIR, applied: set[int] | None = None) -> list[Migration]:
-    """The migrations of `directory` not applied yet (`applied`: :func:`applied_versions`, if already read)."""
-    applied = applied_versions(con) if applied is None else applied
-    return [m for m in discover(directory) if m.version not in applied]
-
-
 def migrate(con, directory: Path = MIGRATIONS_DIR) -> list[Migration]:
     """Apply all pending migrations in ONE transaction (all or nothing); returns those applied."""
     applied = applied_versions(con)
-    _check_not_newer(max(applied, default=0), directory)
-    todo = pending(con, directory, applied)
+    check_not_newer(con, directory, applied)
+    todo = [m for m in discover(directory) if m.version not in applied]
     if not todo:
         return []
     con.begin()
