@@ -246,7 +246,7 @@ def test_kill_9_then_resume(pooled, tmp_path):
 POINT0 = REPO / "tests" / "data" / "sweep" / "point0_people.csv"
 
 
-def _point0_people(n: int, workers: int = 2, cache_dir: Path | None = None) -> pd.DataFrame:
+def _point0_people(n: int, cache_dir: Path | None = None) -> pd.DataFrame:
     """The first `n` people of the committed sweep's cohort at its first design point, driven now: their rows of
     :func:`analysis.sweep.run.point_effects` (both drives' KPIs, the reductions)."""
     from analysis.sweep.run import drive_points, point_effects, read_run, spec_of
@@ -254,7 +254,7 @@ def _point0_people(n: int, workers: int = 2, cache_dir: Path | None = None) -> p
     design, _, meta = read_run(REPO / "data" / "sweep")
     spec = spec_of(meta)
     people = cohort(spec).iloc[:n]
-    tasks, logs = drive_points(design.iloc[:1], people, spec, workers=workers, cache_dir=cache_dir, progress=False,
+    tasks, logs = drive_points(design.iloc[:1], people, spec, workers=2, cache_dir=cache_dir, progress=False,
                                echo=lambda _: None)
     return point_effects(design.iloc[:1], people, tasks, logs)
 
