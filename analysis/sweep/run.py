@@ -56,14 +56,13 @@ def point_effects(design: pd.DataFrame, people: pd.DataFrame, tasks: list, logs:
     """Every design point's people, one row each: ``point``, then the columns of
     :func:`analysis.drives.savings.participant_effects` (both drives' KPIs side by side, the reductions). A person
     with a failed drive (missing from `logs`) has no row."""
-    from study.kpi_spec import study_spec
     from analysis.drives.kpis import store_kpis
     from analysis.drives.savings import participant_effects
     from analysis.paper.published import PAPER_STUDY_DIR
     from study.participants import add_participant
     from study.simulated import store_simulated
     from study.store import Store
-    from study.studies import definition, register
+    from study.studies import register
 
     attrs = [c for c in people.columns if c != "participant_id"]
     with tempfile.TemporaryDirectory() as tmp, Store.open(Path(tmp) / "sweep.duckdb", actor="sweep") as st:
@@ -75,12 +74,10 @@ def point_effects(design: pd.DataFrame, people: pd.DataFrame, tasks: list, logs:
         done = [t for t in tasks if (t.participant_id, t.condition) in logs]
         with st.transaction():
             store_simulated(st, done, logs)
-        spec = study_spec(definition(st))
-        kpis = store_kpis(st, spec=spec)
+        kpis = store_kpis(st, spec=_paper_spec())
     frames = []
     for point in design["point"]:
-        ids = {point_id(int(point), slot) for slot in range(len(people))}
-        per = participant_effects(kpis[kpis["participant_id"].isin(ids)], spec.comparison)
+        per = participant_effects(kpis[kpis["participant_id"].isin(_ids(point, people))], _paper_spec().comparison)
         per.insert(0, "point", int(point))
         frames.append(per)
     return pd.concat(frames, ignore_index=True)
@@ -94,7 +91,7 @@ def point_row(per: pd.DataFrame, n_failed: int = 0) -> tuple[dict, dict]:
     :func:`~analysis.drives.savings.reproduction_bands` under the paper study's comparison."""
     from analysis.drives.savings import BAND_HIGHWAY, reproduction_bands, summarise
 
-    summary = summarise(per.drop(columns="point"), _paper_comparison(), {})
+    summary = summarise(per.drop(columns="point"), _paper_spec().comparison, {})
     bands = reproduction_bands(summary).set_index("band")
     mean = summary.set_index("metric")
     row: dict = {}
@@ -117,14 +114,19 @@ def point_row(per: pd.DataFrame, n_failed: int = 0) -> tuple[dict, dict]:
 
 
 @lru_cache(maxsize=1)
-def _paper_comparison():
-    """The comparison (control, treatment, reductions) the paper study's KPI file declares: the one the temporary
-    store of :func:`point_effects` serves."""
+def _paper_spec():
+    """The KPIs and comparison the paper study's KPI file declares (the study the temporary store of
+    :func:`point_effects` serves)."""
     from analysis.paper.published import PAPER_STUDY_DIR
     from study.definition import load
     from study.kpi_spec import study_spec
 
-    return study_spec(load(PAPER_STUDY_DIR, units=False)).comparison
+    return study_spec(load(PAPER_STUDY_DIR, units=False))
+
+
+def _ids(point, people: pd.DataFrame) -> set[str]:
+    """The participant ids of `people` at design point `point` (:func:`point_id`)."""
+    return {point_id(int(point), slot) for slot in range(len(people))}
 
 
 def point_kpis(design: pd.DataFrame, people: pd.DataFrame, tasks: list, logs: dict) -> pd.DataFrame:
@@ -134,7 +136,7 @@ def point_kpis(design: pd.DataFrame, people: pd.DataFrame, tasks: list, logs: di
     per = point_effects(design, people, tasks, logs)
     rows, edges = [], {}
     for point in design["point"]:
-        ids = {point_id(int(point), slot) for slot in range(len(people))}
+        ids = _ids(point, people)
         failed = sum(t.participant_id in ids and (t.participant_id, t.condition) not in logs for t in tasks)
         row, edges = point_row(per[per["point"] == int(point)], failed)
         rows.append({"point": int(point), **row})
