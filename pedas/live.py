@@ -3,7 +3,7 @@ over WebSocket and UDP, with a full-screen HUD page for a second monitor or a he
 
 :class:`LiveSession` is the protocol without sockets (one per WebSocket connection or UDP peer): it answers each
 message with exactly the in-process controller's advice for the same inputs, and hands a log row per state to an
-optional drive log (:class:`study.live_log.LiveDriveLog`, any object with append/flush/close). :class:`LiveServer` runs
+optional drive log (:class:`study.logs.live_log.LiveDriveLog`, any object with append/flush/close). :class:`LiveServer` runs
 the sockets: WebSocket and HTTP on ``port`` (``/?pair=CODE`` is the HUD page of one session, ``/display?pair=CODE``
 its feed of HUD frames, any other path the simulator's channel) and UDP on the same port number; drive logs are
 flushed about once a second in a worker thread so that the store never delays an answer. Each client is throttled
@@ -149,7 +149,7 @@ class LiveSession:
         return self._lights[j] if j < len(self._lights) else None
 
     def _row(self, st, adv, tl) -> dict:
-        """The drive-log row of a state (study.live_log.LIVE_COLUMNS)."""
+        """The drive-log row of a state (study.logs.live_log.LIVE_COLUMNS)."""
         r = self.live.route
         if self._t0 is None:
             self._t0 = st.t

@@ -1,5 +1,5 @@
 """The route file's records and its writer: traffic lights and stop signs by position, and the TOML text of a route
-(the format of docs/drive_logs.md, "Route file"; :mod:`study.route_file` reads and checks it).
+(the format of docs/drive_logs.md, "Route file"; :mod:`study.folder.route_file` reads and checks it).
 
 The writer lives in the simulation core because :mod:`pedas.route_study` writes the paper's route file from the SUMO
 network with it, and the core imports nothing of the study layer.

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import importlib.util
 
-from study.errors import UserError
+from study.common.errors import UserError
 
 
 def require(module: str, extra: str, purpose: str) -> None:

@@ -1,5 +1,5 @@
 """A small SUMO network of another route than the study's, and SUMO's FCD output on it, made by real SUMO
-(netconvert and sumo of the eclipse-sumo wheel) for tests/test_fcd_sumo.py.
+(netconvert and sumo of the eclipse-sumo wheel) for tests/study/test_fcd_sumo.py.
 
 Road "town" (A→B, 392.8 m after netconvert's junction cut, 50 km/h = 13.89 m/s) meets a cross road at the traffic
 light B and goes on as "rural" (B→C, 80 km/h = 22.22 m/s). The light's static program (42 s green / 3 s yellow for

@@ -1,9 +1,10 @@
 """The import rules of docs/architecture.md, read from the source: no two modules import each other and there is no
 import cycle (imports inside functions count), the parts import one way (pedas_study -> analysis -> study -> pedas),
-and the rooms of analysis/ import each other only downwards."""
+and the rooms of analysis/ and the packages of study/ import each other only downwards."""
 from __future__ import annotations
 
 import ast
+import importlib
 from pathlib import Path
 
 import pytest
@@ -12,6 +13,8 @@ REPO = Path(__file__).resolve().parents[1]
 PARTS = ("pedas", "study", "analysis", "pedas_study")   # each may import only the ones before it
 ROOMS = ("analysis.render", "analysis.survey", "analysis.paper", "analysis.drives", "analysis.within",
          "analysis.sweep", "analysis.report")                              # docs/architecture.md, "Code layout": downwards only
+STUDY_ROOMS = ("study.common", "study.folder", "study.store", "study.people", "study.logs", "study.survey",
+               "study.export", "study.webapp")                                  # the same, for study/
 
 
 def _modules(root: Path) -> dict[str, Path]:
@@ -92,8 +95,8 @@ def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
     return out
 
 
-def _room(module: str) -> str | None:
-    return next((r for r in ROOMS if module == r or module.startswith(r + ".")), None)
+def _room(module: str, rooms: tuple[str, ...] = ROOMS) -> str | None:
+    return next((r for r in rooms if module == r or module.startswith(r + ".")), None)
 
 
 @pytest.fixture(scope="module")
@@ -118,7 +121,7 @@ def test_parts_import_one_way(graph):
     against = [(a, b) for a in graph for b in graph[a] if rank[b.split(".")[0]] > rank[a.split(".")[0]]]
     assert against == [], f"imports against pedas_study -> analysis -> study -> pedas: {against}"
     # the study loader imports the modules that check a study's files by name: those are study's own
-    from study.file_checks import CHECK_MODULES
+    from study.common.file_checks import CHECK_MODULES
 
     assert all(m.split(".")[0] == "study" and m in graph for m in CHECK_MODULES), CHECK_MODULES
 
@@ -130,6 +133,18 @@ def test_analysis_rooms_import_downwards(graph):
     assert against == [], f"analysis rooms importing upwards: {against}"
     loose = sorted(m for m in graph if m.startswith("analysis.") and _room(m) is None and m != "analysis._exports")
     assert loose == [], f"analysis modules outside a room: {loose}"
+
+
+def test_study_packages_import_downwards(graph):
+    rank = {r: i for i, r in enumerate(STUDY_ROOMS)}
+    room = lambda m: _room(m, STUDY_ROOMS)  # noqa: E731
+    against = [(a, b) for a in graph for b in graph[a] if room(a) and room(b) and rank[room(b)] > rank[room(a)]]
+    assert against == [], f"study packages importing upwards: {against}"
+    loose = sorted(m for m in graph if m.startswith("study.") and room(m) is None)
+    assert loose == [], f"study modules outside a package: {loose}"
+    for pkg in STUDY_ROOMS:  # each package says what it owns and what it may import
+        doc = (importlib.import_module(pkg).__doc__ or "").strip()
+        assert "Import" in doc or "import" in doc, pkg
 
 
 def test_rooms_export_their_public_names_lazily():

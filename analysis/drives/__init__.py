@@ -1,4 +1,4 @@
-"""Drive KPIs: the KPIs a study declares (read by :mod:`study.kpi_spec`) computed from drive logs in DuckDB SQL,
+"""Drive KPIs: the KPIs a study declares (read by :mod:`study.folder.kpi_spec`) computed from drive logs in DuckDB SQL,
 savings and reproduction bands with their diagnostics, scenario comparison, the tables and figures of the objective
 evaluation and the replay page (docs/kpis.md, docs/report.md)."""
 from analysis._exports import lazy_exports

@@ -1,5 +1,5 @@
 """`analyze drives`: the whole objective evaluation of a store into one directory, as the study declares it
-(study.kpi_spec) — KPI and summary tables (CSV/Markdown/LaTeX); with a comparison the effect tables, Figures
+(study.folder.kpi_spec) — KPI and summary tables (CSV/Markdown/LaTeX); with a comparison the effect tables, Figures
 9-12 and, where declared, the reproduction bands; a short `objective.md` that links them."""
 from __future__ import annotations
 

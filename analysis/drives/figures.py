@@ -1,5 +1,5 @@
 """The paper's objective-evaluation figures (Sec. 5.1) from a store, PNG + PDF, matplotlib (Agg backend). A figure
-applies to a study that declares a comparison (control vs treatment drive, study.kpi_spec) with the columns
+applies to a study that declares a comparison (control vs treatment drive, study.folder.kpi_spec) with the columns
 it shows (Figs. 11-12 also need a participant); a figure that does not apply is not mentioned, one that applies but
 cannot be drawn from the data is listed with the reason.
 
@@ -105,7 +105,7 @@ def _cumulative_wh(d: pd.DataFrame) -> np.ndarray:
 
 def fig11(st, participant: str, per: pd.DataFrame, out: Path, control: str = "baseline",
           treatment: str = "pedas") -> list[Path]:
-    from study.drives import drive_samples
+    from study.logs.stored import drive_samples
 
     plt = pyplot()
     base = drive_samples(st, participant, control)
@@ -161,7 +161,7 @@ def find_switch(st, participant: str | None = None, treatment: str = "pedas") ->
 def fig12(st, participant: str, out: Path, before_s: float = 60.0, after_s: float = 60.0,
           treatment: str = "pedas") -> list[Path] | str:
     """Returns the paths, or the reason the figure could not be drawn."""
-    from study.drives import drive_samples
+    from study.logs.stored import drive_samples
 
     hit = find_switch(st, participant, treatment)
     if hit is None:

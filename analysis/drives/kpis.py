@@ -15,7 +15,7 @@ Definitions (units SI unless the column name says otherwise; see docs/kpis.md fo
 * ``distance_m`` = sum of ``s[i+1] - s[i]``; ``trip_time_s`` = sum of ``t[i+1] - t[i]``; ``mean_speed_mps`` =
   distance / time.
 * speed-limit violation at sample ``i``: ``v > speed_limit + tol`` with ``tol = max(tol_abs, tol_rel * speed_limit)``
-  (the study declares the rule, study.kpi_spec; the defaults here, 3 km/h and 3 %, are the German enforcement
+  (the study declares the rule, study.folder.kpi_spec; the defaults here, 3 km/h and 3 %, are the German enforcement
   deduction the paper's study declares). ``violation_distance_m`` = distance of intervals whose
   left sample violates; ``violation_share`` = that / distance; ``violation_events`` = entries into violation whose
   episode (entry sample to the first non-violating sample, or the drive's end) lasts at least ``min_event_s``.
@@ -30,12 +30,12 @@ Definitions (units SI unless the column name says otherwise; see docs/kpis.md fo
 * ``rms_jerk`` = sqrt(time-weighted mean of ((a[i+1] - a[i]) / dt)^2) in m/s^3; ``mean_abs_a`` = time-weighted mean
   of ``|a[i]|`` in m/s^2. Where ``a`` is not logged, :func:`fill_acceleration` (central differences of ``v``)
   fills it before the SQL runs.
-* user KPIs (:class:`study.kpi_spec.SqlKpi`): a DuckDB aggregate over the samples, computed in the same
+* user KPIs (:class:`study.folder.kpi_spec.SqlKpi`): a DuckDB aggregate over the samples, computed in the same
   GROUP BY (grouping sets: per segment and per whole drive), so a non-additive statistic such as a standard
   deviation is exact for the whole drive too.
 * query KPIs (``SqlKpi`` with ``query``): a read-only query over the relation ``samples``, run once per drive (and
   per segment) against a temporary view that holds that drive's (segment's) rows in idx order (:func:`query_kpis`).
-* event KPIs (:class:`study.kpi_spec.EventKpi`): the time from a rising edge of one condition to the next sample
+* event KPIs (:class:`study.folder.kpi_spec.EventKpi`): the time from a rising edge of one condition to the next sample
   where another holds, all drives in one window pass and an ASOF join (:func:`event_kpis`).
 """
 from __future__ import annotations
@@ -43,8 +43,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from study.kpi_fields import KPI_COLUMNS, KPI_FIELDS, SAMPLE_COLUMNS, KpiParams  # noqa: F401
-from study.kpi_spec import EventKpi, study_spec
+from study.folder.kpi_fields import KPI_COLUMNS, KPI_FIELDS, SAMPLE_COLUMNS, KpiParams  # noqa: F401
+from study.folder.kpi_spec import EventKpi, study_spec
 from analysis.drives.user_kpis import event_kpis, is_aggregate, place, query_kpis
 from pedas.vocabulary import SEGMENTS as ROUTE_SEGMENTS
 
@@ -230,7 +230,7 @@ def kpi_sql(src: str = "drive_samples", mode: str = "sorted", chunk: bool = Fals
     relation's own order, which must be grouped by drive and ascending in idx (:func:`in_drive_order`). ``chunk``:
     only the drives with ``$lo <= drive_id < $hi`` (a filter keeps the rows' order, so a chunk of a relation in
     drive order is in drive order). ``sql_kpis``: user KPIs that are aggregate expressions
-    (:class:`study.kpi_spec.SqlKpi` without ``query``, checked by :func:`study.kpi_spec.check_sql`), one more column
+    (:class:`study.folder.kpi_spec.SqlKpi` without ``query``, checked by :func:`study.folder.kpi_spec.check_sql`), one more column
     each after :data:`KPI_FIELDS`; ``columns``: the columns of ``src`` (default: the standard drive-log columns), so
     that the columns they read are carried."""
     if mode == "sorted":
@@ -399,8 +399,8 @@ UNAVAILABLE = "unavailable"
 
 
 def store_kpis(st, drive_ids=None, params: KpiParams | None = None, spec=None) -> pd.DataFrame:
-    """KPIs of the drives in the store ``st`` (a :class:`study.store.Store`), optionally only ``drive_ids``, as the
-    study declares them (``spec``: :class:`study.kpi_spec.KpiSpec`, default the store's study's; ``params``
+    """KPIs of the drives in the store ``st`` (a :class:`study.store.store.Store`), optionally only ``drive_ids``, as the
+    study declares them (``spec``: :class:`study.folder.kpi_spec.KpiSpec`, default the store's study's; ``params``
     overrides its thresholds). Columns participant_id, condition, drive_id, segment, n_intervals, then the declared
     KPI columns (:attr:`KpiSpec.columns`). :func:`store_kpis_with_sources` also says where each energy comes from."""
     return store_kpis_with_sources(st, drive_ids, params, spec)[0]
@@ -418,7 +418,7 @@ def store_kpis_with_sources(st, drive_ids=None, params: KpiParams | None = None,
     table in drive order so that the KPI query can stream.
     """
     if spec is None:
-        from study.studies import definition
+        from study.store.studies import definition
 
         spec = study_spec(definition(st))
     params = params or spec.params
@@ -440,7 +440,7 @@ def store_kpis_with_sources(st, drive_ids=None, params: KpiParams | None = None,
     missing_channels = sorted({c for c in spec.channels if c not in have}
                               & {w for k in user for w in _words(_kpi_text(k))})
     if missing_channels:
-        from study.errors import UserError
+        from study.common.errors import UserError
 
         raise UserError(f"the study's SQL KPIs read channel(s) {', '.join(missing_channels)}, which no drive in the "
                         f"store has; import drive logs that map them (docs/drive_logs.md)")

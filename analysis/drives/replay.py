@@ -130,7 +130,7 @@ def drive_frames(df: pd.DataFrame, route=None, t_insert: float | None = None) ->
 
 def _route_for(drive_row: dict):
     """The study route and t_insert of a drive simulated on it, else (None, None)."""
-    from study.simulated import ROUTE_NAME
+    from study.logs.simulated import ROUTE_NAME
 
     meta = json.loads(drive_row["meta"] or "{}")
     if drive_row["route"] != ROUTE_NAME or "t_insert" not in meta:
@@ -144,8 +144,8 @@ def _route_for(drive_row: dict):
 def replay_drives(st, participant_id: str, condition: str, others: bool = True) -> list[ReplayDrive]:
     """The drive of `participant_id` in `condition` first, then (others=True) the person's other drives in
     alphabetical order of their conditions; UserError when the drive is not stored."""
-    from study.drives import drive_samples, list_channels
-    from study.errors import UserError
+    from study.logs.stored import drive_samples, list_channels
+    from study.common.errors import UserError
 
     rows = st.df("SELECT condition, route, meta FROM drives WHERE participant_id = ? ORDER BY condition",
                  [participant_id]).to_dict("records")

@@ -1,8 +1,8 @@
-"""The objective evaluation as the study declares it (study.kpi_spec): KPIs per drive, summaries by group, and
+"""The objective evaluation as the study declares it (study.folder.kpi_spec): KPIs per drive, summaries by group, and
 — only where the study declares a comparison — per-participant effects of the treatment against the control drive.
 
 With a comparison (the paper's: control ``baseline``, treatment ``pedas``), for every participant included in the
-objective analysis (``study.exclusions.included_participants(st, "objective")``) who has both drives:
+objective analysis (``study.people.exclusions.included_participants(st, "objective")``) who has both drives:
 
 * the declared ``[comparison.columns]``: KPIs of both drives side by side;
 * each declared reduction ``name = "kpi[@segment]"`` = 100 (K_control - K_treatment) / K_control — the paper's
@@ -72,7 +72,7 @@ def _pick(k: pd.DataFrame, conds: set, cond: str, segment: str, col: str) -> pd.
 
 
 def participant_effects(kpis: pd.DataFrame, comparison, groups: pd.DataFrame | None = None) -> pd.DataFrame:
-    """One row per participant having both drives of ``comparison`` (:class:`study.kpi_spec.Comparison`) in
+    """One row per participant having both drives of ``comparison`` (:class:`study.folder.kpi_spec.Comparison`) in
     ``kpis`` (output of :func:`analysis.drives.kpis.store_kpis`): the declared columns of both drives side by side, then
     the declared reductions. ``groups``: participant attributes (index participant_id), inserted after the id."""
     k = kpis.set_index(["participant_id", "condition", "segment"])
@@ -166,7 +166,7 @@ def summarise_drives(kpis: pd.DataFrame, spec, levels: dict[str, list], conditio
 def participant_groups(st, names) -> pd.DataFrame:
     """The participant attributes ``names`` (typed by the study's declaration; missing = None), index
     participant_id."""
-    from study.participants import participant_attributes
+    from study.people.participants import participant_attributes
 
     wide = participant_attributes(st).set_index("participant_id")[list(names)]
     return wide.astype(object).where(wide.notna(), None)
@@ -175,7 +175,7 @@ def participant_groups(st, names) -> pd.DataFrame:
 def group_levels(st, groups: pd.DataFrame) -> dict[str, list]:
     """Levels of each grouping attribute: a choice attribute's declared choices (in order), else the values that
     occur, sorted."""
-    from study.studies import definition
+    from study.store.studies import definition
 
     study = definition(st)
     out = {}
@@ -188,9 +188,9 @@ def group_levels(st, groups: pd.DataFrame) -> dict[str, list]:
 def objective_results(st, params=None, spec=None) -> ObjectiveResult:
     """KPIs of every drive in the store ``st`` of the participants included in the objective analysis, and the
     summary the study declares (``spec``: default the store's study's KPI file)."""
-    from study.kpi_spec import study_spec
-    from study.exclusions import included_participants
-    from study.studies import definition
+    from study.folder.kpi_spec import study_spec
+    from study.people.exclusions import included_participants
+    from study.store.studies import definition
 
     spec = spec or study_spec(definition(st))
     included = set(included_participants(st, "objective"))
@@ -228,7 +228,7 @@ def study_published(st) -> pd.DataFrame | None:
     """The published values the store's study declares (``[files] published``), None when it declares none."""
     import io
 
-    from study.studies import definition
+    from study.store.studies import definition
 
     text = definition(st).text("published")
     return None if text is None else pd.read_csv(io.StringIO(text))

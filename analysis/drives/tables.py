@@ -131,7 +131,7 @@ def kpi_summary_table(summary: pd.DataFrame) -> pd.DataFrame:
 
 def _summary_cells(t: pd.DataFrame, spec=None) -> tuple[list[str], list[list[str]]]:
     """Header and cells of :func:`kpi_summary_table`: "mean (SD)" per KPI; a KPI the study declares itself is
-    headed "Label (unit)" (``spec``: its :class:`study.kpi_spec.KpiSpec`), a built-in by its column name."""
+    headed "Label (unit)" (``spec``: its :class:`study.folder.kpi_spec.KpiSpec`), a built-in by its column name."""
     metrics = [c[:-5] for c in t.columns if c.endswith("_mean")]
     keys = [c for c in t.columns if c != "n" and not c.endswith(("_mean", "_sd"))]
     headings = spec.headings if spec is not None else {}

@@ -16,10 +16,10 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from study.errors import UserError
-from study.kpi_fields import SAMPLE_COLUMNS
-from study.kpi_query import check_condition, check_query, condition_sql
-from study.kpi_spec import SqlKpi
+from study.common.errors import UserError
+from study.folder.kpi_fields import SAMPLE_COLUMNS
+from study.folder.kpi_query import check_condition, check_query, condition_sql
+from study.folder.kpi_spec import SqlKpi
 
 #: how the events of one drive (or segment) become its value; ``dt`` = response time of one event (NULL: none);
 #: ``count`` has its own query (it needs every sample, not only the events)
@@ -88,9 +88,9 @@ def _samples_select(columns: list[tuple[str, str]]) -> str:
 
 
 def event_kpis(con, src: str, kpis) -> pd.DataFrame:
-    """Event KPIs (:class:`study.kpi_spec.EventKpi`) of every drive in ``src``: drive_id, segment (a segment or
+    """Event KPIs (:class:`study.folder.kpi_spec.EventKpi`) of every drive in ``src``: drive_id, segment (a segment or
     ``overall``), one column per KPI (a time KPI has rows only where a drive or segment has an event). The
-    conditions are checked again (:func:`study.kpi_query.check_condition`) before they run."""
+    conditions are checked again (:func:`study.folder.kpi_query.check_condition`) before they run."""
     columns = _relation(con, src)
     channels = _channels(columns)
     src = f"(SELECT {_samples_select(columns)} FROM {src})"
@@ -109,10 +109,10 @@ def event_kpis(con, src: str, kpis) -> pd.DataFrame:
 
 
 def query_kpis(con, src: str, rows: pd.DataFrame, kpis) -> pd.DataFrame:
-    """Query KPIs (:class:`study.kpi_spec.SqlKpi` with ``query``) for the (drive_id, segment) ``rows`` (segment
+    """Query KPIs (:class:`study.folder.kpi_spec.SqlKpi` with ``query``) for the (drive_id, segment) ``rows`` (segment
     ``overall`` = the whole drive): drive_id, segment, one column per KPI (NULL: not per segment, or the query gave
     NULL or no row). ``samples`` holds the columns of drive_samples (NULL where ``src`` lacks one) and ``src``'s
-    other columns. Each query is checked again (:func:`study.kpi_query.check_query`) before it runs; more than one
+    other columns. Each query is checked again (:func:`study.folder.kpi_query.check_query`) before it runs; more than one
     row for a drive is refused (UserError). A temporary view ``samples`` and two session variables exist on ``con``
     while this runs."""
     columns = _relation(con, src)

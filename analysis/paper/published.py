@@ -28,8 +28,8 @@ SOURCE_LINES = "source_lines.txt"
 
 @lru_cache(maxsize=1)
 def paper_study():
-    """The paper's study definition (:func:`study.definition.load` of :data:`PAPER_STUDY_DIR`)."""
-    from study.definition import load
+    """The paper's study definition (:func:`study.folder.definition.load` of :data:`PAPER_STUDY_DIR`)."""
+    from study.folder.definition import load
 
     return load(PAPER_STUDY_DIR)
 

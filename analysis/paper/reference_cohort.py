@@ -143,11 +143,11 @@ def _events(ids, motion, technical, missing_survey, rng) -> pd.DataFrame:
 
 
 def load_into_store(st, cohort: Cohort) -> None:
-    """Insert the cohort into an open ``study.store.Store`` that serves the paper's study (``init --study
+    """Insert the cohort into an open ``study.store.store.Store`` that serves the paper's study (``init --study
     studies/pedas_paper``) in one transaction: participants on the study's default protocol with their attributes
     (each checked and typed by the study's declaration), phase_events, exclusions. The caller opens the store;
     nothing is written if any row is refused."""
-    from study.studies import definition, version
+    from study.store.studies import definition, version
 
     study = definition(st)
     from analysis.paper.published import paper_study

@@ -8,7 +8,7 @@ Two modes:
   exclusions, the reconstructed survey), simulate the cohort's drives in SUMO, analyse, audit the paper and compare
   with its published values.
 * **lab** (`--db my.duckdb` without `--reference`): analyse the lab's own store, for the study it serves
-  (`study.studies.definition`), as it is; the paper comparison only with `--compare-paper`.
+  (`study.store.studies.definition`), as it is; the paper comparison only with `--compare-paper`.
 
 What the study or its store does not have is skipped with a stated reason instead of failing the run: no survey
 answers (or no instrument or model file) -> no survey analysis; no drives -> no drive KPIs; no published values of
@@ -34,7 +34,7 @@ from analysis.render import write_table
 from analysis.report.pipeline import Pipeline, Step, StepResult
 from pedas.paths import NETWORK_DIR, REFERENCE_DIR, REPO_ROOT
 from pedas.scenario import DEFAULT_SCENARIO, SINGLE_LANE
-from study.errors import UserError
+from study.common.errors import UserError
 
 CODE = {name: REPO_ROOT / name for name in ("study", "pedas", "analysis")}
 #: the one-line reason a step that skipped writes into its output folder
@@ -81,7 +81,7 @@ class ReportResult:
 
 # ---------------------------------------------------------------------------------------------- step bodies
 def _open_store(cfg: ReportConfig, read_only: bool = False):
-    from study.store import Store
+    from study.store.store import Store
 
     return Store.open(cfg.db, actor="report", read_only=read_only)
 
@@ -93,8 +93,8 @@ def load_reference(st, ref_dir: Path = REFERENCE_DIR) -> None:
     survey (`survey.csv`), each import all or nothing."""
     from analysis.paper.published import PAPER_STUDY_DIR
     from analysis.paper.reference_cohort import Cohort, load_into_store
-    from study.studies import register
-    from study.survey_import import import_survey
+    from study.store.studies import register
+    from study.survey.survey_import import import_survey
 
     register(st, PAPER_STUDY_DIR)
     participants = pd.read_csv(ref_dir / "participants.csv", dtype={"participant_id": str})
@@ -111,9 +111,9 @@ def build_reference_store(cfg: ReportConfig, scenario: str | None = None, db: Pa
     for quick runs); every participant and survey answer is loaded regardless.
     """
     from pedas.cohort import cohort_tasks, simulate_cohort
-    from study.exclusions import included_participants
-    from study.simulated import participants_to_simulate, store_simulated
-    from study.store import Store
+    from study.people.exclusions import included_participants
+    from study.logs.simulated import participants_to_simulate, store_simulated
+    from study.store.store import Store
 
     db = Path(db or cfg.db)
     tmp = db.with_name(db.name + ".building")
@@ -172,7 +172,7 @@ def survey_missing(st, study) -> str | None:
 
 def survey_step(cfg: ReportConfig) -> None:
     from analysis.survey.acceptance import analyze_store
-    from study.studies import definition
+    from study.store.studies import definition
 
     with _open_store(cfg, read_only=True) as st:
         reason = survey_missing(st, definition(st))
@@ -264,7 +264,7 @@ def scenarios_step(cfg: ReportConfig) -> None:
     bands and their diagnostics of the default and the comparison scenario side by side."""
     from analysis.drives.analyze import analyze_drives
     from analysis.drives.scenario_comparison import read_scenario, write_comparison
-    from study.store import Store
+    from study.store.store import Store
 
     with _fresh_dir(cfg.out / "scenarios") as out:
         with Store.open(cfg.comparison_db(), actor="report", read_only=True) as st:
@@ -404,7 +404,7 @@ def core_figures_step(cfg: ReportConfig) -> None:
 
 def study_figures_step(cfg: ReportConfig) -> None:
     from analysis.report.figures import participant_flow, plot_likert, plot_participant_flow
-    from study.studies import definition
+    from study.store.studies import definition
 
     figs = cfg.out / "figures"
     with _open_store(cfg, read_only=True) as st:
@@ -460,7 +460,7 @@ def report_study(cfg: ReportConfig):
         from analysis.paper.published import paper_study
 
         return paper_study()
-    from study.studies import definition
+    from study.store.studies import definition
 
     with _open_store(cfg, read_only=True) as st:
         return definition(st)
@@ -483,7 +483,7 @@ def comparison_skip(cfg: ReportConfig, study) -> str | None:
 def core_figures_apply(study) -> bool:
     """Whether the simulation core's figures belong to `study`'s report: only to a study whose conditions the
     simulator drives. For any other study the part does not exist (no step, no section, no skip line)."""
-    from study.simulated import check_simulable
+    from study.logs.simulated import check_simulable
 
     try:
         check_simulable(study)
@@ -494,7 +494,7 @@ def core_figures_apply(study) -> bool:
 
 def within_applies(study) -> bool:
     """Whether the study declares a within-subjects comparison ([within]); without one the part does not exist."""
-    from study.within_spec import within_spec
+    from study.folder.within_spec import within_spec
 
     return within_spec(study) is not None
 

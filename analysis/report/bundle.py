@@ -168,7 +168,7 @@ pedas-study --db study.duckdb report --out reports --seed {seed} --bootstrap {n_
 
 def write_bundle(report_dir: Path, st, path: Path, settings: dict) -> Bundle:
     """Write the bundle of the report in `report_dir` (made from the open store `st`) to `path` (zip)."""
-    from study.studies import current
+    from study.store.studies import current
 
     report_dir = Path(report_dir)
     if not (report_dir / "tables").is_dir():

@@ -3,7 +3,7 @@ results with every table and figure inline, the reproduction verdict, the files.
 
 Everything is generated from what the report steps wrote beside it (tables as Markdown in `tables/`, figures as PNG
 in `figures/`, the survey analysis in `survey/`, the drive analysis in `drives/`, `reproduction.csv`), from the
-store's study definition (:func:`study.studies.definition`: title, conditions, instrument, model file, alpha,
+store's study definition (:func:`study.store.studies.definition`: title, conditions, instrument, model file, alpha,
 hypothesis signs) and from the store's participants, protocol events and exclusions. The page is self-contained
 (inline CSS, no scripts, no external resources; images and links by relative path, so it opens from the file
 system), every text is HTML-escaped, and the bytes depend only on those inputs and the installed software's
@@ -385,7 +385,7 @@ def _skipped(reason: str) -> str:
 # ---------------------------------------------------------------------------------------------- sections
 def _study_section(st, study, mode: str, store_name: str) -> list[str]:
     from analysis.report.figures import participant_flow
-    from study.studies import current
+    from study.store.studies import current
 
     row = current(st) or {}
     flow = participant_flow(st)
@@ -690,7 +690,7 @@ def render_document(out: Path, st, steps, skipped: dict[str, str], mode: str = "
     store `st`; `steps` are the pipeline's StepResults, `skipped` the parts not produced with their reasons; `core`:
     whether the simulation core's figures belong to the study (without them there is no such section); `absent`:
     the parts the study's declaration rules out (no section either, :func:`analysis.report.build.absent_parts`)."""
-    from study.studies import definition
+    from study.store.studies import definition
 
     out = Path(out)
     study = definition(st)

@@ -36,7 +36,7 @@ class ParticipantFlow:
 
 def participant_flow(st) -> ParticipantFlow:
     """Participant flow of a store, through the one exclusion function the analyses use."""
-    from study.exclusions import included_participants
+    from study.people.exclusions import included_participants
 
     exc = st.df("SELECT scope, reason FROM exclusions")
 

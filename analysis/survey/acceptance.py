@@ -2,7 +2,7 @@
 
 Usage (a runnable example is in :class:`SurveyAnalysis`)::
 
-    study = study.definition.load("studies/lane_keeping")     # or study.studies.definition(store)
+    study = study.folder.definition.load("studies/lane_keeping")     # or study.store.studies.definition(store)
     res = analyze_survey(responses, study, attributes=participants)   # wide frame: participant_id + item columns
     res.reliability, res.regressions, res.hypotheses
     print(res.to_markdown())                 # Tables 3, 4 and 5 (to_latex: booktabs)
@@ -110,7 +110,7 @@ class SurveyAnalysis:
     >>> from analysis.survey.acceptance import SurveyAnalysis, analyze_survey
     >>> from analysis.survey.testing import simulate_study_participants, simulate_study_responses
     >>> from pedas.paths import REPO_ROOT
-    >>> from study.definition import load
+    >>> from study.folder.definition import load
     >>> study = load(REPO_ROOT / "studies" / "lane_keeping")
     >>> answers = simulate_study_responses(study, 24, seed=3)
     >>> res = analyze_survey(answers, study, attributes=simulate_study_participants(study, 24, seed=3), n_boot=0)
@@ -285,10 +285,10 @@ def analyze_survey(responses: pd.DataFrame, study, *, attributes: pd.DataFrame |
     responses : DataFrame
         participant_id + one column per scaled item of the instrument, raw answers as ticked.
     study : StudyDefinition, str or Path
-        The study (``study.studies.definition(store)``) or a study folder to load.
+        The study (``study.store.studies.definition(store)``) or a study folder to load.
     attributes : DataFrame, optional
         Participant attributes, wide and typed (participant_id as a column or the index, one column per attribute;
-        ``study.participants.participant_attributes(store)``). Needed when the model's regressions use
+        ``study.people.participants.participant_attributes(store)``). Needed when the model's regressions use
         covariates; a participant missing from it, or without a value, is left out of the models that use that
         covariate (warned).
     instrument : str or Instrument, optional
@@ -322,7 +322,7 @@ def analyze_survey(responses: pd.DataFrame, study, *, attributes: pd.DataFrame |
 
 
 def _study(study):
-    from study.definition import StudyDefinition, load
+    from study.folder.definition import StudyDefinition, load
 
     if isinstance(study, StudyDefinition):
         return study
@@ -333,8 +333,8 @@ def _study(study):
 
 def _model(study, model):
     """The AnalysisModel to run: the study's, or `model` (parsed or lavaan text)."""
-    from study.definition import AnalysisModel, parse_model
-    from study.problems import Problems, StudyError
+    from study.folder.definition import AnalysisModel, parse_model
+    from study.common.problems import Problems, StudyError
 
     if model is None:
         if study.model is None:
@@ -379,9 +379,9 @@ def survey_plan(study, instrument, model) -> SurveyPlan:
     --------
     >>> from analysis.survey.acceptance import survey_plan
     >>> from pedas.paths import REPO_ROOT
-    >>> from study.definition import load
+    >>> from study.folder.definition import load
     >>> study = load(REPO_ROOT / "studies" / "lane_keeping")
-    >>> plan = survey_plan(study, study.instrument(), study.model)
+    >>> plan = survey_plan(study, study.folder.instrument(), study.model)
     >>> plan.dropped, plan.covariates, plan.rules
     ([], ['age'], {'min_loading': 0.7, 'cross_margin': 0.0})
     >>> [(m.name, m.dv, m.steps) for m in plan.models]
@@ -439,7 +439,7 @@ def covariate_frame(attributes: pd.DataFrame | None, study, names: list[str], in
     >>> import pandas as pd
     >>> from analysis.survey.acceptance import covariate_frame
     >>> from pedas.paths import REPO_ROOT
-    >>> from study.definition import load
+    >>> from study.folder.definition import load
     >>> study = load(REPO_ROOT / "studies" / "lane_keeping")
     >>> attrs = pd.DataFrame({"participant_id": ["LK-01", "LK-02", "LK-03"], "age": [34, 51, None],
     ...                       "gender": ["male", "female", "diverse"]})
@@ -624,7 +624,7 @@ def table_titles(study) -> dict[str, str]:
     --------
     >>> from analysis.survey.acceptance import table_titles
     >>> from pedas.paths import REPO_ROOT
-    >>> from study.definition import load
+    >>> from study.folder.definition import load
     >>> table_titles(load(REPO_ROOT / "studies" / "lane_keeping"))["table4"]
     'Inter-construct correlation matrix of the UTAUT constructs'
     """
@@ -655,10 +655,10 @@ def construct_labels(study, instrument, constructs: list[str]) -> dict[str, str]
 
 def responses_from_store(st, *, instrument=None) -> pd.DataFrame:
     """The wide survey frame of the included participants (exclusions scope 'subjective') from a store: the final
-    answers as ``study.survey.final_responses`` resolves double entry, for the store's study's instrument."""
-    from study.exclusions import included_participants
-    from study.studies import definition
-    from study.survey import final_responses
+    answers as ``study.survey.answers.final_responses`` resolves double entry, for the store's study's instrument."""
+    from study.people.exclusions import included_participants
+    from study.store.studies import definition
+    from study.survey.answers import final_responses
 
     inst = resolve_instrument(definition(st), instrument)
     wide = final_responses(st, inst.name)
@@ -669,8 +669,8 @@ def responses_from_store(st, *, instrument=None) -> pd.DataFrame:
 
 
 def attributes_from_store(st) -> pd.DataFrame:
-    """participant_id + one typed column per declared attribute (``study.participants.participant_attributes``)."""
-    from study.participants import participant_attributes
+    """participant_id + one typed column per declared attribute (``study.people.participants.participant_attributes``)."""
+    from study.people.participants import participant_attributes
 
     attrs = participant_attributes(st)
     return attrs.reset_index() if ID_COL not in attrs.columns and attrs.index.name == ID_COL else attrs
@@ -679,7 +679,7 @@ def attributes_from_store(st) -> pd.DataFrame:
 def analyze_store(st, *, instrument=None, model=None, **kw) -> tuple[SurveyAnalysis, pd.DataFrame]:
     """`analyze_survey` of a store's included answers with its study and, when the model uses covariates, its
     participants' attributes; returns (analysis, the responses analysed). Keyword arguments as analyze_survey."""
-    from study.studies import definition
+    from study.store.studies import definition
 
     study = definition(st)
     responses = responses_from_store(st, instrument=instrument)

@@ -11,7 +11,7 @@ and the implied covariance so that they follow lavaan's definitions (`fit_indice
   scaled by sqrt(s_ii s_jj), root mean square over the p(p+1)/2 elements i <= j.
 
 Standardized loadings are lavaan's ``std.all``: lambda * sqrt(psi_ff) / sqrt(sigma_ii) (implied variance).
-On Holzinger-Swineford this reproduces lavaan's published output (tests/test_cfa.py).
+On Holzinger-Swineford this reproduces lavaan's published output (tests/analysis/test_cfa.py).
 Non-convergence and Heywood cases (negative or boundary variances, |std loading| >= 1, non-positive-definite
 latent covariance) become warnings, never silence.
 """

@@ -3,7 +3,7 @@ acceptance_statistics.md, sections "Ordinal CFA" to "Measurement invariance").
 
 Usage::
 
-    study = study.definition.load("studies/lane_keeping")
+    study = study.folder.definition.load("studies/lane_keeping")
     ext = analyze_extended(responses, study, attributes=participants, n_boot=2000, group="gender")
     ext.ordinal_loadings, ext.omega, ext.htmt, ext.reliability_boot, ext.sem_paths, ext.indirect, ...
     ext.write("out/extended")                 # one CSV per table, the model syntax, extended.md, settings.json

@@ -2,7 +2,7 @@
 
 A hypothesis is a labelled regression path of the study's model file (docs/study_folder.md): ``BI ~ ATT + H5*PU``
 marks H5 on the coefficient of PU in that model at that step, and ``H5 > 0`` declares its expected sign
-(:class:`study.definition.Hypothesis`). Verdicts, with p the coefficient's two-tailed t-test p as printed and alpha
+(:class:`study.folder.definition.Hypothesis`). Verdicts, with p the coefficient's two-tailed t-test p as printed and alpha
 the study's ``[analysis] alpha``:
 
 * ``>``  supported when beta > 0 and p < alpha;
@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import pandas as pd
 
-from study.definition import Hypothesis
+from study.folder.definition import Hypothesis
 
 SIGNS = (">", "<", "!=")
 COLUMNS = ["hypothesis", "path", "beta", "p", "supported", "model", "step", "b", "se_b", "t", "n"]
@@ -41,13 +41,13 @@ def supported(beta: float, p: float, sign: str, alpha: float) -> bool:
 
 
 def load_hypotheses(model) -> list[Hypothesis]:
-    """The hypotheses of a parsed model file (:class:`study.definition.AnalysisModel`), in declaration order.
+    """The hypotheses of a parsed model file (:class:`study.folder.definition.AnalysisModel`), in declaration order.
 
     Examples
     --------
     >>> from analysis.survey.hypotheses import load_hypotheses
-    >>> from study.definition import parse_model
-    >>> from study.problems import Problems
+    >>> from study.folder.definition import parse_model
+    >>> from study.common.problems import Problems
     >>> model = parse_model("Y =~ y1 + y2\\nX =~ x1 + x2\\nY ~ H1*X\\nH1 < 0", "model.lav", Problems())
     >>> load_hypotheses(model)
     [Hypothesis(hypothesis='H1', predictor='X', dv='Y', model='1', step=1, sign='<')]
@@ -81,7 +81,7 @@ def judge_hypotheses(regressions: pd.DataFrame, hypotheses: list[Hypothesis], al
     --------
     >>> import pandas as pd
     >>> from analysis.survey.hypotheses import judge_hypotheses
-    >>> from study.definition import Hypothesis
+    >>> from study.folder.definition import Hypothesis
     >>> reg = pd.DataFrame({"model": ["1", "1"], "step": [1, 1], "dv": ["Y", "Y"],
     ...                     "predictor": ["(Constant)", "X"], "b": [2.06, 0.48], "se_b": [0.73, 0.18],
     ...                     "beta": [float("nan"), 0.40], "t": [2.83, 2.70], "p": [0.008, 0.010], "n": [40, 40]})

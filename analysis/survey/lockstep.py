@@ -5,7 +5,7 @@ Each search is Brent's bounded method exactly as ``scipy.optimize.minimize_scala
 (golden-section steps and parabolic interpolation, Forsythe, Malcolm & Moler 1977): the same trial points, the same
 arithmetic, the same stopping rule (|x - midpoint| <= 2 tol - (b - a)/2 with tol = sqrt(2.2e-16) |x| + xatol/3) and
 the same result, so a search here returns bit for bit what scipy returns for that function alone
-(tests/test_lockstep.py compares them).
+(tests/analysis/test_lockstep.py compares them).
 """
 from __future__ import annotations
 

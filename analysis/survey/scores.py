@@ -1,4 +1,4 @@
-"""Declared instrument scores (study/scores.py) computed from the answers: SUS, NASA-TLX, van der Laan, trust, SSQ
+"""Declared instrument scores (study/folder/scores.py) computed from the answers: SUS, NASA-TLX, van der Laan, trust, SSQ
 or any score a study declares.
 
 For each score and participant (and occasion, when the answers have one)::
@@ -15,8 +15,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from study.instrument import Instrument
-from study.scores import ScoreSpec
+from study.folder.instrument import Instrument
+from study.folder.scores import ScoreSpec
 
 KEYS = ("participant_id", "occasion", "condition")   # the columns that say whose answers a row holds
 COLUMNS = ["score", "value"]
@@ -24,7 +24,7 @@ COLUMNS = ["score", "value"]
 
 def compute_scores(responses: pd.DataFrame, specs: list[ScoreSpec], instrument: Instrument) -> pd.DataFrame:
     """Tidy scores of the wide `responses` (participant_id [, occasion, condition], one column per item, raw
-    answers as ticked, as ``study.survey.final_responses`` returns them).
+    answers as ticked, as ``study.survey.answers.final_responses`` returns them).
 
     Returns
     -------
@@ -44,9 +44,9 @@ def compute_scores(responses: pd.DataFrame, specs: list[ScoreSpec], instrument: 
 
     >>> import pandas as pd
     >>> from analysis.survey.scores import compute_scores
-    >>> from study.instrument import Instrument
-    >>> from study.instrument_library import LIBRARY
-    >>> from study.scores import ScoreSpec
+    >>> from study.folder.instrument import Instrument
+    >>> from study.folder.instrument_library import LIBRARY
+    >>> from study.folder.scores import ScoreSpec
     >>> sus = Instrument.from_csv("sus_v1", (LIBRARY / "sus.csv").read_text())
     >>> spec = ScoreSpec("sus", "sus_v1", tuple(f"SUS{i}" for i in range(1, 11)), "sum",
     ...                  reversed=("SUS2", "SUS4", "SUS6", "SUS8", "SUS10"), multiply=2.5, add=-25)
@@ -119,11 +119,11 @@ def _score(responses: pd.DataFrame, spec: ScoreSpec, instrument: Instrument) -> 
 
 def instrument_scores(st, instrument: str | None = None, occasion: str | None = None) -> pd.DataFrame:
     """The declared scores of the store's instrument (default: the study's current one) from its final answers
-    (``study.survey.final_responses``; exclusions are not applied here), tidy as :func:`compute_scores`. An
+    (``study.survey.answers.final_responses``; exclusions are not applied here), tidy as :func:`compute_scores`. An
     instrument without declared scores gives an empty frame."""
-    from study.scores import study_scores
-    from study.studies import definition
-    from study.survey import final_responses, instrument_of
+    from study.folder.scores import study_scores
+    from study.store.studies import definition
+    from study.survey.answers import final_responses, instrument_of
 
     ins = instrument_of(st, instrument)
     specs = study_scores(definition(st), ins.name)
@@ -147,10 +147,10 @@ def score_occasions(st, study, names) -> tuple[pd.DataFrame, pd.DataFrame]:
     UserError
         a name that no instrument of the study declares.
     """
-    from study.errors import UserError
-    from study.occasions import study_occasions
-    from study.scores import study_scores
-    from study.survey import final_responses, instrument_of
+    from study.common.errors import UserError
+    from study.folder.occasions import study_occasions
+    from study.folder.scores import study_scores
+    from study.survey.answers import final_responses, instrument_of
 
     declared = {s.name: s for s in study_scores(study)}
     unknown = [n for n in names if n not in declared]

@@ -14,20 +14,20 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from study.instrument import Instrument
+from study.folder.instrument import Instrument
 
 ID_COL = "participant_id"
 
 
 def resolve_instrument(study, instrument=None) -> Instrument:
     """The instrument to analyse: an :class:`Instrument` as given, else the study's instrument of that name (None:
-    the study's only one). `study` is a :class:`study.definition.StudyDefinition`.
+    the study's only one). `study` is a :class:`study.folder.definition.StudyDefinition`.
 
     Examples
     --------
     >>> from analysis.survey.scoring import resolve_instrument
     >>> from pedas.paths import REPO_ROOT
-    >>> from study.definition import load
+    >>> from study.folder.definition import load
     >>> inst = resolve_instrument(load(REPO_ROOT / "studies" / "lane_keeping"))
     >>> inst.name, inst.reverse_items, inst.scale("EE3")
     ('lk_acceptance_v1', ['EE3'], (1, 7))
@@ -86,9 +86,9 @@ def score_responses(responses: pd.DataFrame, instrument: Instrument, *, listwise
     >>> from analysis.survey.scoring import score_responses
     >>> from analysis.survey.testing import simulate_study_responses
     >>> from pedas.paths import REPO_ROOT
-    >>> from study.definition import load
+    >>> from study.folder.definition import load
     >>> study = load(REPO_ROOT / "studies" / "lane_keeping")
-    >>> s = score_responses(simulate_study_responses(study, 24, seed=1), study.instrument())
+    >>> s = score_responses(simulate_study_responses(study, 24, seed=1), study.folder.instrument())
     >>> s.n, s.reverse_items, list(s.constructs)
     (24, ['EE3'], ['PE', 'EE', 'SI', 'BI'])
     >>> bool(((s.raw["EE3"] + s.scored["EE3"]) == 8).all())

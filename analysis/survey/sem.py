@@ -35,7 +35,7 @@ def structural_paths(model) -> dict[str, list[str]]:
     --------
     >>> from analysis.survey.sem import structural_paths
     >>> from pedas.paths import REPO_ROOT
-    >>> from study.definition import load
+    >>> from study.folder.definition import load
     >>> structural_paths(load(REPO_ROOT / "studies" / "pedas_paper").model)
     {'PU': ['PEoU'], 'ATT': ['PEoU', 'PU'], 'BI': ['ATT', 'PU', 'SN', 'PBC']}
     """

@@ -23,7 +23,7 @@ def participant_ids(study, n: int) -> list[str]:
     --------
     >>> from analysis.survey.testing import participant_ids
     >>> from pedas.paths import REPO_ROOT
-    >>> from study.definition import load
+    >>> from study.folder.definition import load
     >>> participant_ids(load(REPO_ROOT / "studies" / "lane_keeping"), 3)
     ['LK-01', 'LK-02', 'LK-03']
     """
@@ -61,7 +61,7 @@ def simulate_study_responses(study, n: int = 40, seed: int = 1, *, instrument=No
     --------
     >>> from analysis.survey.testing import simulate_study_responses
     >>> from pedas.paths import REPO_ROOT
-    >>> from study.definition import load
+    >>> from study.folder.definition import load
     >>> data = simulate_study_responses(load(REPO_ROOT / "studies" / "lane_keeping"), 24, seed=7)
     >>> data.shape, data["participant_id"].iloc[-1], int(data["PE1"].min()) >= 1, int(data["PE1"].max()) <= 7
     ((24, 13), 'LK-24', True, True)
@@ -107,7 +107,7 @@ def simulate_study_participants(study, n: int = 40, seed: int = 1) -> pd.DataFra
     --------
     >>> from analysis.survey.testing import simulate_study_participants
     >>> from pedas.paths import REPO_ROOT
-    >>> from study.definition import load
+    >>> from study.folder.definition import load
     >>> p = simulate_study_participants(load(REPO_ROOT / "studies" / "lane_keeping"), 24, seed=7)
     >>> list(p.columns), bool(p["age"].between(18, 90).all())
     (['participant_id', 'age', 'gender', 'km_per_year'], True)

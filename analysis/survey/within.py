@@ -35,7 +35,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from study.errors import UserError
+from study.common.errors import UserError
 
 GTOL = 1e-10             # BFGS gradient tolerance of the REML fit (statsmodels' default 1e-5 stops ~1e-4 short)
 BOUNDARY_THETA = 1e-4    # sd(random intercept) / sd(residual) below this is a boundary fit (lme4's isSingular tol)

@@ -18,7 +18,7 @@ from pedas.paths import REFERENCE_DIR
 from pedas.scenario import DEFAULT_SCENARIO
 from pedas.vocabulary import STYLES
 from pedas.whatif import FACTORS, WhatIf
-from study.errors import UserError
+from study.common.errors import UserError
 
 #: band key -> (band of analysis.drives.savings.reproduction_bands, the KPI column of points.csv it reads)
 BANDS = {"overall": (BAND_OVERALL, "saving_overall_pct"),

@@ -59,10 +59,10 @@ def point_effects(design: pd.DataFrame, people: pd.DataFrame, tasks: list, logs:
     from analysis.drives.kpis import store_kpis
     from analysis.drives.savings import participant_effects
     from analysis.paper.published import PAPER_STUDY_DIR
-    from study.participants import add_participant
-    from study.simulated import store_simulated
-    from study.store import Store
-    from study.studies import register
+    from study.people.participants import add_participant
+    from study.logs.simulated import store_simulated
+    from study.store.store import Store
+    from study.store.studies import register
 
     attrs = [c for c in people.columns if c != "participant_id"]
     with tempfile.TemporaryDirectory() as tmp, Store.open(Path(tmp) / "sweep.duckdb", actor="sweep") as st:
@@ -118,8 +118,8 @@ def _paper_spec():
     """The KPIs and comparison the paper study's KPI file declares (the study the temporary store of
     :func:`point_effects` serves)."""
     from analysis.paper.published import PAPER_STUDY_DIR
-    from study.definition import load
-    from study.kpi_spec import study_spec
+    from study.folder.definition import load
+    from study.folder.kpi_spec import study_spec
 
     return study_spec(load(PAPER_STUDY_DIR, units=False))
 

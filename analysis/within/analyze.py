@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from study.errors import UserError
+from study.common.errors import UserError
 
 #: the tables of a within-subjects analysis, in the order the report shows them
 TABLES = ("orders", "descriptives", "anova", "friedman", "posthoc", "mixed", "mixed_fit", "item_descriptives",
@@ -268,8 +268,8 @@ def analyze_store_within(st, study=None) -> tuple[WithinStudy, pd.DataFrame]:
     """(the analysis, its long data) of the ``[within]`` declaration of the store's study
     (:mod:`analysis.within.data`); UserError when the study declares none or the store has nothing to compare."""
     from analysis.within.data import within_data
-    from study.studies import definition
-    from study.within_spec import within_spec
+    from study.store.studies import definition
+    from study.folder.within_spec import within_spec
 
     study = study if study is not None else definition(st)
     spec = within_spec(study)

@@ -28,7 +28,7 @@ def _excluded(st, scopes: tuple[str, ...]) -> set[str]:
 def periods(st, study, conditions) -> pd.DataFrame:
     """participant, condition, period, order of every participant with an assigned or walked protocol: the period
     of each compared condition's drive phase (1, 2, ...)."""
-    from study.orders import participant_protocol
+    from study.people.orders import participant_protocol
 
     drive_phase = {}
     for proto in study.protocols.values():
@@ -53,7 +53,7 @@ def kpi_values(st, study, spec) -> pd.DataFrame:
     """participant, condition, variable, source, label, unit, value of every declared KPI of every condition's
     drive (whole drive), objective exclusions left out."""
     from analysis.drives.kpis import store_kpis
-    from study.kpi_spec import study_spec
+    from study.folder.kpi_spec import study_spec
 
     if not spec.kpis:
         return pd.DataFrame(columns=COLUMNS)
@@ -88,7 +88,7 @@ def score_values(st, study, spec) -> tuple[pd.DataFrame, pd.DataFrame]:
 
 def within_data(st, study, spec) -> tuple[pd.DataFrame, pd.DataFrame]:
     """(the long frame of :data:`COLUMNS`, the item frame of :data:`ITEM_COLUMNS`) of a study's ``[within]``
-    declaration (:class:`study.within_spec.WithinSpec`)."""
+    declaration (:class:`study.folder.within_spec.WithinSpec`)."""
     scores, items = score_values(st, study, spec)
     kpis = kpi_values(st, study, spec)
     data = pd.concat([f for f in (scores, kpis) if not f.empty], ignore_index=True) if not (

@@ -1,7 +1,7 @@
 """What storing the HUD channels costs (``pedas-study bench hud [--copies N] [--json]``).
 
 One simulated pEDAS drive of the reference cohort (P003, from the drive cache; simulated once when not cached) is
-imported with :func:`study.drives.import_drive_frame` into two fresh stores of the paper's study, `copies` times
+imported with :func:`study.logs.importing.import_drive_frame` into two fresh stores of the paper's study, `copies` times
 each (under as many participants): once with its seven HUD channels (:data:`pedas.drive.HUD_LOG_COLUMNS`), once
 without. Reported: the median import time per drive of each, and the store's growth per drive — the DuckDB file
 after CHECKPOINT minus the same store before the imports, divided by `copies`, so that DuckDB's 256 KiB blocks
@@ -57,10 +57,10 @@ def reference_drive(participant: str = "P003"):
 def _store_with_drives(db: Path, df, copies: int, task) -> tuple[list[float], int, int]:
     """(import times, file size before the imports, after them) of `copies` imports of `df` into a fresh store."""
     from pedas_study.bench.store_export import fresh_import_store
-    from study.drives import import_drive_frame
-    from study.simulated import ROUTE_NAME
-    from study.store import Store
-    from study.studies import definition
+    from study.logs.importing import import_drive_frame
+    from study.logs.simulated import ROUTE_NAME
+    from study.store.store import Store
+    from study.store.studies import definition
 
     fresh_import_store(db)
     with Store.open(db, actor="bench") as st:

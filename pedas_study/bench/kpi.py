@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from study.kpi_spec import SqlKpi
+from study.folder.kpi_spec import SqlKpi
 from analysis.drives.kpis import KPI_FIELDS, kpis_from_relation
 from analysis.drives.testing import kpis_pandas
 

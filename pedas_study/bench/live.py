@@ -51,9 +51,9 @@ def bench_live(messages: int = 10_000, rate: float = 50.0, seed: int = 1) -> dic
     from pedas.controller import PedasController
     from pedas.drive import study_route_and_reference
     from pedas.live_protocol import ADVICE_FIELDS
-    from study.participants import add_participant
-    from study.store import Store
-    from study.studies import register
+    from study.people.participants import add_participant
+    from study.store.store import Store
+    from study.store.studies import register
 
     from analysis.paper.published import PAPER_STUDY_DIR
 

@@ -92,8 +92,8 @@ def samples_sql(n: int, per_drive: int = PER_DRIVE) -> str:
 def build_store(db: Path, samples: int, per_drive: int = PER_DRIVE) -> None:
     """A store of the paper's study holding `samples` synthetic samples in drives of `per_drive` samples."""
     from analysis.paper.published import PAPER_STUDY_DIR
-    from study.store import Store
-    from study.studies import definition, register
+    from study.store.store import Store
+    from study.store.studies import definition, register
 
     n_drives = -(-samples // per_drive)
     with Store.open(db, actor="bench") as st:
@@ -163,15 +163,15 @@ def child(spec: dict) -> dict:
     import pandas  # noqa: F401  (imported before the baseline, as by every command)
     import pyarrow  # noqa: F401
 
-    from study.store import Store
+    from study.store.store import Store
 
     op, db, out = spec["op"], Path(spec["db"]), Path(spec["out"])
     with Store.open(db, actor="bench") as st:
         if op == "export":
-            from study.export import export
+            from study.export.writer import export
         elif op == "import":
-            from study.drives import import_drive_file
-            from study.studies import definition
+            from study.logs.importing import import_drive_file
+            from study.store.studies import definition
 
             definition(st)  # parsed before the timing, as import_drive_file's own clock does
         before = _maxrss_mb()
@@ -217,8 +217,8 @@ def measure(what: str, spec: dict) -> Run:
 def fresh_import_store(db: Path) -> None:
     """A store of the paper's study with participant P001 and no drive."""
     from analysis.paper.published import PAPER_STUDY_DIR
-    from study.store import Store
-    from study.studies import definition, register
+    from study.store.store import Store
+    from study.store.studies import definition, register
 
     with Store.open(db, actor="bench") as st:
         register(st, PAPER_STUDY_DIR)

@@ -42,9 +42,9 @@ def synthetic_log(n: int, seed: int = 0) -> pd.DataFrame:
 
 def bench_import(rows: int = 1_000_000, repeats: int = 3, seed: int = 0) -> ImportBench:
     from pedas_study.bench.store_export import fresh_import_store
-    from study.drives import import_drive_file
-    from study.store import Store
-    from study.studies import definition
+    from study.logs.importing import import_drive_file
+    from study.store.store import Store
+    from study.store.studies import definition
 
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)

@@ -5,12 +5,12 @@ One module per top-level command word, listed in `COMMAND_MODULES` in the order 
 :meth:`Cli.group` (``pedas-study bench mpc``), once: a second declaration of a name is an error. Handlers take the
 parsed ``argparse.Namespace`` and return an exit code (``None`` means 0). Heavy imports stay inside the handlers
 so that ``--help`` and small commands start fast: building the parser loads no numeric, statistics, units or
-plotting library (tests/test_cli_imports.py), and defaults a help text shows come from light modules
-(``study.defaults``). A handler opens the store after its imports and closes it before printing
+plotting library (tests/cli/test_cli_imports.py), and defaults a help text shows come from light modules
+(``study.people.defaults``). A handler opens the store after its imports and closes it before printing
 (:func:`pedas_study.cli.common.open_store`).
 
 Errors: an exception reaching :func:`main` is printed as one line ``pedas-study: error: ...``. Bad input exits 2:
-``ValueError`` (with ``study.errors.UserError``), the file-system errors of a bad path (missing, a directory, no
+``ValueError`` (with ``study.common.errors.UserError``), the file-system errors of a bad path (missing, a directory, no
 permission) and argparse's usage errors, which are one line too (``pedas-study session advance: error: the
 following arguments are required: PHASE (see `pedas-study session advance --help`)``), not argparse's usage
 dump. Anything else is a bug: exit 1, ``pedas-study: error: internal error: ...``. ``PEDAS_STUDY_DEBUG=1`` shows
@@ -30,7 +30,7 @@ import traceback
 from typing import Callable, Sequence
 
 from pedas_study.cli.common import DEFAULT_DB, is_user_error
-from study.errors import UserError
+from study.common.errors import UserError
 
 COMMAND_MODULES: tuple[str, ...] = tuple(f"pedas_study.cli.{name}" for name in (
     "init", "study", "participant", "session", "exclude", "drive", "export",   # the study and its store

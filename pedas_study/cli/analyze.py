@@ -41,14 +41,14 @@ def _survey(args) -> int:
         attrs = _read_csv(args.attributes, "attributes") if args.attributes else None
         source = str(args.responses)
         if args.study:
-            from study.definition import load
+            from study.folder.definition import load
 
             study = load(args.study, units=False)  # reads no drive log or route
         else:
             if not db.exists():
                 raise FileNotFoundError(f"store not found: {db} (pass --study DIR with --responses, or run "
                                         f"`pedas-study init --study DIR`)")
-            from study.studies import definition
+            from study.store.studies import definition
 
             with open_store(args, read_only=True) as st:
                 study = definition(st)
@@ -64,7 +64,7 @@ def _survey(args) -> int:
         with open_store(args, read_only=True) as st:
             res, responses = analyze_store(st, **kw)
             if args.extended:
-                from study.studies import definition
+                from study.store.studies import definition
 
                 study, attrs = definition(st), attributes_from_store(st)
         source = f"store {db}"
@@ -119,7 +119,7 @@ def _extended(args) -> int:
         attrs = _read_csv(args.attributes, "attributes") if args.attributes else None
         if not args.study:
             raise ValueError("--responses needs --study DIR (the study folder of the CSV)")
-        from study.definition import load
+        from study.folder.definition import load
 
         study = load(args.study, units=False)  # reads no drive log or route
         source = str(args.responses)
@@ -130,7 +130,7 @@ def _extended(args) -> int:
         db = db_path(args)
         if not db.exists():
             raise FileNotFoundError(f"store not found: {db} (run `pedas-study init` or pass --responses CSV)")
-        from study.studies import definition
+        from study.store.studies import definition
 
         with open_store(args, read_only=True) as st:
             study = definition(st)

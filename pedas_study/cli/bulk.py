@@ -6,7 +6,7 @@ import sys
 
 
 def refused(exc) -> int:
-    """Print a :class:`study.bulk_rows.BadRows` refusal on stderr; the exit code of bad input (2)."""
+    """Print a :class:`study.common.bulk_rows.BadRows` refusal on stderr; the exit code of bad input (2)."""
     from pedas_study.cli import error_line
 
     print(error_line(exc), file=sys.stderr)
@@ -16,13 +16,13 @@ def refused(exc) -> int:
 
 
 def apply_file(args, name: str, apply, report) -> int | None:
-    """Read the bulk file ``args.<name>`` (study.bulk_rows.read_table: its rows as text, no pandas), hand them to
+    """Read the bulk file ``args.<name>`` (study.common.bulk_rows.read_table: its rows as text, no pandas), hand them to
     ``apply(st, rows, source=)`` inside the store, then print ``report(result)``; a refused file is printed by
     :func:`refused` (its exit code)."""
     from pathlib import Path
 
     from pedas_study.cli.common import open_store
-    from study.bulk_rows import BadRows, read_table
+    from study.common.bulk_rows import BadRows, read_table
 
     path = Path(getattr(args, name))
     try:

@@ -6,7 +6,7 @@ import argparse
 import os
 from pathlib import Path
 
-from study.errors import UserError
+from study.common.errors import UserError
 
 DEFAULT_DB = Path("data") / "study.duckdb"
 LIST_FORMATS = ("table", "csv", "json")
@@ -37,9 +37,9 @@ def open_store(args: argparse.Namespace, must_exist: bool = True, read_only: boo
     Another process (the survey server, another command) cannot open the store while a command holds it, so a
     handler imports what it uses before it calls this and closes the store before it formats and prints its
     output. This imports what nearly every command uses once the store is open, the reader of the stored study
-    (:func:`study.studies.definition`, which needs no pandas), before opening it."""
-    import study.studies  # noqa: F401 - loaded before the store is held, not while
-    from study.store import Store
+    (:func:`study.store.studies.definition`, which needs no pandas), before opening it."""
+    import study.store.studies  # noqa: F401 - loaded before the store is held, not while
+    from study.store.store import Store
 
     path = db_path(args)
     if must_exist and not path.exists():
@@ -73,7 +73,7 @@ def simulate_and_store(args, tasks, **simulate_kw) -> list:
     """Simulate `tasks` (:func:`pedas.cohort.simulate_cohort`), store them in one transaction, print one line per
     drive; the stored (task, log, result) triples."""
     from pedas.cohort import simulate_cohort
-    from study.simulated import store_simulated, summary_line
+    from study.logs.simulated import store_simulated, summary_line
 
     results = simulate_cohort(tasks, cache_dir=args.cache_dir, **simulate_kw)
     with open_store(args) as st:

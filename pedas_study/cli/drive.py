@@ -8,8 +8,8 @@ from pedas_study.cli.common import (DRIVE_CACHE_HELP, add_format_option, add_sce
 
 
 def _import(args) -> None:
-    from study.drives import import_drive_file
-    from study.units import units
+    from study.logs.importing import import_drive_file
+    from study.common.units import units
 
     units()  # built before the store is held (about a second): the study's route and log mapping read units with it
 
@@ -32,7 +32,7 @@ def _import(args) -> None:
 
 
 def _list(args) -> None:
-    from study.drives import list_drives
+    from study.logs.stored import list_drives
 
     with open_store(args) as st:
         df = list_drives(st)
@@ -40,7 +40,7 @@ def _list(args) -> None:
 
 
 def _channels(args) -> None:
-    from study.drives import list_channels
+    from study.logs.stored import list_channels
 
     with open_store(args, read_only=True) as st:
         df = list_channels(st)
@@ -50,7 +50,7 @@ def _channels(args) -> None:
 def _simulate(args) -> None:
     """Simulate before writing: a failing drive leaves the store unchanged."""
     from pedas.cohort import cohort_tasks
-    from study.simulated import participants_to_simulate
+    from study.logs.simulated import participants_to_simulate
 
     scenario = scenario_of(args)
     with open_store(args, read_only=True) as st:

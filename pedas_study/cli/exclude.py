@@ -2,11 +2,11 @@
 from __future__ import annotations
 
 from pedas_study.cli.common import open_store
-from study.errors import UserError
+from study.common.errors import UserError
 
 
 def _exclude(args) -> None:
-    from study.exclusions import REASONS, exclude, revoke
+    from study.people.exclusions import REASONS, exclude, revoke
 
     if not args.revoke and not args.reason:  # refused before the store is opened
         raise UserError(f"--reason is required ({'|'.join(REASONS)})")
@@ -21,7 +21,7 @@ def _exclude(args) -> None:
 
 def register(cli) -> None:
     """Declare `exclude`."""
-    from study.exclusions import REASONS, SCOPES
+    from study.people.exclusions import REASONS, SCOPES
 
     p = cli.command("exclude", "exclude a participant from analyses (scope all|objective|subjective)", _exclude)
     p.add_argument("id", metavar="ID")

@@ -5,14 +5,14 @@ from pedas_study.cli.common import open_store
 
 
 def _export(args) -> None:
-    from study.export import export
+    from study.export.writer import export
 
     # what the writers load, loaded before the store is held: pyreadstat and the unit registry (a study's route names
     # the segments a .sav labels), pyarrow's Parquet writer
     if args.format == "sav":
         import pyreadstat  # noqa: F401
-        import study.route_file  # noqa: F401
-        from study.units import units
+        import study.folder.route_file  # noqa: F401
+        from study.common.units import units
 
         units()
     elif args.format == "parquet":

@@ -22,7 +22,7 @@ def _fig7(args) -> None:
 def _search(args) -> None:
     from pedas.hud_search import search
     from pedas_study.cli.common import open_store
-    from study.errors import UserError
+    from study.common.errors import UserError
 
     if args.drives < 1:
         raise UserError(f"--drives must be at least 1, got {args.drives}")

@@ -5,17 +5,17 @@ from pedas_study.cli.common import db_path, open_store
 
 
 def _init(args) -> None:
-    from study.studies import register, version
+    from study.store.studies import register, version
 
     existed = db_path(args).exists()
     if not existed and not args.study:
-        from study.errors import UserError
+        from study.common.errors import UserError
 
         raise UserError("a new store needs its study: pedas-study init --study DIR (e.g. studies/pedas_paper; "
                         "`pedas-study study new DIR` writes a template)")
     study = None
     if args.study:  # a folder with problems is refused before a new store is created (and checked only once)
-        from study.definition import load
+        from study.folder.definition import load
 
         study = load(args.study)
     lines = []  # printed once the store is closed again

@@ -5,13 +5,13 @@ from __future__ import annotations
 import sys
 
 from pedas_study.cli.common import db_path, open_store
-from study.errors import UserError
+from study.common.errors import UserError
 
 
 def _serve(args) -> None:
     from pedas.live import LiveRoute, LiveServer
 
-    from study.store import StoreHolder
+    from study.store.store import StoreHolder
 
     for flag, value in (("--udp-idle", args.udp_idle), ("--max-rate", args.max_rate)):
         if not value > 0:   # also refuses nan
@@ -27,7 +27,7 @@ def _serve(args) -> None:
         live = LiveRoute.load(args.route)
 
         def drive_log(participant: str, condition: str):
-            from study.live_log import LiveDriveLog
+            from study.logs.live_log import LiveDriveLog
 
             return LiveDriveLog(st, participant, condition, route=live.name, replace=args.replace)
 

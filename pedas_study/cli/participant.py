@@ -3,7 +3,7 @@ the store's study, and what data each still lacks."""
 from __future__ import annotations
 
 from pedas_study.cli.common import add_format_option, format_frame, open_store
-from study.errors import UserError
+from study.common.errors import UserError
 
 #: options kept from the paper's fixed demographics; each names the study attribute it fills
 ALIASES = (("age", "--age"), ("gender", "--gender"), ("license_years", "--license-years"), ("style", "--style"),
@@ -32,8 +32,8 @@ def attributes_of(args) -> dict[str, str]:
 
 
 def _add(args) -> None:
-    from study.participants import add_participant
-    from study.studies import definition
+    from study.people.participants import add_participant
+    from study.store.studies import definition
 
     with open_store(args) as st:
         study = definition(st)
@@ -47,22 +47,22 @@ def _add(args) -> None:
 
 def _import(args) -> int | None:
     from pedas_study.cli.bulk import apply_file
-    from study.participants import import_roster
+    from study.people.participants import import_roster
 
     return apply_file(args, "roster", import_roster, lambda n: f"registered {n} participants from {args.roster}")
 
 
 def _list(args) -> None:
     from pedas_study.cli.rows_text import format_rows
-    from study.participants import participant_rows
+    from study.people.participants import participant_rows
 
-    with open_store(args) as st:  # rows, not a DataFrame: a listing loads no pandas (tests/test_cli_imports.py)
+    with open_store(args) as st:  # rows, not a DataFrame: a listing loads no pandas (tests/cli/test_cli_imports.py)
         columns, rows = participant_rows(st)
     print(format_rows(columns, rows, args.format))  # formatted after closing: the store is held only while read
 
 
 def _completeness(args) -> None:
-    from study.completeness import completeness
+    from study.survey.completeness import completeness
 
     with open_store(args, read_only=True) as st:
         df = completeness(st, args.instrument)

@@ -35,7 +35,7 @@ def _population(args):
     if args.population:
         if not args.study:
             raise ValueError("--population needs --study DIR (the study whose model and hypotheses are planned)")
-        from study.definition import load
+        from study.folder.definition import load
 
         study = load(args.study, units=False)  # reads no drive log or route
         pop = ss.population_from_csv(args.population)
@@ -44,7 +44,7 @@ def _population(args):
     if args.responses:
         if not args.study:
             raise ValueError("--responses needs --study DIR (the study folder of the CSV)")
-        from study.definition import load
+        from study.folder.definition import load
 
         study = load(args.study, units=False)  # reads no drive log or route
         attrs = _read_csv(args.attributes, "attributes") if args.attributes else None
@@ -54,7 +54,7 @@ def _population(args):
     if not db.exists():
         raise FileNotFoundError(f"store not found: {db} (run `pedas-study init`, or pass --responses/--population)")
     from analysis.survey.acceptance import attributes_from_store, responses_from_store
-    from study.studies import definition
+    from study.store.studies import definition
 
     with open_store(args, read_only=True) as st:
         study = definition(st)

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from pedas.scenario import SCENARIOS, SINGLE_LANE
 from pedas_study.cli.common import add_scenario_option, db_path, is_user_error, scenario_of
-from study.errors import UserError
+from study.common.errors import UserError
 
 
 def _report(args) -> int:
@@ -54,7 +54,7 @@ def _report(args) -> int:
 
 def _bundle(cfg, path: Path) -> None:
     from analysis.report.bundle import write_bundle
-    from study.store import Store
+    from study.store.store import Store
 
     settings = {"seed": cfg.seed, "n_boot": cfg.n_boot, "reference": cfg.reference,
                 "compare_paper": cfg.compare_paper, "participants": cfg.participants,

@@ -5,7 +5,7 @@ from pedas_study.cli.common import add_format_option, format_frame, open_store
 
 
 def _day(args) -> None:
-    from study.scheduling import day_agenda
+    from study.people.scheduling import day_agenda
 
     with open_store(args, read_only=True) as st:
         df = day_agenda(st, args.date, args.simulator)
@@ -13,7 +13,7 @@ def _day(args) -> None:
 
 
 def _export(args) -> None:
-    from study.scheduling import export_ics
+    from study.people.scheduling import export_ics
 
     with open_store(args, read_only=True) as st:
         n = export_ics(st, args.ics, include_closed=args.all)
@@ -21,7 +21,7 @@ def _export(args) -> None:
 
 
 def _durations(args) -> None:
-    from study.scheduling import phase_durations
+    from study.people.scheduling import phase_durations
 
     with open_store(args, read_only=True) as st:
         df = phase_durations(st, args.id)

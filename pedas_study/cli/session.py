@@ -15,7 +15,7 @@ def _advance(args) -> int | None:
         return _advance_from(args)
     if args.phase is None:  # ID and PHASE are optional only for --from
         args.usage_error(f"the following arguments are required: {'PHASE' if args.id else 'ID, PHASE'}")
-    from study.protocol import advance
+    from study.people.protocol import advance
 
     with open_store(args) as st:
         r = advance(st, args.id, args.phase, note=args.note, at=args.at)
@@ -25,7 +25,7 @@ def _advance(args) -> int | None:
 
 def _advance_from(args) -> int | None:
     from pedas_study.cli.bulk import apply_file
-    from study.protocol import apply_event_rows
+    from study.people.protocol import apply_event_rows
 
     return apply_file(args, "events", apply_event_rows,
                       lambda done: f"applied {len(done)} events for {len({d['participant_id'] for d in done})} "
@@ -33,7 +33,7 @@ def _advance_from(args) -> int | None:
 
 
 def _abort(args) -> None:
-    from study.protocol import abort
+    from study.people.protocol import abort
 
     with open_store(args) as st:
         phase = abort(st, args.id, args.reason, at=args.at)
@@ -41,7 +41,7 @@ def _abort(args) -> None:
 
 
 def _complete(args) -> None:
-    from study.protocol import complete
+    from study.people.protocol import complete
 
     with open_store(args) as st:
         phase = complete(st, args.id, note=args.note, at=args.at)
@@ -51,8 +51,8 @@ def _complete(args) -> None:
 def _status(args) -> None:
     import json
 
-    from study.exclusions import list_exclusions
-    from study.protocol import protocol_of, status
+    from study.people.exclusions import list_exclusions
+    from study.people.protocol import protocol_of, status
 
     with open_store(args) as st:
         proto = protocol_of(st, args.id)
@@ -81,7 +81,7 @@ def _status(args) -> None:
 
 # ---------------------------------------------------------------------------------------------- appointments
 def _schedule(args) -> None:
-    from study.scheduling import book
+    from study.people.scheduling import book
 
     with open_store(args) as st:
         row = book(st, args.id, args.at, simulator=args.simulator, buffer_minutes=args.buffer)
@@ -90,7 +90,7 @@ def _schedule(args) -> None:
 
 
 def _reschedule(args) -> None:
-    from study.scheduling import reschedule
+    from study.people.scheduling import reschedule
 
     with open_store(args) as st:
         row = reschedule(st, args.id, args.at, simulator=args.simulator)
@@ -99,7 +99,7 @@ def _reschedule(args) -> None:
 
 def _close(status: str):
     def handler(args) -> None:
-        from study.scheduling import set_status
+        from study.people.scheduling import set_status
 
         with open_store(args) as st:
             row = set_status(st, args.id, status, note=args.note)
@@ -108,7 +108,7 @@ def _close(status: str):
 
 
 def _assign(args) -> None:
-    from study.orders import assign_order
+    from study.people.orders import assign_order
 
     with open_store(args) as st:
         order = assign_order(st, args.id)
@@ -122,7 +122,7 @@ def _add_time(p: argparse.ArgumentParser) -> None:
 
 def register(cli) -> None:
     """Declare the `session` group."""
-    from study.defaults import DEFAULT_BUFFER_MINUTES, DEFAULT_SIMULATOR
+    from study.people.defaults import DEFAULT_BUFFER_MINUTES, DEFAULT_SIMULATOR
 
     g = cli.group("session", "walk a participant through the protocol phases")
     p = g.command("advance", "start the next protocol phase (completes the one in progress); --from: many events "

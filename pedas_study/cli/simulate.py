@@ -1,19 +1,19 @@
 """`pedas-study simulate cohort`: both drives of every participant not excluded from the objective analysis,
 simulated with virtual drivers in SUMO traffic and stored (all drives are simulated before the store is written).
 The store's study must declare the conditions the simulator drives; each participant's ``style`` attribute chooses
-the virtual driver (study.simulated)."""
+the virtual driver (study.logs.simulated)."""
 from __future__ import annotations
 
 from pedas_study.cli.common import DRIVE_CACHE_HELP, add_scenario_option, open_store, scenario_of, simulate_and_store
-from study.errors import UserError
+from study.common.errors import UserError
 
 
 def _cohort(args) -> None:
     from pedas.cohort import cohort_tasks
     from pedas_study.extras import require
-    from study.exclusions import included_participants
-    from study.simulated import check_simulable, participants_to_simulate
-    from study.studies import definition
+    from study.people.exclusions import included_participants
+    from study.logs.simulated import check_simulable, participants_to_simulate
+    from study.store.studies import definition
 
     if args.workers is not None and args.workers < 1:
         raise UserError("--workers must be >= 1")

@@ -5,7 +5,7 @@ import re
 import sys
 from pathlib import Path
 
-from study.errors import UserError
+from study.common.errors import UserError
 
 STUDY_TOML = '''\
 # A study of pedas-study as plain files (docs/study_folder.md). Edit every value, then run
@@ -159,8 +159,8 @@ def summary(study) -> str:
     parts.append("model: none" if model is None else
                  f"model: {len(model.measurement)} constructs, {len(model.regressions)} regressions, "
                  f"{len(model.hypotheses)} hypotheses")
-    from study.scores import study_scores
-    from study.within_spec import within_spec
+    from study.folder.scores import study_scores
+    from study.folder.within_spec import within_spec
 
     scores = [s.name for s in study_scores(study)]
     if scores:
@@ -173,7 +173,7 @@ def summary(study) -> str:
 
 
 def _new(args) -> None:
-    from study.definition import check
+    from study.folder.definition import check
 
     folder = Path(args.dir)
     if folder.exists() and (not folder.is_dir() or any(folder.iterdir())):
@@ -190,7 +190,7 @@ def _new(args) -> None:
 
 
 def _check(args) -> int:
-    from study.definition import check, load
+    from study.folder.definition import check, load
 
     folder = Path(args.dir)
     problems = check(folder)

@@ -9,7 +9,7 @@ PASSWORD_ENV = "PEDAS_SURVEY_PASSWORD"
 
 
 def _import(args):
-    from study.survey_import import import_survey
+    from study.survey.survey_import import import_survey
 
     with open_store(args) as st:
         r = import_survey(st, args.file, entry=args.entry, instrument=args.instrument, occasion=args.occasion)
@@ -19,7 +19,7 @@ def _import(args):
 
 
 def _link(args):
-    from study import survey as sv
+    from study.survey import answers as sv
 
     with open_store(args) as st:
         token = sv.issue_link(st, args.participant_id, args.instrument, args.occasion)
@@ -27,7 +27,7 @@ def _link(args):
 
 
 def _revoke(args):
-    from study import survey as sv
+    from study.survey import answers as sv
 
     with open_store(args) as st:
         n = sv.revoke_links(st, args.participant_id, args.instrument, args.occasion)
@@ -35,7 +35,7 @@ def _revoke(args):
 
 
 def _status(args):
-    from study import survey as sv
+    from study.survey import answers as sv
 
     with open_store(args, read_only=True) as st:
         df = sv.survey_status(st, args.instrument, args.occasion)
@@ -43,7 +43,7 @@ def _status(args):
 
 
 def _discrepancies(args):
-    from study import survey as sv
+    from study.survey import answers as sv
 
     with open_store(args, read_only=True) as st:
         df = sv.discrepancies(st, args.instrument, args.occasion)
@@ -51,7 +51,7 @@ def _discrepancies(args):
 
 
 def _resolve(args):
-    from study import survey as sv
+    from study.survey import answers as sv
 
     with open_store(args) as st:
         a = sv.resolve(st, args.participant_id, args.item_id, args.value, args.note, args.instrument, args.occasion)
@@ -62,7 +62,7 @@ def _resolve(args):
 def _final(args):
     from pathlib import Path
 
-    from study import survey as sv
+    from study.survey import answers as sv
 
     with open_store(args, read_only=True) as st:
         df = sv.final_responses(st, args.instrument, args.occasion)

@@ -10,6 +10,8 @@
 The app opens the store only while a request uses it, one request at a time, so CLI commands can work on the
 same file between requests (:mod:`study.webapp.context`, docs/store.md); :class:`SurveyServer` runs it on a
 threaded werkzeug server.
+
+The top of study/: it may import every other package of study/ (the console shows and changes all of them).
 """
 from __future__ import annotations
 
@@ -20,7 +22,7 @@ from flask import Flask, current_app, g, jsonify, render_template, request
 from flask.sessions import SecureCookieSessionInterface
 from werkzeug.exceptions import HTTPException
 
-from study.errors import UserError
+from study.common.errors import UserError
 from study.webapp import console, participant, researcher
 from study.webapp.context import install, message, new_state
 from study.webapp.server import SurveyServer, redact
@@ -87,8 +89,8 @@ def create_app(st, researcher_password: str, instrument: str | None = None,
     survey-status, paper-entry and discrepancy pages work on. Requests open the store's file themselves (as `st`'s
     actor); `st` may be closed once the app is made. `signin` = how researcher sign-in is guarded and whether a
     TLS proxy is trusted (default :class:`SignInSettings`). An instrument the form cannot show -> UserError."""
-    from study.studies import definition
-    from study.survey import instrument_of
+    from study.store.studies import definition
+    from study.survey.answers import instrument_of
 
     if not researcher_password:
         raise UserError("a researcher password is required")

@@ -22,10 +22,20 @@ import zipfile
 from datetime import date, datetime, timedelta
 from pathlib import Path
 
-from flask import Blueprint, flash, g, jsonify, redirect, render_template, request, send_file, url_for
+from flask import (
+    Blueprint,
+    flash,
+    g,
+    jsonify,
+    redirect,
+    render_template,
+    request,
+    send_file,
+    url_for,
+)
 from werkzeug.utils import secure_filename
 
-from study.errors import UserError
+from study.common.errors import UserError
 from study.webapp.context import state, store
 from study.webapp.researcher import actor, researcher
 
@@ -100,8 +110,8 @@ def _act(endpoint: str, fn, ok, **values):
 @bp.get("/today")
 @researcher
 def today():
-    from study.participants import list_participants
-    from study.scheduling import DEFAULT_SIMULATOR, day_agenda
+    from study.people.participants import list_participants
+    from study.people.scheduling import DEFAULT_SIMULATOR, day_agenda
 
     day = request.args.get("date") or date.today().isoformat()
     try:
@@ -121,7 +131,8 @@ def today():
 @bp.post("/book")
 @researcher
 def book():
-    from study.scheduling import DEFAULT_SIMULATOR, book as book_slot
+    from study.people.scheduling import DEFAULT_SIMULATOR
+    from study.people.scheduling import book as book_slot
 
     f = request.form
     return _act("console.today", lambda s: book_slot(s, f.get("participant_id", ""), f.get("at", ""),
@@ -134,7 +145,7 @@ def book():
 @bp.post("/appointment")
 @researcher
 def appointment():
-    from study.scheduling import set_status
+    from study.people.scheduling import set_status
 
     f = request.form
     status = f.get("status", "")
@@ -149,7 +160,7 @@ def appointment():
 @researcher
 def calendar():
     """The booked appointments as an iCalendar file for the lab's calendar (`schedule export`)."""
-    from study.scheduling import to_ics
+    from study.people.scheduling import to_ics
 
     with store() as s:
         data = to_ics(s)
@@ -161,8 +172,8 @@ def calendar():
 @bp.get("/participants")
 @researcher
 def participants():
-    from study.participants import list_participants
-    from study.studies import definition
+    from study.people.participants import list_participants
+    from study.store.studies import definition
 
     with store() as s:
         people = list_participants(s)
@@ -175,8 +186,8 @@ def participants():
 @bp.post("/participants")
 @researcher
 def register():
-    from study.participants import add_participant
-    from study.studies import definition
+    from study.people.participants import add_participant
+    from study.store.studies import definition
 
     f = request.form
     pid = f.get("participant_id", "").strip()
@@ -196,10 +207,10 @@ def register():
 @bp.get("/p/<pid>")
 @researcher
 def participant(pid: str):
-    from study.exclusions import REASONS, SCOPES, list_exclusions
-    from study.participants import participant_attributes, require
-    from study.protocol import protocol_of, status
-    from study.studies import definition
+    from study.people.exclusions import REASONS, SCOPES, list_exclusions
+    from study.people.participants import participant_attributes, require
+    from study.people.protocol import protocol_of, status
+    from study.store.studies import definition
     from study.webapp.occasion_rows import participant_occasions
 
     ins = state()["instrument"].name
@@ -234,7 +245,7 @@ def participant(pid: str):
 @researcher
 def start(pid: str):
     """Start the phase named in the form at the server's time (never a typed time); it completes the current one."""
-    from study.protocol import advance
+    from study.people.protocol import advance
 
     phase = request.form.get("phase", "")
     return _act("console.participant", lambda s: advance(s, pid, phase, note=request.form.get("note") or None),
@@ -245,7 +256,7 @@ def start(pid: str):
 @bp.post("/p/<pid>/end")
 @researcher
 def end(pid: str):
-    from study.protocol import complete
+    from study.people.protocol import complete
 
     return _act("console.participant", lambda s: complete(s, pid, note=request.form.get("note") or None),
                 lambda r: f"{pid}: {r} completed", pid=pid)
@@ -254,7 +265,7 @@ def end(pid: str):
 @bp.post("/p/<pid>/abort")
 @researcher
 def abort_phase(pid: str):
-    from study.protocol import abort
+    from study.people.protocol import abort
 
     reason = request.form.get("reason", "")
     return _act("console.participant", lambda s: abort(s, pid, reason), lambda r: f"{pid}: {r} aborted ({reason})",
@@ -264,7 +275,7 @@ def abort_phase(pid: str):
 @bp.post("/p/<pid>/exclude")
 @researcher
 def exclude(pid: str):
-    from study.exclusions import exclude as record
+    from study.people.exclusions import exclude as record
 
     f = request.form
     return _act("console.participant",
@@ -275,7 +286,7 @@ def exclude(pid: str):
 @bp.post("/p/<pid>/exclude/revoke")
 @researcher
 def unexclude(pid: str):
-    from study.exclusions import revoke
+    from study.people.exclusions import revoke
 
     scope = request.form.get("scope", "")
     return _act("console.participant", lambda s: revoke(s, pid, scope), lambda r: f"{pid}: exclusion ({scope}) revoked",
@@ -285,8 +296,8 @@ def unexclude(pid: str):
 @bp.post("/p/<pid>/link/revoke")
 @researcher
 def revoke_link(pid: str):
-    from study import survey as sv
-    from study.studies import definition
+    from study.store.studies import definition
+    from study.survey import answers as sv
     from study.webapp.occasion_rows import occasion_field
 
     def revoke(s):
@@ -305,7 +316,7 @@ def upload_drive(pid: str):
     log mapping, plausibility checks, `force` with a reason, `replace`). Memory stays small for a large log: the web
     server spools the body to disk beyond 500 KB, it is copied to a temporary file, and a canonical CSV or Parquet
     log is imported from there in chunks (docs/store.md, "Drive logs")."""
-    from study.drives import import_drive_file
+    from study.logs.importing import import_drive_file
 
     f = request.form
     upload = request.files.get("file")
@@ -334,7 +345,7 @@ def upload_drive(pid: str):
 @bp.get("/completeness")
 @researcher
 def completeness():
-    from study.completeness import completeness as table
+    from study.survey.completeness import completeness as table
 
     with store() as s:
         df = table(s, state()["instrument"].name)
@@ -352,8 +363,8 @@ def export_form():
 @researcher
 def export():
     """Every table as `export` writes it (csv | parquet | sav, optionally de-identified), as one ZIP download."""
-    from study.export import export as write
-    from study.studies import definition
+    from study.export.writer import export as write
+    from study.store.studies import definition
 
     fmt, deid = request.form.get("format", ""), bool(request.form.get("deidentify"))
     buf = io.BytesIO()

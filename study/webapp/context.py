@@ -7,8 +7,8 @@ from typing import Iterator
 
 from flask import abort, current_app, render_template
 
-from study import survey as sv
-from study.store import Store, StoreBusy, StoreHolder
+from study.store.store import Store, StoreBusy, StoreHolder
+from study.survey import answers as sv
 
 BUSY = "The study store is busy (a command is using it). Please try again in a moment."
 

@@ -1,6 +1,6 @@
 """The questionnaire occasions as the web pages show them (docs/console.md, "Occasions").
 
-An occasion is a questionnaire phase of the protocol (:mod:`study.occasions`); a within-subjects study answers the same
+An occasion is a questionnaire phase of the protocol (:mod:`study.folder.occasions`); a within-subjects study answers the same
 instrument after each drive. The console lists a participant's occasions, one row each, with the condition the
 occasion rates and how far its answers are; the participant's form names the drive it rates. A request names an
 occasion by its phase name (form or query field ``occasion``), checked here against the study's occasions before any
@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import re
 
-from study.errors import UserError
+from study.common.errors import UserError
 
 #: the status of one occasion's answers, from the first that holds: final, submitted (stored, not yet final: a paper
 #: form awaiting its second entry or a resolution), draft (web answers saved, not submitted), link issued, not started
@@ -21,7 +21,7 @@ _PLAIN = re.compile(r"[A-Za-z0-9_.-]{1,64}")   # a phase name a message may quot
 def occasion_field(study, value) -> str | None:
     """The occasion a request names in `value` (None or '' = none named) when it is one of `study`'s questionnaire
     phases; anything else -> UserError listing them (quoting `value` only when it is a short plain name)."""
-    from study.occasions import study_occasions
+    from study.folder.occasions import study_occasions
 
     if value is None or value == "":
         return None
@@ -44,7 +44,7 @@ def condition_label(study, condition: str | None) -> str | None:
 
 def rated_label(study, occasion: str | None) -> str | None:
     """The label of the condition the occasion `occasion` rates, None when it rates none (or is unknown)."""
-    from study.occasions import study_occasions
+    from study.folder.occasions import study_occasions
 
     for o in study_occasions(study):
         if o.name == occasion:
@@ -53,7 +53,7 @@ def rated_label(study, occasion: str | None) -> str | None:
 
 
 def status_word(row: dict) -> str:
-    """One of :data:`STATUSES` for a row of :func:`study.survey.survey_status`."""
+    """One of :data:`STATUSES` for a row of :func:`study.survey.answers.survey_status`."""
     if row["final"]:
         return "final"
     if row["entry_1"]:
@@ -70,10 +70,10 @@ def participant_occasions(st, study, instrument: str, participant_id: str, proto
     participant's order (every occasion of the study when the protocol has none of them): occasion, instrument,
     served (whether it is `instrument`, the one the app's paper-entry pages work on), rates, label (the rated
     condition's), outcome (of the phase: pending, in_progress, completed, ...), status (:func:`status_word`) and
-    the fields of the participant's :func:`study.survey.survey_status` row of that occasion (link, draft_items,
+    the fields of the participant's :func:`study.survey.answers.survey_status` row of that occasion (link, draft_items,
     entry_1, entry_2, basis, final, ...)."""
-    from study import survey as sv
-    from study.occasions import base_name, study_occasions
+    from study.folder.occasions import base_name, study_occasions
+    from study.survey import answers as sv
 
     mine = {o.name: o for o in study_occasions(study)}
     order = [p.name for p in proto.steps if p.name in mine] or list(mine)

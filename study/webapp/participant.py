@@ -9,10 +9,10 @@ from __future__ import annotations
 
 from flask import Blueprint, jsonify, redirect, render_template, request, url_for
 
-from study import survey as sv
-from study.audit_trail import utcnow
-from study.errors import UserError
-from study.instrument import Answer
+from study.common.errors import UserError
+from study.folder.instrument import Answer
+from study.store.audit_trail import utcnow
+from study.survey import answers as sv
 from study.webapp.context import message, state, store
 from study.webapp.widgets import check_renderable
 

@@ -12,11 +12,22 @@ import re
 import secrets
 from functools import wraps
 
-from flask import Blueprint, abort, current_app, flash, g, redirect, render_template, request, session, url_for
+from flask import (
+    Blueprint,
+    abort,
+    current_app,
+    flash,
+    g,
+    redirect,
+    render_template,
+    request,
+    session,
+    url_for,
+)
 from markupsafe import Markup
 
-from study import survey as sv
-from study.errors import UserError
+from study.common.errors import UserError
+from study.survey import answers as sv
 from study.webapp.context import message, state, store
 from study.webapp.signin import WrongPassword
 
@@ -157,8 +168,8 @@ def link():
     """A new link of one participant for one questionnaire: the form's ``occasion`` (a questionnaire phase), by
     default the instrument's only occasion or the questionnaire phase the participant is in; earlier links of the
     same occasion stop working (`survey link`)."""
-    from study.occasions import study_occasions
-    from study.studies import definition
+    from study.folder.occasions import study_occasions
+    from study.store.studies import definition
     from study.webapp.occasion_rows import occasion_field, rated_label
 
     pid = request.form.get("participant_id", "").strip()
@@ -189,7 +200,7 @@ def qr_svg(text: str) -> Markup:
 def entry(pid: str, entry_round: int):
     """One entry round of a paper form; ``?occasion=PHASE`` names the questionnaire phase it was filled in (the
     form posts back to the same address, so both the page and the save carry it)."""
-    from study.studies import definition
+    from study.store.studies import definition
     from study.webapp.occasion_rows import occasion_field, rated_label
 
     if entry_round not in (1, 2):
@@ -229,7 +240,7 @@ def discrepancies():
 @bp.post("/resolve")
 @researcher
 def resolve():
-    from study.studies import definition
+    from study.store.studies import definition
     from study.webapp.occasion_rows import occasion_field
 
     pid, item = request.form.get("participant_id", ""), request.form.get("item_id", "")

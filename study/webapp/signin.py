@@ -15,7 +15,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Callable
 
-from study.errors import UserError
+from study.common.errors import UserError
 
 MIN_NEW_PASSWORD = 10  # characters of a password set on the console
 MAX_KEYS = 10_000      # failure records kept before stale ones are dropped

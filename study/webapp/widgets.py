@@ -1,8 +1,8 @@
 """Which form widget shows a codebook response type, and the check that an instrument can be shown at all."""
 from __future__ import annotations
 
-from study.errors import UserError
-from study.instrument import is_scaled
+from study.common.errors import UserError
+from study.folder.instrument import is_scaled
 
 
 def widget(response_type: str) -> str:

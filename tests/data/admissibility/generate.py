@@ -1,4 +1,4 @@
-"""Write the two small improper-solution data sets of tests/test_admissibility.py (README.md beside this file).
+"""Write the two small improper-solution data sets of tests/analysis/test_admissibility.py (README.md beside this file).
 
     .venv/bin/python tests/data/admissibility/generate.py
 

@@ -1,4 +1,4 @@
-# Reference values for tests/test_admissibility.py: what lavaan 0.6-14 says about the two improper-solution data
+# Reference values for tests/analysis/test_admissibility.py: what lavaan 0.6-14 says about the two improper-solution data
 # sets beside this script (generate.py), written to lavaan_reference.csv (columns dataset, quantity, key, value,
 # text; 17 significant digits).
 #

@@ -1,4 +1,4 @@
-# Reference values for tests/test_lavaan_reference.py: the lane-keeping example study analysed with lavaan (CFA)
+# Reference values for tests/analysis/test_lavaan_reference.py: the lane-keeping example study analysed with lavaan (CFA)
 # and lm() (hierarchical regressions), written to lavaan_reference.json beside this script.
 #
 #   Rscript tests/data/lane_keeping/lavaan_reference.R      (from the repository root; needs R and lavaan)

@@ -1,4 +1,4 @@
-# Reference values for tests/test_extended_reference.py: the extended acceptance statistics (analysis/extended.py)
+# Reference values for tests/analysis/test_extended_reference.py: the extended acceptance statistics (analysis/extended.py)
 # computed with lavaan, semTools and base R, written to extended_reference.csv beside this script
 # (columns dataset, quantity, key, value; 17 significant digits).
 #
@@ -9,7 +9,7 @@
 #          reconstruction of commit e1d8ecb wrote it; the shipped reference data has since been regenerated);
 # * lk:    tests/data/lane_keeping/survey.csv (24 synthetic respondents; EE3 reversed x -> 8 - x; AGE as covariate);
 # * inv:   invariance_survey.csv beside this script (240 synthetic respondents of the paper's study with a style
-#          column; written by tests/test_extended_reference.py).
+#          column; written by tests/analysis/test_extended_reference.py).
 # The measurement model is the `=~` lines of the study's model.lav; the latent SEM and the composite path model are
 # the *_sem.lav and *_paths.lav files beside this script (written by analysis.extended from the model file, and
 # compared with it by the test).

@@ -1,4 +1,4 @@
-# Reference values for tests/test_sample_size.py, written to power_reference.csv beside this script
+# Reference values for tests/analysis/test_sample_size.py, written to power_reference.csv beside this script
 # (columns quantity, a, b, c, value; 15 significant digits, as write.csv writes them).
 #
 #   Rscript tests/data/r_reference_power/power_reference.R      (from the repository root; needs pwr)

@@ -1,4 +1,4 @@
-# Reference values for tests/test_within.py: the within-subjects comparisons of the synthetic takeover-warning study
+# Reference values for tests/analysis/test_within.py: the within-subjects comparisons of the synthetic takeover-warning study
 # (items.csv beside this script), written to within_reference.json beside this script.
 #
 #   Rscript tests/data/takeover/within_reference.R      (from anywhere; needs R, lme4 and afex)

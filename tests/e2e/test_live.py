@@ -1,0 +1,313 @@
+"""Live advice (pedas.live, pedas.live_protocol, study.logs.live_log): the protocol with hand-made messages, the
+advice equal to the in-process controller's for the same inputs, the drive log in a real store (complete after
+bye, kept and marked incomplete when the server is killed), UDP, the HUD page in headless Chromium, and a virtual
+participant driving in SUMO through the socket (slow)."""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import signal
+import socket
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from pedas.live import LiveRoute, LiveSession
+from pedas.live_protocol import ProtocolError, decode, parse_state
+from tests.conftest import OUTPUT, REPO, needs_chromium
+
+
+
+@pytest.fixture(scope="module")
+def live():
+    return LiveRoute.load("synthetic-mixed")
+
+
+def states(n: int, t0: float = 0.0, v: float = 10.0, dt: float = 0.2):
+    """A car at constant speed v (m/s) from s = 5 m, one state every dt s; a leader 40 m ahead from the 10th on."""
+    for k in range(n):
+        yield {"type": "state", "seq": k, "t": t0 + k * dt, "s": 5.0 + v * k * dt, "v": v,
+               "leader": {"gap": 40.0, "v": 9.0} if k >= 10 else None}
+
+
+def test_protocol_messages():
+    st = parse_state(decode('{"type":"state","seq":3,"t":1.5,"s":20,"v":12.5,"leader":{"gap":30,"v":11},'
+                            '"spat":{"id":"tl1","state":"red","remaining":4}}'))
+    assert (st.seq, st.t, st.s, st.v, st.leader, st.spat) == (3, 1.5, 20.0, 12.5, (30.0, 11.0), ("tl1", "red", 4.0))
+    assert parse_state({"type": "state", "t": 0, "s": 0, "v": 0}).leader is None
+    for bad, says in [("[1]", "type hello|state|bye"), ("{", "not JSON"), ('{"type":"go"}', "type"),
+                      ('{"type":"state","t":1,"s":2,"v":-1}', "'v' must be a finite number >= 0"),
+                      ('{"type":"state","t":1,"s":2}', "'v'"),
+                      ('{"type":"state","t":1,"s":2,"v":1,"leader":{"gap":-2,"v":1}}', "'gap'"),
+                      ('{"type":"state","t":1,"s":2,"v":1,"spat":{"id":"a","state":"blue"}}', "'spat'"),
+                      ('{"type":"state","seq":"x","t":1,"s":2,"v":1}', "'seq'")]:
+        with pytest.raises(ProtocolError, match=says.replace("|", r"\|").replace("(", r"\(")):
+            parse_state(decode(bad))
+
+
+def test_session_advice_equals_the_in_process_controller(live):
+    """Every reply carries exactly the advice PedasController gives for the same inputs; a bad message in between
+    is answered with an error and changes nothing."""
+    from pedas.controller import PedasController
+    from pedas.hud_frame import hud_frame
+    from pedas.live_protocol import ADVICE_FIELDS
+
+    session = LiveSession(live)
+    ready = json.loads(session.handle('{"type":"hello"}'))
+    assert ready == {"type": "ready", "route": "synthetic-mixed", "length_m": 13200.0, "logging": False,
+                     "pair": session.pair}
+    assert len(session.pair) == 8 and set(session.pair) <= set("23456789ABCDEFGHJKLMNPQRSTUVWXYZ")
+    ref = PedasController(live.route, v_dp=live.v_dp)
+    for k, msg in enumerate(states(150)):
+        if k == 50:
+            err = json.loads(session.handle('{"type":"state","seq":50,"t":"soon","s":1,"v":1}'))
+            assert err == {"type": "error", "seq": 50, "error": "'t' must be a finite number, got 'soon'"}
+        reply = json.loads(session.handle(json.dumps(msg)))
+        lead = (msg["leader"]["gap"], msg["leader"]["v"]) if msg["leader"] else None
+        want = ref.step(msg["t"], msg["s"], msg["v"], lead)
+        assert reply["seq"] == k and reply["advice"] == {f: getattr(want, f) for f in ADVICE_FIELDS}
+        assert reply["hud"] == hud_frame(msg["v"], want).as_dict() and reply["spat_ok"] is None
+    assert json.loads(session.handle('{"type":"bye"}')) == {"type": "done", "samples": 150, "drive_id": None}
+    # hello restarts the controller: the same inputs give the first answers again
+    session.handle('{"type":"hello"}')
+    first = next(states(1))
+    again = PedasController(live.route, v_dp=live.v_dp).step(first["t"], first["s"], first["v"], None)
+    assert json.loads(session.handle(json.dumps(first)))["advice"]["v_advice"] == again.v_advice
+
+
+def test_spat_checked_against_the_route_program(live):
+    session = LiveSession(live)
+    session.handle('{"type":"hello"}')
+    assert not live.route.lights   # the synthetic route has no lights: any SPaT is inconsistent with it
+    r = json.loads(session.handle('{"type":"state","t":0,"s":5,"v":10,"spat":{"id":"x","state":"red"}}'))
+    assert r["spat_ok"] is False
+    assert json.loads(session.handle('{"type":"hello","participant":"P1"}'))["error"].startswith("this server logs")
+
+
+# ---------------------------------------------------------------------------------------------- the drive log
+def test_drive_log_complete_after_bye(paper_db, live):
+    from pedas.hud_frame import HudFrame
+    from pedas.hud_log import channel_values
+    from study.logs.stored import drive_samples
+    from study.logs.importing import import_drive_frame
+    from study.logs.live_log import LIVE_COLUMNS, LiveDriveLog
+    from study.people.participants import add_participant
+    from study.store.store import Store
+
+    with Store.open(paper_db, actor="lab") as st:
+        add_participant(st, "P001")
+        with pytest.raises(ValueError, match="P404"):
+            LiveDriveLog(st, "P404", "pedas", "synthetic-mixed")
+        with pytest.raises(ValueError, match="condition"):
+            LiveDriveLog(st, "P001", "nap", "synthetic-mixed")
+        session = LiveSession(live, lambda p, c: LiveDriveLog(st, p, c, "synthetic-mixed"))
+        assert json.loads(session.handle('{"type":"hello","participant":"P001","condition":"pedas"}'))["logging"]
+        msgs = list(states(60))
+        for msg in msgs[:30]:
+            session.handle(json.dumps(msg))
+        assert session.log.flush() == 30
+        row = st.df("SELECT n_samples, duration_s, meta FROM drives WHERE participant_id = 'P001'").iloc[0]
+        assert row["n_samples"] == 30 and row["duration_s"] == pytest.approx(29 * 0.2)
+        assert json.loads(row["meta"])["live"]["complete"] is False
+        replies = [json.loads(session.handle(json.dumps(msg))) for msg in msgs[30:]]
+        done = json.loads(session.handle('{"type":"bye"}'))
+        assert done["samples"] == 60 and done["drive_id"] is not None
+        d = st.df("SELECT drive_id, n_samples, checksum, meta FROM drives WHERE participant_id = 'P001'").iloc[0]
+        log = drive_samples(st, "P001", "pedas", channels=True)
+        assert d["n_samples"] == 60 and json.loads(d["meta"])["live"]["complete"] is True
+        session_id = json.loads(d["meta"])["live"]["session"]
+        assert d["checksum"] != hashlib.sha256(session_id.encode()).hexdigest()   # the content's, not the placeholder
+        # what the page was sent is what the log stores as the displayed HUD (pedas.hud_log)
+        shown = pd.DataFrame([channel_values(HudFrame(**r["hud"])) for r in replies])
+        pd.testing.assert_frame_equal(log[list(shown.columns)].iloc[30:].reset_index(drop=True), shown,
+                                      check_dtype=False)
+        again = import_drive_frame(st, "P001", "pedas", log[[*LIVE_COLUMNS, *shown.columns]], source="import")
+        assert again.status == "unchanged"                                # the same content stored as an import
+        assert log["t"].iloc[-1] == pytest.approx(59 * 0.2) and (log["v"] == 10.0).all()
+        assert log["leader_gap"].isna().sum() == 10 and (log["controller"].iloc[10:] == "cf").all()
+        # a second session for the same drive is refused unless replacing
+        assert "already has a pedas drive" in json.loads(
+            session.handle('{"type":"hello","participant":"P001","condition":"pedas"}'))["error"]
+        assert set(LIVE_COLUMNS) <= set(log.columns)
+
+
+# ---------------------------------------------------------------------------------------------- the server
+def start_server(db: Path | None, *extra: str):
+    """`live serve` on the synthetic route (unless `extra` names another) as a process; (process, port)."""
+    from pedas_study.bench.live import start_live_server
+
+    route = [] if "--route" in extra else ["--route", "synthetic-mixed"]
+    return start_live_server(db, *route, *extra, cwd=REPO)
+
+
+def test_killed_session_keeps_what_was_logged(paper_db, cli_proc):
+    from websockets.sync.client import connect
+
+    from study.people.participants import add_participant
+    from study.store.store import Store
+
+    with Store.open(paper_db, actor="lab") as st:
+        add_participant(st, "P002")
+    proc, port = start_server(paper_db)
+    try:
+        with connect(f"ws://127.0.0.1:{port}/") as ws:
+            ws.send(json.dumps({"type": "hello", "participant": "P002", "condition": "pedas"}))
+            assert json.loads(ws.recv(timeout=30))["logging"] is True
+            sent = 0
+            t_end = time.monotonic() + 3.5                                   # about three flushes
+            for msg in states(100_000, dt=0.02, v=12.0):
+                ws.send(json.dumps(msg))
+                assert json.loads(ws.recv(timeout=30))["type"] == "advice"
+                sent += 1
+                time.sleep(0.01)
+                if time.monotonic() > t_end:
+                    break
+            # the session is still open: the server holds the store only while a flush writes
+            r = cli_proc("participant", "list", db=paper_db, timeout=120)
+            assert r.code == 0 and "P002" in r.out, r.err
+            os.kill(proc.pid, signal.SIGKILL)                                # no bye, no clean shutdown
+            proc.wait(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    with Store.open(paper_db, actor="lab", read_only=True) as st:
+        d = st.df("SELECT drive_id, n_samples, duration_s, meta FROM drives WHERE participant_id = 'P002'").iloc[0]
+        n = st.one("SELECT count(*) FROM drive_samples WHERE drive_id = ?", [int(d["drive_id"])])
+        t = st.df("SELECT t FROM drive_samples WHERE drive_id = ? ORDER BY idx", [int(d["drive_id"])])["t"]
+    meta = json.loads(d["meta"])["live"]
+    assert meta["complete"] is False
+    assert 0 < n == d["n_samples"] <= sent and n >= sent - 3 * 100          # at most ~1 s (+ margin) lost
+    assert np.allclose(np.diff(t.to_numpy()), 0.02) and d["duration_s"] == pytest.approx(t.iloc[-1])
+    (OUTPUT / "live").mkdir(parents=True, exist_ok=True)
+    (OUTPUT / "live" / "killed_session.json").write_text(json.dumps(
+        {"sent": sent, "kept": int(n), "duration_s": float(d["duration_s"]), "meta": meta}, indent=1))
+
+
+def test_udp_and_the_hud_page_feed(cli_proc):
+    """A simulator speaking UDP gets the advice; the feed of the HUD page paired with its session gets each frame;
+    a second server on the same port and a client without a server are one-line errors."""
+    from websockets.sync.client import connect
+
+    proc, port = start_server(None)
+    try:
+        r = cli_proc("live", "serve", "--no-log", "--route", "synthetic-mixed", "--port", port, db=None, timeout=120)
+        assert r.code == 2 and r.err.count("\n") == 1 and f"cannot listen on 127.0.0.1:{port}" in r.err
+        udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        udp.settimeout(30)
+        udp.sendto(b'{"type":"hello"}', ("127.0.0.1", port))
+        ready = json.loads(udp.recv(65536))
+        assert ready["type"] == "ready"
+        with connect(f"ws://127.0.0.1:{port}/display?pair={ready['pair']}") as display:
+            for msg in states(5):
+                udp.sendto(json.dumps(msg).encode(), ("127.0.0.1", port))
+                reply = json.loads(udp.recv(65536))
+                assert reply["type"] == "advice" and reply["seq"] == msg["seq"]
+                shown = json.loads(display.recv(timeout=30))
+                assert shown["seq"] == msg["seq"] and shown["hud"] == reply["hud"]
+            udp.sendto(b'{"type":"state"}', ("127.0.0.1", port))
+            assert json.loads(udp.recv(65536))["error"].startswith("'t' must be")
+    finally:
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=30)
+
+
+def test_udp_session_logs_a_complete_drive(paper_db):
+    from study.people.participants import add_participant
+    from study.store.store import Store
+
+    with Store.open(paper_db, actor="lab") as st:
+        add_participant(st, "P003")
+    proc, port = start_server(paper_db)
+    try:
+        udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        udp.settimeout(60)
+        udp.sendto(b'{"type":"hello","participant":"P003","condition":"pedas"}', ("127.0.0.1", port))
+        assert json.loads(udp.recv(65536))["logging"] is True
+        for msg in states(40):
+            udp.sendto(json.dumps(msg).encode(), ("127.0.0.1", port))
+            assert json.loads(udp.recv(65536))["seq"] == msg["seq"]
+        udp.sendto(b'{"type":"bye"}', ("127.0.0.1", port))
+        done = json.loads(udp.recv(65536))
+    finally:
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=60)
+    assert done["type"] == "done" and done["samples"] == 40
+    with Store.open(paper_db, actor="lab", read_only=True) as st:
+        d = st.df("SELECT drive_id, n_samples, meta FROM drives WHERE participant_id = 'P003'").iloc[0]
+    assert int(d["drive_id"]) == done["drive_id"] and d["n_samples"] == 40
+    assert json.loads(d["meta"])["live"]["complete"] is True
+
+
+@pytest.mark.browser
+@needs_chromium
+def test_hud_page_in_chromium_follows_the_advice():
+    """The server's full-screen HUD page (/?pair=CODE, the code of the simulator's session) draws each frame the
+    simulator's states produce."""
+    from playwright.sync_api import expect, sync_playwright
+    from websockets.sync.client import connect
+
+    from pedas.hud_png import launch
+
+    proc, port = start_server(None)
+    try:
+        with sync_playwright() as p:
+            b = launch(p)
+            page = b.new_page(viewport={"width": 960, "height": 540})
+            with connect(f"ws://127.0.0.1:{port}/") as ws:
+                ws.send('{"type":"hello"}')
+                code = json.loads(ws.recv(timeout=30))["pair"]
+                page.goto(f"http://127.0.0.1:{port}/?pair={code}")
+                expect(page.locator("#state")).to_have_text("live", timeout=30_000)
+                for msg in states(3, v=13.0):
+                    ws.send(json.dumps(msg))
+                    reply = json.loads(ws.recv(timeout=30))
+            expect(page.locator("#hud")).to_have_attribute("data-seq", "2", timeout=30_000)
+            assert page.locator("#hud").get_attribute("data-speed") == str(reply["hud"]["speed"]) == "47"
+            (OUTPUT / "live").mkdir(parents=True, exist_ok=True)
+            page.screenshot(path=str(OUTPUT / "live" / "hud_page.png"))
+            # without a code the page asks for one; with a code no session has it says so and stays unpaired
+            page.goto(f"http://127.0.0.1:{port}/")
+            expect(page.locator("#state")).to_have_text("not paired", timeout=30_000)
+            expect(page.locator("#pair input[name=pair]")).to_be_visible()
+            page.screenshot(path=str(OUTPUT / "live" / "hud_page_unpaired.png"))
+            page.goto(f"http://127.0.0.1:{port}/?pair=AAAAAAAA")
+            expect(page.locator("#state")).to_contain_text("unknown pairing code 'AAAAAAAA'", timeout=30_000)
+            b.close()
+    finally:
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=30)
+
+
+@pytest.mark.slow
+@pytest.mark.sumo
+def test_virtual_participant_drives_through_the_socket(cli_proc):
+    """The reference client: a whole pEDAS drive in SUMO with every advice from the server, identical to the
+    in-process drive with the same seeds."""
+    proc, port = start_server(None, "--route", "study")
+    try:
+        r = cli_proc("live", "drive", "--url", f"ws://127.0.0.1:{port}/", "--seed", "3", "--compare", db=None)
+    finally:
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=30)
+    assert r.code == 0, r.err
+    assert "identical log" in r.out and "round trip median" in r.out
+    r = cli_proc("live", "drive", "--url", f"ws://127.0.0.1:{port}/", db=None)   # the server is gone
+    assert r.code == 2 and r.err.count("\n") == 1 and "Connection refused" in r.err
+
+
+@pytest.mark.slow
+@pytest.mark.sumo
+def test_bench_live_through_the_cli(cli_proc):
+    """`bench live` on a few messages: latencies measured, the advice equal to the in-process controller's, every
+    state logged (timing is reported, never asserted)."""
+    r = cli_proc("bench", "live", "--messages", "60", "--rate", "100", "--json", db=None)
+    assert r.code == 0, r.err
+    res = json.loads(r.out)
+    assert res["messages"] == 60 and res["mismatches"] == 0 and res["logged_samples"] == 60
+    assert 0 < res["median_ms"] <= res["p99_ms"] <= res["max_ms"]
+    r = cli_proc("bench", "live", "--messages", "0", db=None)
+    assert r.code == 2 and "--messages" in r.err

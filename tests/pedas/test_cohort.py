@@ -1,0 +1,155 @@
+"""Cohort simulation: worker processes, Dask distributed, the input-hash cache, and the CLI commands."""
+from __future__ import annotations
+
+import pandas as pd
+import pytest
+
+from pedas.cohort import DriveTask, cohort_tasks, load_cached, participant_seed, simulate_cohort, task_key
+from tests.conftest import PAPER_STUDY
+
+pytestmark = pytest.mark.sumo
+
+
+@pytest.fixture(scope="module")
+def cache(tmp_path_factory):
+    return tmp_path_factory.mktemp("drive-cache")
+
+
+def test_task_keys_and_seeds_are_stable():
+    t = DriveTask("P001", 5, "normal", "pedas")
+    assert task_key(t) == task_key(DriveTask("P009", 5, "normal", "pedas"))  # the person, not the label
+    assert len({task_key(t), task_key(DriveTask("P001", 6, "normal", "pedas")),
+                task_key(DriveTask("P001", 5, "sporty", "pedas")),
+                task_key(DriveTask("P001", 5, "normal", "baseline")),
+                task_key(DriveTask("P001", 5, "normal", "pedas", scenario="single-lane"))}) == 5
+    assert participant_seed("P001", 0) == participant_seed("P001", 0) != participant_seed("P001", 1)
+    tasks = cohort_tasks(pd.DataFrame({"participant_id": ["P001", "P002"], "style": ["sporty", None]}))
+    assert [(x.participant_id, x.condition, x.style) for x in tasks] == [
+        ("P001", "baseline", "sporty"), ("P001", "pedas", "sporty"),
+        ("P002", "baseline", "normal"), ("P002", "pedas", "normal")]
+    assert tasks[0].seed == tasks[1].seed  # the same person drives both conditions
+
+
+# the baseline drives of the CLI test's participants (P001 sporty, P002 cautious, cohort seed 0): simulated here
+# once, then reused from the cache by the other tests
+POOL_TASKS = [DriveTask("P001", participant_seed("P001", 0), "sporty", "baseline"),
+              DriveTask("P002", participant_seed("P002", 0), "cautious", "baseline")]
+
+
+def test_process_pool_then_cached_rerun_starts_no_worker(cache, monkeypatch):
+    tasks = POOL_TASKS
+    first = simulate_cohort(tasks, workers=2, cache_dir=cache, progress=False)
+    assert set(first) == {("P001", "baseline"), ("P002", "baseline")}
+    assert all(load_cached(t, cache) is not None for t in tasks)
+
+    import pedas.cohort as cohort
+
+    def no_pool(*a, **k):
+        raise AssertionError("a worker pool was started although everything is cached")
+
+    monkeypatch.setattr(cohort, "ProcessPoolExecutor", no_pool)
+    again = simulate_cohort(tasks, workers=2, cache_dir=cache, progress=False)
+    for key in first:
+        pd.testing.assert_frame_equal(first[key], again[key])
+
+
+def test_dask_local_cluster_gives_the_same_drives(cache, tmp_path):
+    from distributed import Client, LocalCluster
+
+    tasks = POOL_TASKS
+    pooled = simulate_cohort(tasks, workers=2, cache_dir=cache, progress=False)  # cached by the test above
+    with LocalCluster(n_workers=2, threads_per_worker=2, processes=True, dashboard_address=None) as lc, \
+            Client(lc) as client:
+        on_dask = simulate_cohort(tasks, client=client, cache_dir=tmp_path / "dask-cache", progress=False)
+    for key in pooled:
+        pd.testing.assert_frame_equal(pooled[key].reset_index(drop=True), on_dask[key].reset_index(drop=True))
+
+
+# ------------------------------------------------------------------------------------------------ the CLI
+def _people(cli):
+    assert cli("init", "--study", PAPER_STUDY).code == 0
+    assert cli("participant", "add", "P001", "--style", "sporty").code == 0
+    assert cli("participant", "add", "P002", "--style", "cautious").code == 0
+    assert cli("participant", "add", "P003", "--style", "normal").code == 0
+    r = cli("exclude", "P003", "--scope", "objective", "--reason", "technical_issue")
+    assert r.code == 0, r.err
+
+
+def test_cli_simulate_cohort_stores_drives_and_reruns_unchanged(cli, tmp_db, cache):
+    _people(cli)
+    r = cli("simulate", "cohort", "--workers", "2", "--no-progress", "--cache-dir", str(cache))
+    assert r.code == 0, r.err
+    assert "4 drives of 2 participants (4 stored, 0 unchanged)" in r.out
+    from study.store.store import Store
+
+    with Store.open(tmp_db, read_only=True) as st:
+        drives = st.df("SELECT participant_id, condition, source, n_samples, seed FROM drives ORDER BY 1, 2")
+        n = st.df("SELECT count(*) AS n FROM drive_samples")["n"][0]
+    assert drives[["participant_id", "condition"]].values.tolist() == [
+        ["P001", "baseline"], ["P001", "pedas"], ["P002", "baseline"], ["P002", "pedas"]]
+    assert (drives["source"] == "simulation").all() and n == drives["n_samples"].sum()
+    assert drives.groupby("participant_id")["seed"].nunique().eq(1).all()  # same person in both conditions
+    again = cli("simulate", "cohort", "--workers", "2", "--no-progress", "--cache-dir", str(cache))
+    assert again.code == 0 and "(0 stored, 4 unchanged)" in again.out
+    one = cli("drive", "simulate", "P001", "pedas", "--cache-dir", str(cache))
+    assert one.code == 0 and "unchanged" in one.out
+
+
+def test_cli_bad_input_leaves_the_store_unchanged(cli, tmp_db, cache):
+    _people(cli)
+    r = cli("drive", "simulate", "P999", "baseline", "--cache-dir", str(cache))
+    assert r.code == 2 and r.err.count("\n") == 1 and "P999" in r.err
+    r = cli("simulate", "cohort", "--workers", "0", "--cache-dir", str(cache))
+    assert r.code == 2 and "--workers" in r.err
+    r = cli("drive", "simulate", "P001", "sideways")
+    assert r.code == 2
+    r = cli("simulate", "cohort", "--scenario", "autobahn", "--cache-dir", str(cache))
+    assert r.code == 2 and r.err.count("\n") == 1 and "autobahn" in r.err and "motorway" in r.err
+    from study.store.store import Store
+
+    with Store.open(tmp_db, read_only=True) as st:
+        assert st.df("SELECT count(*) AS n FROM drives")["n"][0] == 0
+
+
+def test_cli_simulate_cohort_without_participants(cli, cache):
+    assert cli("init", "--study", PAPER_STUDY).code == 0
+    r = cli("simulate", "cohort", "--cache-dir", str(cache))
+    assert r.code == 2 and "no participants" in r.err
+
+
+def test_cli_simulate_cohort_on_a_dask_scheduler(cli, tmp_db, tmp_path, cache):
+    """`simulate cohort --scheduler ADDRESS` runs the drives on the cluster; the stored drives equal the pool's."""
+    from distributed import LocalCluster
+
+    assert cli("init", "--study", PAPER_STUDY).code == 0
+    assert cli("participant", "add", "P002", "--style", "cautious").code == 0
+    with LocalCluster(n_workers=1, threads_per_worker=2, processes=True, dashboard_address=None) as lc:
+        r = cli("simulate", "cohort", "--scheduler", lc.scheduler_address, "--no-progress",
+                "--cache-dir", str(tmp_path / "fresh"))
+    assert r.code == 0, r.err
+    assert "2 drives of 1 participant (2 stored, 0 unchanged)" in r.out
+    pooled = load_cached(POOL_TASKS[1], cache)  # P002's baseline drive from the process-pool test
+    if pooled is not None:
+        from study.store.store import Store
+
+        with Store.open(tmp_db, read_only=True) as st:
+            n = st.df("SELECT n_samples FROM drives WHERE participant_id = 'P002' AND condition = 'baseline'")
+        assert n["n_samples"][0] == len(pooled)
+
+
+def test_a_failed_drive_is_recorded_when_asked_and_raised_otherwise():
+    from pedas.cohort import _collect
+    from pedas.drive import SafetyViolation
+
+    task = DriveTask("P001", 5, "normal", "baseline")
+
+    def boom():
+        raise SafetyViolation("red light TL4 crossed", "red_light")
+
+    out, failures = {}, []
+    _collect(task, boom, out, failures)
+    assert out == {} and failures[0][0] == task and failures[0][1].kind == "red_light"
+    with pytest.raises(SafetyViolation, match="TL4"):
+        _collect(task, boom, out, None)
+    _collect(task, lambda: (task, "log"), out, failures)
+    assert out == {("P001", "baseline"): "log"} and len(failures) == 1
