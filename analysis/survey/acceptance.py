@@ -381,7 +381,7 @@ def survey_plan(study, instrument, model) -> SurveyPlan:
     >>> from pedas.paths import REPO_ROOT
     >>> from study.folder.definition import load
     >>> study = load(REPO_ROOT / "studies" / "lane_keeping")
-    >>> plan = survey_plan(study, study.folder.instrument(), study.model)
+    >>> plan = survey_plan(study, study.instrument(), study.model)
     >>> plan.dropped, plan.covariates, plan.rules
     ([], ['age'], {'min_loading': 0.7, 'cross_margin': 0.0})
     >>> [(m.name, m.dv, m.steps) for m in plan.models]

@@ -88,7 +88,7 @@ def score_responses(responses: pd.DataFrame, instrument: Instrument, *, listwise
     >>> from pedas.paths import REPO_ROOT
     >>> from study.folder.definition import load
     >>> study = load(REPO_ROOT / "studies" / "lane_keeping")
-    >>> s = score_responses(simulate_study_responses(study, 24, seed=1), study.folder.instrument())
+    >>> s = score_responses(simulate_study_responses(study, 24, seed=1), study.instrument())
     >>> s.n, s.reverse_items, list(s.constructs)
     (24, ['EE3'], ['PE', 'EE', 'SI', 'BI'])
     >>> bool(((s.raw["EE3"] + s.scored["EE3"]) == 8).all())

@@ -23,7 +23,7 @@ from pedas.paths import REPO_ROOT
 
 STUDY = REPO_ROOT / "studies" / "pedas_paper"
 ANSWERS = REPO_ROOT / "data" / "reference" / "survey.csv"
-#: command -> the target median (s) of the issue that asked for this bench; None: no target
+#: command -> its target median (s) (docs/store.md, "CLI"); None: no target
 TARGETS = {"--help": 0.15, "participant list": 0.5, "participant add": 0.5, "session advance": 0.5,
            "drive import (9,000 samples)": None, "participant import (24 rows)": 1.0, "plan power": 5.0,
            "analyze survey --extended": 5.0, "analyze survey; analyze extended": None}

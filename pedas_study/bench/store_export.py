@@ -31,7 +31,7 @@ from pathlib import Path
 SAMPLES = 10_000_000
 LOG_ROWS = 5_000_000
 PER_DRIVE = 500_000
-#: targets of the issue "Every command answers at once"
+#: the export and import targets (docs/store.md, "Drive logs")
 TARGET_PARQUET_S = 10.0
 TARGET_PARQUET_PEAK_MB = 1024.0
 TARGET_IMPORT_GROWTH_MB = 300.0

@@ -1,6 +1,6 @@
 """A priori power (analysis.survey.sample_size, `pedas-study plan power`): the analytic cases against R (pwr.f2.test and
 the noncentral chi-square of MacCallum et al. 1996, committed in tests/data/r_reference_power/, recomputed when
-Rscript is present; the issue's case, beta = .3 at N = 44, stored here and rerun in R when pwr is installed), the
+Rscript is present; the planning case, beta = .3 at N = 44, stored here and rerun in R when pwr is installed), the
 effect size by hand, the batched regression against OLS, the Monte-Carlo estimate against the exact noncentral F,
 worker independence, the CLI end to end, and bad input."""
 from __future__ import annotations
@@ -22,7 +22,7 @@ REPO = Path(__file__).resolve().parents[2]
 REF = REPO / "tests" / "data" / "r_reference_power"
 PAPER = REPO / "studies" / "pedas_paper"
 
-# The issue's case: one predictor with a standardized beta of .3 (f2 = .09/.91), alpha .05. R 4 with pwr 1.3:
+# The planning case: one predictor with a standardized beta of .3 (f2 = .09/.91), alpha .05. R 4 with pwr 1.3:
 #   pwr.f2.test(u = 1, v = 42, f2 = .09/.91, sig.level = .05)$power  -> 0.531227296447126  (N = 44 = v + k + 1)
 #   pwr.f2.test(u = 1, f2 = .09/.91, sig.level = .05, power = .8)$v  -> 79.3267997016854, so N = 80 + 1 + 1 = 82
 R_POWER_44 = 0.531227296447126
@@ -63,7 +63,7 @@ def _one_beta(beta: float) -> tuple[ss.Population, list[ss.Target]]:
     return pop, [ss.Target("H1", "Y", ("X",), "X", "!=")]
 
 
-def test_the_issue_case_equals_the_stored_r_numbers():
+def test_the_planning_case_equals_the_stored_r_numbers():
     f2 = 0.09 / 0.91
     assert ss.f2_power(f2, 44) == pytest.approx(R_POWER_44, abs=1e-9)
     assert ss.analytic_n(f2, 1, 0.8) == R_N_80 == math.ceil(R_V_80) + 2
@@ -78,7 +78,7 @@ def test_the_issue_case_equals_the_stored_r_numbers():
 
 
 @needs_r("pwr")
-def test_the_issue_case_equals_r_pwr_now():
+def test_the_planning_case_equals_r_pwr_now():
     script = ("suppressPackageStartupMessages(library(pwr)); f2 <- 0.09 / 0.91; "
               "a <- pwr.f2.test(u = 1, v = 42, f2 = f2, sig.level = 0.05)$power; "
               "v <- pwr.f2.test(u = 1, f2 = f2, sig.level = 0.05, power = 0.8)$v; "
@@ -247,7 +247,7 @@ def _paper_population(tmp_path, r_peou_pu: float = 0.3):
     return tmp_path / "pop.csv"
 
 
-def test_plan_power_cli_answers_the_issue_case_analytically(tmp_path, capsys):
+def test_plan_power_cli_answers_the_planning_case_analytically(tmp_path, capsys):
     """H1 (PU ~ PEoU) with a standardized beta of .3, power at N = 44 and the N for 80 %: R's pwr numbers."""
     from pedas_study.cli import main
 
