@@ -74,6 +74,17 @@ def _plain(r):   # nothing else on the HUD's third region
     return _a(r).icon is None and _a(r).tl_countdown is None and not _a(r).tone
 
 
+def _countdown_test(phase: str) -> Callable[[dict], bool]:
+    """Test of panels h and i: the countdown alone on the HUD's third region while approaching (v > 10 km/h) a
+    light in `phase` ("green" or "red")."""
+    return lambda r: (_a(r).tl_phase == phase and _a(r).tl_countdown is not None and _a(r).icon is None
+                      and r["v"] > 10 * KMH and not _a(r).tone)
+
+
+def _countdown_score(r):   # panels h and i: about 6.5 s left
+    return abs(_a(r).tl_countdown - 6.5)
+
+
 PANELS: tuple[Panel, ...] = (
     Panel("a", "1. Current speed of the host vehicle, 2. Speed advisory using arrow visualization, 3. Additional "
                "useful information",
@@ -127,16 +138,12 @@ PANELS: tuple[Panel, ...] = (
     Panel("h", "Indication of the remaining time of green traffic light phase",
           "The next feature displays the remaining time (less than 10 s) of the immediate TL signal phase on the "
           "HUD when the host vehicle is approaching a signalized intersection [...] at TL green phase",
-          lambda r: _a(r).tl_phase == "green" and _a(r).tl_countdown is not None and _a(r).icon is None
-          and r["v"] > 10 * KMH and not _a(r).tone,
-          lambda r: abs(_a(r).tl_countdown - 6.5),
+          _countdown_test("green"), _countdown_score,
           "approaching (v > 10 km/h) a light in green; about 6.5 s left"),
     Panel("i", "Indication of the remaining time of red traffic light phase",
           "The next feature displays the remaining time (less than 10 s) of the immediate TL signal phase [...] "
           "at TL red phase",
-          lambda r: _a(r).tl_phase == "red" and _a(r).tl_countdown is not None and _a(r).icon is None
-          and r["v"] > 10 * KMH and not _a(r).tone,
-          lambda r: abs(_a(r).tl_countdown - 6.5),
+          _countdown_test("red"), _countdown_score,
           "approaching (v > 10 km/h) a light in red; about 6.5 s left"),
 )
 

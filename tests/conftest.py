@@ -1,4 +1,5 @@
-"""Shared fixtures: a temporary store and a CLI runner (in-process and as a subprocess)."""
+"""Shared fixtures: a temporary store, a CLI runner (in-process and as a subprocess) and a signed-in client of the
+researcher console."""
 from __future__ import annotations
 
 import os
@@ -109,6 +110,40 @@ def cli_proc(tmp_db):
         return CliResult(p.returncode, p.stdout, p.stderr)
 
     return run
+
+
+@pytest.fixture
+def console_store(paper_db):
+    """The store of the researcher console's tests: the paper's study (actor lab) with participants P001 and P002. A
+    test module whose console serves another store overrides this fixture."""
+    from study.people.participants import add_participant
+    from study.store.store import Store
+
+    st = Store.open(paper_db, actor="lab")
+    for pid in ("P001", "P002"):
+        add_participant(st, pid)
+    yield st
+    st.close()
+
+
+@pytest.fixture
+def console_app(console_store):
+    """The web app on `console_store` with the researcher password of the web tests (tests/study/test_survey_web.py).
+    A test module that needs other settings (sign-in) overrides this fixture."""
+    from study.webapp import create_app
+    from tests.study.test_survey_web import PASSWORD
+
+    return create_app(console_store, PASSWORD)
+
+
+@pytest.fixture
+def console_client(console_app):
+    """A test client of `console_app` with the researcher signed in; ``.csrf`` is the session's CSRF token."""
+    from tests.study.test_survey_web import login
+
+    c = console_app.test_client()
+    c.csrf = login(c)
+    return c
 
 
 @pytest.fixture(scope="module")

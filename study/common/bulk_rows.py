@@ -85,6 +85,20 @@ def read_rows(path: str | Path) -> pd.DataFrame:
                         dtype=object, index=pd.Index([line for line, _ in table.rows], name="line"))
 
 
+def csv_text(path: Path, missing: str, reason_prefix: str = "") -> str:
+    """The text of the CSV file `path`: UTF-8 (a BOM is accepted) without NUL bytes. Refused (UserError, one line):
+    `missing` when `path` is not a file; else the file's name and the reason (after `reason_prefix`)."""
+    if not path.is_file():
+        raise UserError(missing)
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise UserError(f"{path.name}: {reason_prefix}not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    if "\x00" in text:
+        raise UserError(f"{path.name}: {reason_prefix}contains NUL bytes (binary file?)")
+    return text
+
+
 def read_table(path: str | Path) -> BulkRows:
     """The rows of a bulk CSV as text: one column per header name (stripped), every cell stripped text ('' when
     empty), each row with its line in the file (the header is line 1, blank lines are skipped).
@@ -93,14 +107,7 @@ def read_table(path: str | Path) -> BulkRows:
     empty or duplicate column name, no rows. Rows with more or fewer fields than the header -> :class:`BadRows`.
     """
     path = Path(path)
-    if not path.is_file():
-        raise UserError(f"{path} not found (or not a file)")
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise UserError(f"{path.name}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
-    if "\x00" in text:
-        raise UserError(f"{path.name}: contains NUL bytes (binary file?)")
+    text = csv_text(path, f"{path} not found (or not a file)")
     reader = csv.reader(io.StringIO(text, newline=""), strict=True)
     rows: list[tuple[int, list[str]]] = []
     end = 0

@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 LIBRARY_KEY = "studies/instruments"   # the key prefix of an included file: its path in the repository
-LIBRARY = Path(__file__).resolve().parents[1] / LIBRARY_KEY
+LIBRARY = Path(__file__).resolve().parents[2] / LIBRARY_KEY
 
 
 def shipped() -> list[str]:

@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import math
 import re
-import tomllib
 from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Any
@@ -39,6 +38,7 @@ import pandas as pd
 from study.common.errors import UserError
 from study.common.file_checks import register_file_check
 from study.common.numbers import column_floats
+from study.common.toml_lines import raise_first_problem, read_toml
 from study.common.units import parse_unit, units
 from study.folder.drive_columns import COLUMNS
 
@@ -171,12 +171,9 @@ def _line(text: str, table: str, key: str | None = None) -> int | None:
 
 def parse_mapping(text: str, name: str) -> tuple[Mapping | None, list[tuple[int | None, str, str]]]:
     """Parse a mapping text; returns (mapping or None, problems as (line, field, message))."""
-    problems: list[tuple[int | None, str, str]] = []
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        m = re.search(r"line (\d+)", str(exc))
-        return None, [(int(m.group(1)) if m else None, "", f"not valid TOML: {exc}")]
+    data, problems = read_toml(text)
+    if data is None:
+        return None, problems
     for key in data:
         if key not in ("log", "channels"):
             problems.append((_line(text, key), key, "unknown table (use [log] and [channels.NAME])"))
@@ -308,11 +305,7 @@ def _dimension_word(u) -> str:
 def load_mapping(text: str, name: str) -> Mapping:
     """Parse a mapping; the first problem -> UserError ``name:line: field: message``."""
     mapping, problems = parse_mapping(text, name)
-    if problems:
-        line, fld, msg = problems[0]
-        where = f"{name}:{line}" if line else name
-        more = f" (and {len(problems) - 1} more problem(s))" if len(problems) > 1 else ""
-        raise UserError(f"{where}: {fld + ': ' if fld else ''}{msg}{more}")
+    raise_first_problem(name, problems)
     return mapping
 
 

@@ -29,8 +29,6 @@ light at or ahead of s, m to its stop line).
 from __future__ import annotations
 
 import math
-import re
-import tomllib
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -40,7 +38,7 @@ import pandas as pd
 from pedas.route_toml import Light, Stop
 from study.common.errors import UserError
 from study.common.file_checks import register_file_check
-from study.common.toml_lines import line_of
+from study.common.toml_lines import line_of, raise_first_problem, read_toml
 from study.common.units import parse_unit, units
 
 SEGMENT_MAX = 64
@@ -123,12 +121,9 @@ def _number(v: Any) -> bool:
 
 def parse_route(text: str, name: str) -> tuple[RouteFile | None, list[tuple[int | None, str, str]]]:
     """Parse a route text; returns (route or None, problems as (line, field, message))."""
-    problems: list[tuple[int | None, str, str]] = []
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        m = re.search(r"line (\d+)", str(exc))
-        return None, [(int(m.group(1)) if m else None, "", f"not valid TOML: {exc}")]
+    data, problems = read_toml(text)
+    if data is None:
+        return None, problems
     for key in data:
         if key not in ("route", "sections", "lights", "stops"):
             problems.append((_line(text, key), key, "unknown table (use [route], [[sections]], [[lights]], "
@@ -260,11 +255,7 @@ def parse_route(text: str, name: str) -> tuple[RouteFile | None, list[tuple[int 
 def load_route(text: str, name: str) -> RouteFile:
     """Parse a route; the first problem -> UserError ``name:line: field: message``."""
     route, problems = parse_route(text, name)
-    if problems:
-        line, fld, msg = problems[0]
-        where = f"{name}:{line}" if line else name
-        more = f" (and {len(problems) - 1} more problem(s))" if len(problems) > 1 else ""
-        raise UserError(f"{where}: {fld + ': ' if fld else ''}{msg}{more}")
+    raise_first_problem(name, problems)
     return route
 
 

@@ -1,7 +1,7 @@
 """The study store: one embedded DuckDB file holding participants, protocol events, exclusions, drive logs,
 survey answers and the audit trail.
 
-    from study.store.store.store import Store
+    from study.store.store import Store
     with Store.open("data/study.duckdb", actor="alice") as st:
         with st.transaction():                       # all or nothing
             st.insert("participants", {"participant_id": "P001", "protocol": "paper_v1"})

@@ -31,6 +31,7 @@ import io
 from dataclasses import dataclass
 from pathlib import Path
 
+from study.common.bulk_rows import csv_text
 from study.common.errors import UserError
 from study.folder.instrument import Instrument
 from study.survey.answers import (
@@ -71,14 +72,7 @@ class SurveyRow:
 
 
 def _read_text(path: Path) -> list[tuple[int, list[str]]]:
-    if not path.is_file():
-        raise UserError(f"survey file {path} not found")
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise UserError(f"{path.name}: malformed CSV: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
-    if "\x00" in text:
-        raise UserError(f"{path.name}: malformed CSV: contains NUL bytes (binary file?)")
+    text = csv_text(path, f"survey file {path} not found", "malformed CSV: ")
     reader = csv.reader(io.StringIO(text, newline=""), strict=True)
     try:
         rows = [(reader.line_num, r) for r in reader]

@@ -6,7 +6,7 @@ import pandas as pd
 import pytest
 
 from pedas.constants import KMH
-from tests.conftest import OUTPUT, PAPER_STUDY
+from tests.conftest import OUTPUT, PAPER_STUDY, initialised_store
 
 DT = 0.2
 
@@ -135,10 +135,10 @@ def test_analyze_drives_other_participant_and_store_unchanged(cli, cohort_db, tm
         assert st.con.execute("SELECT count(*), sum(v) FROM drive_samples").fetchone() == before
 
 
-def test_analyze_drives_refuses_missing_store_and_store_without_drives(cli, tmp_db, tmp_path):
+def test_analyze_drives_refuses_missing_store_and_store_without_drives(cli, tmp_db, tmp_path, tmp_path_factory):
     r = cli("analyze", "drives", "--out", tmp_path / "x")
     assert r.code == 2 and "store not found" in r.err and len(r.err.strip().splitlines()) == 1
-    assert cli("init", "--study", PAPER_STUDY).code == 0
+    initialised_store(tmp_db, PAPER_STUDY, tmp_path_factory)
     r = cli("analyze", "drives", "--out", tmp_path / "x")
     assert r.code == 2 and "no drives" in r.err
     assert not (tmp_path / "x").exists()

@@ -76,7 +76,7 @@ def test_the_stored_model_is_parsed_on_use_and_equals_the_checked_one(lk_db):
     parsed from the folder."""
     code = f"""
 import json, sys
-from study.store.store.store import Store
+from study.store.store import Store
 from study.store.store.studies import definition
 with Store.open({str(lk_db)!r}, read_only=True) as st:
     study = definition(st)

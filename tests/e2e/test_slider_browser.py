@@ -29,6 +29,16 @@ def served(tmp_path):
     st.close()
 
 
+def form_page(browser, served, width: int, height: int):
+    """A new page of a `width` x `height` browser window showing the form of a new survey link of P001."""
+    st, srv, lock = served
+    with lock:
+        token = sv.issue_link(st, "P001")
+    page = browser.new_context(viewport={"width": width, "height": height}).new_page()
+    page.goto(f"{srv.url}/s/{token}")
+    return page
+
+
 def wait_saved(page) -> None:
     from playwright.sync_api import expect
 
@@ -37,11 +47,8 @@ def wait_saved(page) -> None:
 
 
 def test_slider_by_keyboard_and_mouse_is_stored(browser, served):
-    st, srv, lock = served
-    with lock:
-        token = sv.issue_link(st, "P001")
-    page = browser.new_context(viewport={"width": 1024, "height": 768}).new_page()
-    page.goto(f"{srv.url}/s/{token}")
+    st, _, lock = served
+    page = form_page(browser, served, 1024, 768)
     OUTPUT.mkdir(exist_ok=True)
     section = page.locator("#q-TLX_MD").locator("xpath=ancestor::section")
     assert page.is_visible("#range-TLX_MD") and page.input_value("#in-TLX_MD") == ""   # untouched: not answered
@@ -80,11 +87,8 @@ def test_slider_by_keyboard_and_mouse_is_stored(browser, served):
 
 
 def test_an_untouched_required_slider_blocks_submission(browser, served):
-    st, srv, lock = served
-    with lock:
-        token = sv.issue_link(st, "P001")
-    page = browser.new_context(viewport={"width": 768, "height": 1024}).new_page()
-    page.goto(f"{srv.url}/s/{token}")
+    st, _, lock = served
+    page = form_page(browser, served, 768, 1024)
     for k, item in enumerate(LIKERT):
         page.click(f"#q-{item} label.point:nth-of-type({1 + k % 5})")
     wait_saved(page)

@@ -5,7 +5,6 @@ import pandas as pd
 import pytest
 
 from pedas.cohort import DriveTask, cohort_tasks, load_cached, participant_seed, simulate_cohort, task_key
-from tests.conftest import PAPER_STUDY
 
 pytestmark = pytest.mark.sumo
 
@@ -67,7 +66,7 @@ def test_dask_local_cluster_gives_the_same_drives(cache, tmp_path):
 
 # ------------------------------------------------------------------------------------------------ the CLI
 def _people(cli):
-    assert cli("init", "--study", PAPER_STUDY).code == 0
+    """Two participants in the store of the paper's study (the test's `paper_db`)."""
     assert cli("participant", "add", "P001", "--style", "sporty").code == 0
     assert cli("participant", "add", "P002", "--style", "cautious").code == 0
     assert cli("participant", "add", "P003", "--style", "normal").code == 0
@@ -75,14 +74,14 @@ def _people(cli):
     assert r.code == 0, r.err
 
 
-def test_cli_simulate_cohort_stores_drives_and_reruns_unchanged(cli, tmp_db, cache):
+def test_cli_simulate_cohort_stores_drives_and_reruns_unchanged(cli, paper_db, cache):
     _people(cli)
     r = cli("simulate", "cohort", "--workers", "2", "--no-progress", "--cache-dir", str(cache))
     assert r.code == 0, r.err
     assert "4 drives of 2 participants (4 stored, 0 unchanged)" in r.out
     from study.store.store import Store
 
-    with Store.open(tmp_db, read_only=True) as st:
+    with Store.open(paper_db, read_only=True) as st:
         drives = st.df("SELECT participant_id, condition, source, n_samples, seed FROM drives ORDER BY 1, 2")
         n = st.df("SELECT count(*) AS n FROM drive_samples")["n"][0]
     assert drives[["participant_id", "condition"]].values.tolist() == [
@@ -95,7 +94,7 @@ def test_cli_simulate_cohort_stores_drives_and_reruns_unchanged(cli, tmp_db, cac
     assert one.code == 0 and "unchanged" in one.out
 
 
-def test_cli_bad_input_leaves_the_store_unchanged(cli, tmp_db, cache):
+def test_cli_bad_input_leaves_the_store_unchanged(cli, paper_db, cache):
     _people(cli)
     r = cli("drive", "simulate", "P999", "baseline", "--cache-dir", str(cache))
     assert r.code == 2 and r.err.count("\n") == 1 and "P999" in r.err
@@ -107,21 +106,19 @@ def test_cli_bad_input_leaves_the_store_unchanged(cli, tmp_db, cache):
     assert r.code == 2 and r.err.count("\n") == 1 and "autobahn" in r.err and "motorway" in r.err
     from study.store.store import Store
 
-    with Store.open(tmp_db, read_only=True) as st:
+    with Store.open(paper_db, read_only=True) as st:
         assert st.df("SELECT count(*) AS n FROM drives")["n"][0] == 0
 
 
-def test_cli_simulate_cohort_without_participants(cli, cache):
-    assert cli("init", "--study", PAPER_STUDY).code == 0
+def test_cli_simulate_cohort_without_participants(cli, paper_db, cache):
     r = cli("simulate", "cohort", "--cache-dir", str(cache))
     assert r.code == 2 and "no participants" in r.err
 
 
-def test_cli_simulate_cohort_on_a_dask_scheduler(cli, tmp_db, tmp_path, cache):
+def test_cli_simulate_cohort_on_a_dask_scheduler(cli, paper_db, tmp_path, cache):
     """`simulate cohort --scheduler ADDRESS` runs the drives on the cluster; the stored drives equal the pool's."""
     from distributed import LocalCluster
 
-    assert cli("init", "--study", PAPER_STUDY).code == 0
     assert cli("participant", "add", "P002", "--style", "cautious").code == 0
     with LocalCluster(n_workers=1, threads_per_worker=2, processes=True, dashboard_address=None) as lc:
         r = cli("simulate", "cohort", "--scheduler", lc.scheduler_address, "--no-progress",
@@ -132,7 +129,7 @@ def test_cli_simulate_cohort_on_a_dask_scheduler(cli, tmp_db, tmp_path, cache):
     if pooled is not None:
         from study.store.store import Store
 
-        with Store.open(tmp_db, read_only=True) as st:
+        with Store.open(paper_db, read_only=True) as st:
             n = st.df("SELECT n_samples FROM drives WHERE participant_id = 'P002' AND condition = 'baseline'")
         assert n["n_samples"][0] == len(pooled)
 

@@ -18,28 +18,21 @@ from study.people.exclusions import exclude
 from study.people.participants import add_participant
 from study.people.protocol import advance, complete
 from study.store.store import Store
-from study.webapp import console, create_app
+from study.webapp import console
 from tests.study.test_drive_import import make_drive
-from tests.study.test_survey_web import login, seeded_answers
+from tests.study.test_survey_web import seeded_answers
 
-PASSWORD = "correct horse"
 PHASES = ["familiarisation", "baseline_drive", "pedas_intro", "practice", "pedas_drive", "survey"]
 
 
 @pytest.fixture
-def store(paper_db):
-    st = Store.open(paper_db, actor="lab")
-    for pid in ("P001", "P002"):
-        add_participant(st, pid)
-    yield st
-    st.close()
+def store(console_store):
+    return console_store
 
 
 @pytest.fixture
-def client(store):
-    c = create_app(store, PASSWORD).test_client()
-    c.csrf = login(c)
-    return c
+def client(console_client):
+    return console_client
 
 
 def flashed(client) -> list[str]:

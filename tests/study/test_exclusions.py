@@ -10,17 +10,13 @@ from study.common.errors import UserError
 from study.people.exclusions import apply_exclusions, exclude, included_participants, revoke
 from study.people.participants import add_participant
 from study.store.store import Store
+from tests.conftest import PAPER_STUDY, initialised_store
 
 
 @pytest.fixture(scope="module")
 def paper_store_file(tmp_path_factory) -> Path:
     """An empty store of the paper's study, copied by tests that need many fresh stores."""
-    from pedas_study.cli import main
-
-    db = tmp_path_factory.mktemp("paper") / "template.duckdb"
-    assert main([f"--db={db}", "init", "--study", str(Path(__file__).resolve().parents[2] / "studies" /
-                                                      "pedas_paper")]) == 0
-    return db
+    return initialised_store(tmp_path_factory.mktemp("paper") / "template.duckdb", PAPER_STUDY, tmp_path_factory)
 
 
 @pytest.fixture

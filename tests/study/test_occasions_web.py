@@ -44,10 +44,14 @@ def tor(tmp_db):
 
 
 @pytest.fixture
-def client(tor):
-    c = create_app(tor, PASSWORD).test_client()
-    c.csrf = login(c)
-    return c
+def console_store(tor):
+    """The store the console client (tests/conftest.py) signs in to: the takeover study's, not the paper's."""
+    return tor
+
+
+@pytest.fixture
+def client(console_client):
+    return console_client
 
 
 def rows(html: str) -> list[tuple[str, str]]:

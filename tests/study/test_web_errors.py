@@ -14,35 +14,33 @@ import pytest
 
 from study.survey import answers as sv
 from study.store.constraint_text import constraint_rule
-from study.people.participants import add_participant
-from study.store.store import Store
 from study.webapp import create_app
 from study.webapp.signin import SignInSettings
 from tests.study.test_console import flashed, snapshot
-from tests.study.test_survey_web import form_token, login
+from tests.study.test_survey_web import form_token
 
 PASSWORD = "correct horse"
 
 
 @pytest.fixture
-def store(paper_db):
-    st = Store.open(paper_db, actor="lab")
-    for pid in ("P001", "P002"):
-        add_participant(st, pid)
-    yield st
-    st.close()
+def store(console_store):
+    return console_store
 
 
 @pytest.fixture
-def app(store):
+def console_app(store):
+    """The console's app (the signed-in `client`'s too), its sign-in guarded as these tests count on."""
     return create_app(store, PASSWORD, signin=SignInSettings(max_failures=5, lockout_s=30))
 
 
 @pytest.fixture
-def client(app):
-    c = app.test_client()
-    c.csrf = login(c)
-    return c
+def app(console_app):
+    return console_app
+
+
+@pytest.fixture
+def client(console_client):
+    return console_client
 
 
 # ---------------------------------------------------------------------------------------------- the five 500s
