@@ -77,7 +77,7 @@ def test_the_stored_model_is_parsed_on_use_and_equals_the_checked_one(lk_db):
     code = f"""
 import json, sys
 from study.store.store import Store
-from study.store.store.studies import definition
+from study.store.studies import definition
 with Store.open({str(lk_db)!r}, read_only=True) as st:
     study = definition(st)
     read = "semopy" in sys.modules or "study._semopy_parser" in sys.modules
