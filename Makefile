@@ -15,7 +15,7 @@ UV_VERSION ?= 0.13.9
 LOCK_ARGS ?=
 
 .DEFAULT_GOAL := report
-.PHONY: report test bench serve clean venv lock refit sweep
+.PHONY: report test test-quick bench serve clean venv lock refit sweep
 
 # uv installs the lock in parallel (a fresh 2-core machine: ~30 s against pip's ~90 s), .pyc files included as pip
 # writes them; where uv cannot install (no index it can reach), pip installs the same hashed lock
@@ -63,6 +63,11 @@ PYC = $(BIN)/python -m compileall -q pedas study analysis pedas_study
 test: $(STAMP)
 	$(PYC)
 	$(BIN)/python -m pytest -n 2 --dist loadgroup $(PYTEST_ARGS)
+
+# the development loop: the suite without its long end-to-end tests (markers slow, sumo, browser)
+test-quick: $(STAMP)
+	$(PYC)
+	$(BIN)/python -m pytest -n 2 --dist loadgroup -m "not slow and not sumo and not browser" $(PYTEST_ARGS)
 
 bench: $(STAMP)
 	$(PYC)
