@@ -9,9 +9,6 @@ from pedas_study.cli.common import (DRIVE_CACHE_HELP, add_format_option, add_sce
 
 def _import(args) -> None:
     from study.logs.importing import import_drive_file
-    from study.common.units import units
-
-    units()  # built before the store is held (about a second): the study's route and log mapping read units with it
 
     def progress(msg: str) -> None:
         print(msg, file=sys.stderr, flush=True)

@@ -7,14 +7,11 @@ from pedas_study.cli.common import open_store
 def _export(args) -> None:
     from study.export.writer import export
 
-    # what the writers load, loaded before the store is held: pyreadstat and the unit registry (a study's route names
-    # the segments a .sav labels), pyarrow's Parquet writer
+    # what the writers load, loaded before the store is held: pyreadstat and the route file's reader (a study's route
+    # names the segments a .sav labels), pyarrow's Parquet writer
     if args.format == "sav":
         import pyreadstat  # noqa: F401
         import study.folder.route_file  # noqa: F401
-        from study.common.units import units
-
-        units()
     elif args.format == "parquet":
         import pyarrow.parquet  # noqa: F401
     with open_store(args) as st:

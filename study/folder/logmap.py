@@ -39,7 +39,7 @@ from study.common.errors import UserError
 from study.common.file_checks import register_file_check
 from study.common.numbers import column_floats
 from study.common.toml_lines import raise_first_problem, read_toml
-from study.common.units import parse_unit, units
+from study.common.units import convert_values, parse_unit
 from study.folder.drive_columns import COLUMNS
 
 FORMATS = ("csv", "parquet", "sumo-fcd")
@@ -265,13 +265,13 @@ def parse_mapping(text: str, name: str) -> tuple[Mapping | None, list[tuple[int 
                 if to is not None:
                     raise UserError(f"'to' is for extra channels; {cname} is always stored in "
                                     f"{CANONICAL_UNITS[cname]}")
-                target = units().Unit(CANONICAL_UNITS[cname])
-                if u.dimensionality != target.dimensionality:
+                target = parse_unit(CANONICAL_UNITS[cname])
+                if u.dimension != target.dimension:
                     raise UserError(f"unit {unit!r} is not a unit of {CANONICAL_UNITS[cname]} "
                                     f"({cname} needs {_dimension_word(target)})")
             elif to is not None:
                 tu = parse_unit(to)
-                if tu.dimensionality != u.dimensionality:
+                if tu.dimension != u.dimension:
                     raise UserError(f"cannot convert {unit!r} to {to!r} (different dimensions)")
         except UserError as exc:
             problems.append((_line(text, fld, "unit") or where, f"{fld}.unit", str(exc)))
@@ -299,7 +299,7 @@ def _dimension_word(u) -> str:
     return {"[time]": "a time", "[length]": "a length", "[length] / [time]": "a speed",
             "[length] / [time] ** 2": "an acceleration", "dimensionless": "an angle or ratio",
             "[mass] * [length] / [time] ** 2": "a force",
-            "[mass] * [length] ** 2 / [time] ** 3": "a power"}.get(str(u.dimensionality), str(u.dimensionality))
+            "[mass] * [length] ** 2 / [time] ** 3": "a power"}.get(u.dimension_text, u.dimension_text)
 
 
 def load_mapping(text: str, name: str) -> Mapping:
@@ -312,12 +312,10 @@ def load_mapping(text: str, name: str) -> Mapping:
 # ---------------------------------------------------------------------------------------------- applying
 def convert(values: np.ndarray, unit: str, target: str, channel: str = "") -> np.ndarray:
     """`values` (float64) from `unit` to `target`; a grade in %/per mille is a slope and becomes atan(slope) rad."""
-    u = units().Unit(unit)
-    if channel == "grade" and str(u) in _SLOPE_UNITS:
-        return np.arctan(units().Quantity(values, u).to("dimensionless").magnitude)
-    if str(u) == str(units().Unit(target)):
-        return values
-    return np.asarray(units().Quantity(values, u).to(target).magnitude, dtype="float64")
+    u = parse_unit(unit)
+    if channel == "grade" and u.name in _SLOPE_UNITS:
+        return np.arctan(convert_values(values, u, parse_unit("dimensionless")))
+    return convert_values(values, u, parse_unit(target))
 
 
 def _numbers(raw: pd.DataFrame, col: str, label: str) -> np.ndarray:

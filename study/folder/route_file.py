@@ -39,7 +39,7 @@ from pedas.route_toml import Light, Stop
 from study.common.errors import UserError
 from study.common.file_checks import register_file_check
 from study.common.toml_lines import line_of, raise_first_problem, read_toml
-from study.common.units import parse_unit, units
+from study.common.units import conversion_factor, parse_unit
 
 SEGMENT_MAX = 64
 LIGHT_STATES = ("green", "yellow", "red")
@@ -143,10 +143,10 @@ def parse_route(text: str, name: str) -> tuple[RouteFile | None, list[tuple[int 
     def unit_factor(unit: Any, target: str, where: int | None, fld: str) -> float | None:
         try:
             u = parse_unit(unit)
-            t = units().Unit(target)
-            if u.dimensionality != t.dimensionality:
+            t = parse_unit(target)
+            if u.dimension != t.dimension:
                 raise UserError(f"unit {unit!r} is not a unit of {target}")
-            return float(units().Quantity(1.0, u).to(t).magnitude)
+            return conversion_factor(u, t)
         except UserError as exc:
             problems.append((where, fld, str(exc)))
             return None
