@@ -16,6 +16,9 @@ V_MAX = 100.0     # m/s (360 km/h), for the ego and the leader: above any car's 
                   # largest speed the HUD's three digits can show
 S_MARGIN = 100.0  # m: s lies in [0, route length + S_MARGIN]; a simulator's car may run on a little past the route's
                   # end before it is removed (2 s at 50 m/s), never before its start
+T_MAX = 1e7       # s (116 days): |t| on the clock of the route's signal programs; a lab's drive starts near 0 (or
+                  # at a program's offset) and lasts an hour, and the controller's scans over phase starts must stay
+                  # short: t = 1e18 once stalled every session for 9 s and grew the server by 3 GB
 # time: a session's t never decreases (t >= the previous state's t; equal is allowed, a simulator may resend a
 # frame): the controller plans the green wave on the route's signal clock, which only moves on; hello restarts it
 

@@ -22,7 +22,7 @@ import json
 import math
 from dataclasses import dataclass
 
-from pedas.live_limits import MAX_DEPTH, MAX_MESSAGE_BYTES, S_MARGIN, V_MAX
+from pedas.live_limits import MAX_DEPTH, MAX_MESSAGE_BYTES, S_MARGIN, T_MAX, V_MAX
 from pedas.route import STATES
 
 ADVICE_FIELDS = ("v_advice", "controller", "mode", "ft", "fb", "hud_arrow", "arrow_len", "hud_in_band", "warning",
@@ -105,13 +105,14 @@ def decode(text: str | bytes) -> dict:
 
 def parse_state(msg: dict, route_length: float | None = None) -> State:
     """The :class:`State` of a state message; ProtocolError names the first bad field. Speeds lie in [0, V_MAX]
-    m/s and s in [0, route_length + S_MARGIN] m (s >= 0 only without a route length); the time order is the
+    m/s, t in [-T_MAX, T_MAX] s and s in [0, route_length + S_MARGIN] m (s >= 0 only without a route length); the
+    time order is the
     session's to check (:class:`pedas.live.LiveSession`)."""
     seq = msg.get("seq")
     if seq is not None and (isinstance(seq, bool) or not isinstance(seq, int)):
         raise ProtocolError(f"'seq' must be an integer, got {seq!r}")
     s_max = math.inf if route_length is None else float(route_length) + S_MARGIN
-    t, s, v = _number(msg, "t"), _number(msg, "s", 0.0, s_max, "m"), _number(msg, "v", 0.0, V_MAX, "m/s")
+    t, s, v = _number(msg, "t", -T_MAX, T_MAX, "s"), _number(msg, "s", 0.0, s_max, "m"), _number(msg, "v", 0.0, V_MAX, "m/s")
     lead = msg.get("leader")
     leader = None
     if lead is not None:

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import re
 import socket
 import threading
 import time
@@ -18,13 +19,18 @@ from websockets.sync.client import connect
 
 from pedas.live import LiveRoute, LiveServer, LiveSession
 from pedas.live_display import PAIR_ALPHABET, pair_of
-from pedas.live_limits import MAX_DEPTH, MAX_MESSAGE_BYTES, S_MARGIN, V_MAX, WS_MAX_FRAME, Throttle
+from pedas.live_limits import MAX_DEPTH, MAX_MESSAGE_BYTES, S_MARGIN, T_MAX, V_MAX, WS_MAX_FRAME, Throttle
 from pedas.live_protocol import ProtocolError, decode, parse_state
 
 
 @pytest.fixture(scope="module")
 def live():
-    return LiveRoute.load("synthetic-mixed")   # 13,200 m
+    return LiveRoute.load("synthetic-mixed")   # 13,200 m, no traffic lights
+
+
+@pytest.fixture(scope="module")
+def study():
+    return LiveRoute.load("study")   # the study network's route, with its signal programs
 
 
 @contextmanager
@@ -57,6 +63,7 @@ def running(live, **limits):
 
 def state(k: int, v: float = 10.0, **kw) -> str:
     return json.dumps({"type": "state", "seq": k, "t": 0.2 * k, "s": 5.0 + 2.0 * k, "v": v, **kw})
+
 
 
 def ask(ws, text: str) -> dict:
@@ -106,9 +113,32 @@ def test_physical_ranges(live):
                       ({"v": 100.001}, "'v' must be a finite number >= 0 and <= 100 m/s, got 100.001"),
                       ({"s": -0.5}, "'s' must be a finite number >= 0 and <= 13300 m, got -0.5"),
                       ({"s": 1e7}, "'s' must be a finite number >= 0 and <= 13300 m, got 10000000.0"),
-                      ({"leader": {"gap": 5, "v": 101}}, "'v' must be a finite number >= 0 and <= 100 m/s")]:
-        with pytest.raises(ProtocolError, match=says.replace("(", r"\(")):
+                      ({"leader": {"gap": 5, "v": 101}}, "'v' must be a finite number >= 0 and <= 100 m/s"),
+                      ({"t": 1e18}, "'t' must be a finite number >= -1e+07 and <= 1e+07 s, got 1e+18"),
+                      ({"t": -1e300}, "'t' must be a finite number >= -1e+07 and <= 1e+07 s, got -1e+300"),
+                      ({"t": T_MAX * (1 + 1e-15)}, "'t' must be a finite number >= -1e+07 and <= 1e+07 s")]:
+        with pytest.raises(ProtocolError, match=re.escape(says)):
             parse_state({"t": 0, "s": 5.0, "v": 10.0, **bad}, length)
+
+
+def test_a_time_far_off_is_refused_at_once_and_other_sessions_go_on(study):
+    """On a route with signal programs, t = 1e18 (-1e300, 1e308, a jump of 1e9 s within a session) once stalled
+    every session in an endless scan over phase starts: now each is a one-line error answered at once, the
+    session's clock unchanged, and a good client on the same server gets each advice meanwhile."""
+    with running(study) as (server, port, lines):
+        with connect(f"ws://127.0.0.1:{port}/") as good, connect(f"ws://127.0.0.1:{port}/") as bad:
+            ask(good, '{"type":"hello"}')
+            ask(bad, '{"type":"hello"}')
+            for k, t in enumerate((1e18, -1e300, 1e308)):
+                err = ask(bad, json.dumps({"type": "state", "seq": k, "t": t, "s": 1000, "v": 10, "leader": None}))
+                assert err == {"type": "error", "seq": k,
+                               "error": f"'t' must be a finite number >= -1e+07 and <= 1e+07 s, got {t!r}"}
+                assert ask(good, state(k))["type"] == "advice"
+            assert ask(bad, state(25))["type"] == "advice"                         # t = 5 s
+            err = ask(bad, state(26, t=5.0 + 1e9))
+            assert err["error"] == "'t' must be a finite number >= -1e+07 and <= 1e+07 s, got 1000000005.0"
+            assert ask(bad, state(27))["type"] == "advice"                         # its clock is still at 5 s
+            assert ask(good, state(3))["type"] == "advice"
 
 
 def test_time_never_goes_back_within_a_session(live):
