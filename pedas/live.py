@@ -65,12 +65,19 @@ class LiveSession:
     """One simulator's session: hello -> state* -> bye; :meth:`handle` maps each message text to its reply text.
     ``pair`` is the session's pairing code (its HUD page's key), fixed for the session's life and sent in ready."""
 
-    def __init__(self, live: LiveRoute, logger_factory: LoggerFactory | None = None, settings=None) -> None:
+    def __init__(self, live: LiveRoute, logger_factory: LoggerFactory | None = None, settings=None,
+                 writers: dict | None = None, peer: str = "") -> None:
         from pedas.params import CONTROLLER
 
         self.live, self.settings = live, settings or CONTROLLER
         self.logger_factory = logger_factory
         self.log = None
+        # (participant, condition) -> the session logging that drive, shared by a server's sessions: one writer per
+        # drive; `peer` names this session in another's refusal
+        self.writers = {} if writers is None else writers
+        self.peer = peer
+        self.drive: tuple[str, str] | None = None   # (participant, condition) of the drive logged, since (UTC)
+        self.since = ""
         self.samples = 0
         self.pair = new_pair_code()
         self._lights = tuple(live.route.lights)
@@ -80,6 +87,7 @@ class LiveSession:
         self._prev = None
         self.throttle: Throttle | None = None   # the server's: this client's rate limit
         self.last_seen = 0.0                    # the server's: time.monotonic() of the client's last message
+        self.flush_error: str | None = None     # the server's: why the last flush of the drive log failed
 
     def _reset(self) -> None:
         from pedas.controller import PedasController
@@ -110,7 +118,14 @@ class LiveSession:
         if participant is not None:
             if self.logger_factory is None:
                 raise ProtocolError("this server logs no drives (start it with a store: --db)")
-            self.log = self.logger_factory(str(participant), str(condition))
+            drive = (str(participant), str(condition))
+            other = self.writers.get(drive)
+            if other is not None and other is not self:
+                raise ProtocolError(f"{drive[0]}'s {drive[1]} drive is being logged by another session ({other.peer}, "
+                                    f"since {other.since} UTC): one simulator per drive; that session must say bye "
+                                    "or disconnect first")
+            self.log = self.logger_factory(*drive)
+            self.writers[drive], self.drive, self.since = self, drive, time.strftime("%H:%M:%S", time.gmtime())
         self._reset()
         self.samples = 0
         return json.dumps({"type": "ready", "route": self.live.name, "length_m": float(self.live.route.length),
@@ -141,8 +156,14 @@ class LiveSession:
         if self.log is not None:
             result = self.log.close()
             drive_id = getattr(result, "drive_id", None) or getattr(self.log, "drive_id", None)
-            self.log = None
+            self.release()
         return json.dumps({"type": "done", "samples": self.samples, "drive_id": drive_id})
+
+    def release(self) -> None:
+        """Forget the drive log (after bye, or when the session ends): its drive is free for another session."""
+        if self.writers.get(self.drive) is self:
+            del self.writers[self.drive]
+        self.log = self.drive = None
 
     def _next_light(self, s: float):
         j = bisect_left(self._light_s, s)
@@ -168,6 +189,10 @@ class LiveSession:
 
 # ---------------------------------------------------------------------------------------------- the server
 Announce = Callable[[str], None]   # one console line: a session's pairing code and HUD page, a session's end
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split()) or type(exc).__name__
 
 
 def _decode_error(text: str | bytes) -> str:
@@ -211,7 +236,7 @@ class _Udp(asyncio.DatagramProtocol):
         self._send(session, session.handle(msg), addr, key, msg)
 
     async def _reply_later(self, session: LiveSession, msg: dict, addr, key) -> None:
-        self._send(session, await self.server.in_store_thread(session.handle, msg), addr, key, msg)
+        self._send(session, await self.server.handle_in_store_thread(session, msg), addr, key, msg)
 
     def _send(self, session: LiveSession, reply: str, addr, key, msg) -> None:
         self.transport.sendto(reply.encode(), addr)
@@ -235,6 +260,7 @@ class LiveServer:
         self.announce = announce or (lambda line: None)
         self.rate, self.burst, self.udp_idle, self.max_udp_sessions = rate, burst, udp_idle, max_udp_sessions
         self.sessions: dict[tuple, LiveSession] = {}
+        self.writers: dict[tuple[str, str], LiveSession] = {}   # (participant, condition) -> the session logging it
         self.paired: dict[str, LiveSession] = {}    # pairing code -> its session
         self.displays: dict[str, set] = {}          # pairing code -> the HUD pages showing that session
         self.strays = Throttle(rate, burst)         # answers to UDP datagrams that get no session, all peers together
@@ -255,9 +281,36 @@ class LiveServer:
         """Run fn in the one thread that uses the store (DuckDB's connection is not shared between threads)."""
         return await asyncio.get_running_loop().run_in_executor(self.pool, fn, *args)
 
+    async def handle_in_store_thread(self, session: LiveSession, msg: dict) -> str:
+        """The session's answer to a hello or bye that opens or completes a drive log; a failure the session does
+        not answer itself (a store that cannot be opened) is one error line to the client and to the console."""
+        try:
+            return await self.in_store_thread(session.handle, msg)
+        except Exception as exc:   # the server goes on: the client may say bye again
+            why = _one_line(exc)
+            self.announce(f"session {session.peer}: {msg['type']} failed: {why}")
+            return error_message(msg.get("seq"), f"{msg['type']} failed: {why}")
+
+    async def flush(self, session: LiveSession, then: str = "its samples stay queued for the next flush") -> None:
+        """Commit a session's drive log in the store's thread. A failure is one console line (again only when its
+        cause changes), never the end of the flushing: `then` says what becomes of the samples."""
+        log = session.log
+        if log is None:
+            return
+        try:
+            await self.in_store_thread(log.flush)
+            session.flush_error = None
+        except Exception as exc:
+            why = _one_line(exc)
+            if why != session.flush_error:
+                session.flush_error = why
+                self.announce(f"session {session.peer} ({', '.join(session.drive or ())}): drive log not written: "
+                              f"{why}; {then}")
+
     def session_for(self, key: tuple) -> LiveSession:
         if key not in self.sessions:
-            session = LiveSession(self.live, self.logger_factory)
+            session = LiveSession(self.live, self.logger_factory, writers=self.writers,
+                                  peer=f"{key[0]} {key[1]}:{key[2]}")
             session.throttle, session.last_seen = Throttle(self.rate, self.burst), time.monotonic()
             self.sessions[key] = session
             self.paired[session.pair] = session
@@ -267,17 +320,21 @@ class LiveServer:
         return sum(1 for key in self.sessions if key[0] == "udp")
 
     def answered(self, session: LiveSession, key: tuple, msg, reply: str) -> None:
-        """After each answer: an advice goes to the session's HUD pages; a hello that was accepted is announced."""
+        """After each answer: an advice goes to the session's HUD pages; a hello is announced (accepted: its pairing
+        code; refused, with a participant: why)."""
         if reply.startswith('{"type":"advice"'):
             pages = self.displays.get(session.pair)
             if pages:
                 from websockets.asyncio.server import broadcast
 
                 broadcast(pages, reply)
-        elif reply.startswith('{"type": "ready"') and isinstance(msg, dict):
+        elif isinstance(msg, dict) and msg["type"] == "hello":
             who = ", ".join(str(msg[k]) for k in ("participant", "condition") if msg.get(k) is not None)
-            self.announce(f"session {key[0]} {':'.join(map(str, key[1:3]))}{f' ({who})' if who else ''}: pairing "
-                          f"code {session.pair}, HUD page http://{self.host}:{self.bound_port}/?pair={session.pair}")
+            if reply.startswith('{"type": "ready"'):
+                self.announce(f"session {session.peer}{f' ({who})' if who else ''}: pairing code {session.pair}, "
+                              f"HUD page http://{self.host}:{self.bound_port}/?pair={session.pair}")
+            elif who:   # a refused hello of a participant: the researcher sees why no drive is logged
+                self.announce(f"session {session.peer} ({who}): hello refused: {json.loads(reply)['error']}")
 
     async def end_session(self, key: tuple, why: str) -> None:
         """Forget a session: its log flushed (a drive without bye stays incomplete), its HUD pages closed."""
@@ -285,12 +342,12 @@ class LiveServer:
         if session is None:
             return
         self.paired.pop(session.pair, None)
-        if session.log is not None:
-            await self.in_store_thread(session.log.flush)
+        await self.flush(session, then="the samples since the last flush are lost")
+        session.release()
         for page in list(self.displays.pop(session.pair, ())):   # not awaited: a slow page delays nothing
             asyncio.ensure_future(page.close(1000, "session ended"))
         if key[0] == "udp":
-            self.announce(f"session udp {':'.join(map(str, key[1:3]))} ended: {why}")
+            self.announce(f"session {session.peer} ended: {why}")
 
     def _http(self, connection, request):
         from websockets.datastructures import Headers
@@ -342,7 +399,7 @@ class LiveServer:
                 if delay := session.throttle.delay():   # over the rate: wait, and TCP back-pressure slows the sender
                     await asyncio.sleep(delay)
                 msg, store = self.triage(text)
-                reply = await self.in_store_thread(session.handle, msg) if store else session.handle(msg)
+                reply = await self.handle_in_store_thread(session, msg) if store else session.handle(msg)
                 await connection.send(reply)
                 self.answered(session, key, msg, reply)
                 await asyncio.sleep(0)   # let the other clients' messages in between: one busy client cannot hog
@@ -352,22 +409,25 @@ class LiveServer:
             await self.end_session(key, "disconnected")
 
     async def _housekeeper(self) -> None:
-        """Flush the drive logs about every FLUSH_EVERY s; end UDP sessions idle for udp_idle s."""
+        """Flush the drive logs about every FLUSH_EVERY s; end UDP sessions idle for udp_idle s. Runs for the
+        server's life: a failure is a console line, and the next round comes as usual."""
         tick = min(FLUSH_EVERY, self.udp_idle / 4)
         last_flush = time.monotonic()
         while True:
             await asyncio.sleep(tick)
-            now = time.monotonic()
-            idle = [k for k, s in self.sessions.items() if k[0] == "udp" and now - s.last_seen > self.udp_idle]
-            for key in idle:
-                await self.end_session(key, f"{self.udp_idle:g} s without a datagram")
-            if idle:
-                gc.collect()   # a controller holds reference cycles: give its memory back now, not some time later
-            if now - last_flush >= FLUSH_EVERY:
-                last_flush = now
-                for session in list(self.sessions.values()):
-                    if session.log is not None:
-                        await self.in_store_thread(session.log.flush)
+            try:
+                now = time.monotonic()
+                idle = [k for k, s in self.sessions.items() if k[0] == "udp" and now - s.last_seen > self.udp_idle]
+                for key in idle:
+                    await self.end_session(key, f"{self.udp_idle:g} s without a datagram")
+                if idle:
+                    gc.collect()   # a controller holds reference cycles: give its memory back now, not later
+                if now - last_flush >= FLUSH_EVERY:
+                    last_flush = now
+                    for session in list(self.sessions.values()):
+                        await self.flush(session)
+            except Exception as exc:
+                self.announce(f"housekeeping failed: {_one_line(exc)}; it goes on")
 
     async def start(self) -> None:
         """Serve until cancelled."""

@@ -65,7 +65,8 @@ def test_session_advice_equals_the_in_process_controller(live):
     for k, msg in enumerate(states(150)):
         if k == 50:
             err = json.loads(session.handle('{"type":"state","seq":50,"t":"soon","s":1,"v":1}'))
-            assert err == {"type": "error", "seq": 50, "error": "'t' must be a finite number, got 'soon'"}
+            assert err == {"type": "error", "seq": 50,
+                           "error": "'t' must be a finite number >= -1e+07 and <= 1e+07 s, got 'soon'"}
         reply = json.loads(session.handle(json.dumps(msg)))
         lead = (msg["leader"]["gap"], msg["leader"]["v"]) if msg["leader"] else None
         want = ref.step(msg["t"], msg["s"], msg["v"], lead)
@@ -240,6 +241,120 @@ def test_udp_session_logs_a_complete_drive(paper_db):
         d = st.df("SELECT drive_id, n_samples, meta FROM drives WHERE participant_id = 'P003'").iloc[0]
     assert int(d["drive_id"]) == done["drive_id"] and d["n_samples"] == 40
     assert json.loads(d["meta"])["live"]["complete"] is True
+
+
+def _stored(holder, participant: str) -> tuple[int, int, dict] | None:
+    """(drive_id, samples stored, meta.live) of the participant's pedas drive, read through the server's holder."""
+    with holder:
+        d = holder.store.df("SELECT drive_id, meta FROM drives WHERE participant_id = ? AND condition = 'pedas'",
+                            [participant])
+        if d.empty:
+            return None
+        drive_id = int(d["drive_id"].iloc[0])
+        n = holder.store.one("SELECT count(*) FROM drive_samples WHERE drive_id = ?", [drive_id])
+    return drive_id, n, json.loads(d["meta"].iloc[0])["live"]
+
+
+def _until(what, timeout: float = 20.0):
+    """Poll `what()` until it is truthy (a flush comes about once a second)."""
+    t_end = time.monotonic() + timeout
+    while not (got := what()) and time.monotonic() < t_end:
+        time.sleep(0.1)
+    return got
+
+
+def test_one_simulator_per_drive(paper_db, live):
+    """A second hello for the drive a session logs is refused in one line (the console says so) and deletes
+    nothing: the first session's partial drive grows in the store each second, the refused session is advised
+    without a log, and the first's bye stores its every sample. A flush that fails (the drive removed behind the
+    server's back) is a console line, and the other sessions are flushed on."""
+    from websockets.sync.client import connect
+
+    from study.logs.live_log import LiveDriveLog
+    from study.people.participants import add_participant
+    from study.store.store import Store, StoreHolder
+    from tests.pedas.test_live_limits import ask, running
+
+    with Store.open(paper_db, actor="lab") as st:
+        add_participant(st, "P001")
+        add_participant(st, "P002")
+    holder = StoreHolder(paper_db, "lab")
+    hello = '{"type":"hello","participant":"%s","condition":"pedas"}'
+    with running(live, logger_factory=lambda p, c: LiveDriveLog(holder, p, c, "synthetic-mixed")) as (
+            server, port, lines), connect(f"ws://127.0.0.1:{port}/") as first, \
+            connect(f"ws://127.0.0.1:{port}/") as second:
+        assert ask(first, hello % "P001")["logging"] is True
+        peer = f"ws 127.0.0.1:{first.local_address[1]}"
+        err = ask(second, hello % "P001")["error"]
+        assert err.startswith(f"P001's pedas drive is being logged by another session ({peer}, since ") and \
+            err.endswith("one simulator per drive; that session must say bye or disconnect first")
+        assert _until(lambda: any(line.startswith("session ws 127.0.0.1:") and
+                                  line.endswith(f"(P001, pedas): hello refused: {err}") for line in lines))
+        msgs = [json.dumps(m) for m in states(60)]
+        for m in msgs[:20]:
+            assert ask(first, m)["type"] == "advice"
+        for m in states(10, t0=100.0):
+            assert ask(second, json.dumps(m))["type"] == "advice"          # advised, not logged
+        drive_id, n, meta = _until(lambda: (got := _stored(holder, "P001")) and got[1] == 20 and got)
+        assert meta["complete"] is False                                   # the partial drive, during the session
+        for m in msgs[20:40]:
+            ask(first, m)
+        assert _until(lambda: _stored(holder, "P001")[1] == 40)            # flushed on: nothing deleted it
+        # the drive removed behind the server's back: the first's flush fails, says so once, and flushing goes on
+        assert ask(second, hello % "P002")["logging"] is True
+        for m in msgs[:20]:
+            ask(second, m)
+        with holder:
+            holder.store.con.execute("DELETE FROM drive_samples WHERE drive_id = ?", [drive_id])
+            holder.store.con.execute("DELETE FROM drives WHERE drive_id = ?", [drive_id])
+        for m in msgs[40:]:
+            ask(first, m)
+        failed = _until(lambda: [line for line in lines if "drive log not written" in line])
+        assert failed[0].startswith(f"session {peer} (P001, pedas): drive log not written: ") and \
+            failed[0].endswith("its samples stay queued for the next flush")
+        for m in states(20, t0=4.0):
+            ask(second, json.dumps(m))
+        assert _until(lambda: (_stored(holder, "P002") or (0, 0))[1] == 40)   # the other session is flushed on
+        time.sleep(2.5)
+        assert len([line for line in lines if "drive log not written" in line]) == 1   # said once per cause
+        assert ask(second, '{"type":"bye"}')["samples"] == 40
+    holder.shut()
+    with Store.open(paper_db, actor="lab", read_only=True) as st:
+        d = st.df("SELECT participant_id, n_samples, meta FROM drives ORDER BY participant_id")
+    assert d["participant_id"].tolist() == ["P002"] and d["n_samples"].tolist() == [40]
+    assert json.loads(d["meta"].iloc[0])["live"]["complete"] is True
+
+
+def test_a_drive_stored_by_another_writer_is_never_replaced(paper_db):
+    """Two drive logs of one participant's drive (two servers on one store): the second's flush is refused and
+    deletes nothing; the first's samples stay whole. A log with replace replaces only the drive it started over."""
+    from study.logs.live_log import LiveDriveLog
+    from study.people.participants import add_participant
+    from study.store.store import Store
+
+    rows = [{"t": 0.2 * k, "s": 5.0 + 2 * k, "v": 10.0, "segment": "urban", "speed_limit": 13.9, "a": 0.0,
+             "grade": 0.0, "tl_id": None, "tl_state": None, "d_tl": float("nan"), "leader_gap": float("nan"),
+             "leader_v": float("nan"), "v_advice": 10.0, "controller": "rt", "hud_arrow": 0, "hud_in_band": True,
+             "warning": False} for k in range(30)]
+    with Store.open(paper_db, actor="lab") as st:
+        add_participant(st, "P001")
+        a = LiveDriveLog(st, "P001", "pedas", "synthetic-mixed")
+        b = LiveDriveLog(st, "P001", "pedas", "synthetic-mixed", replace=True)   # started before a stored any
+        for row in rows[:20]:
+            a.append(row)
+            b.append(row)
+        assert a.flush() == 20
+        with pytest.raises(ValueError, match=f"P001's pedas drive {a.drive_id} was stored by another writer"):
+            b.flush()
+        for row in rows[20:]:
+            a.append(row)
+        assert a.flush() == 30 and a.close() is not None
+        assert st.one("SELECT n_samples FROM drives WHERE participant_id = 'P001'") == 30
+        assert st.one("SELECT count(*) FROM drive_samples") == 30
+        c = LiveDriveLog(st, "P001", "pedas", "synthetic-mixed", replace=True)   # over the drive stored now
+        for row in rows[:10]:
+            c.append(row)
+        assert c.flush() == 10 and st.one("SELECT count(*) FROM drive_samples") == 10
 
 
 @pytest.mark.browser
