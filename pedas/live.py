@@ -14,8 +14,10 @@ from __future__ import annotations
 
 import asyncio
 import gc
+import hmac
 import json
 import math
+import secrets
 import time
 from bisect import bisect_left
 from concurrent.futures import ThreadPoolExecutor
@@ -88,6 +90,8 @@ class LiveSession:
         self.throttle: Throttle | None = None   # the server's: this client's rate limit
         self.last_seen = 0.0                    # the server's: time.monotonic() of the client's last message
         self.flush_error: str | None = None     # the server's: why the last flush of the drive log failed
+        self.secret: str | None = None          # the server's, UDP: what every datagram after the first hello carries
+        self.forged = 0                         # the server's, UDP: datagrams from its address without the secret
 
     def _reset(self) -> None:
         from pedas.controller import PedasController
@@ -129,7 +133,8 @@ class LiveSession:
         self._reset()
         self.samples = 0
         return json.dumps({"type": "ready", "route": self.live.name, "length_m": float(self.live.route.length),
-                           "logging": self.log is not None, "pair": self.pair})
+                           "logging": self.log is not None, "pair": self.pair,
+                           **({"secret": self.secret} if self.secret else {})})
 
     def _state(self, msg: dict) -> str:
         st = parse_state(msg, float(self.live.route.length))
@@ -191,6 +196,12 @@ class LiveSession:
 Announce = Callable[[str], None]   # one console line: a session's pairing code and HUD page, a session's end
 
 
+def _has_secret(msg, secret: str) -> bool:
+    """Whether a decoded datagram carries the session's secret (compared in constant time)."""
+    given = msg.get("secret") if isinstance(msg, dict) else None
+    return isinstance(given, str) and hmac.compare_digest(given.encode(), secret.encode())
+
+
 def _one_line(exc: BaseException) -> str:
     return " ".join(str(exc).split()) or type(exc).__name__
 
@@ -215,20 +226,31 @@ class _Udp(asyncio.DatagramProtocol):
     def datagram_received(self, data: bytes, addr) -> None:
         server, key = self.server, ("udp",) + tuple(addr)
         session = server.sessions.get(key)
-        if session is not None and not session.throttle.take():
-            return   # over the client's rate: dropped unanswered (UDP has no back-pressure; an answer would double it)
         msg, store = server.triage(data)
-        if session is None:
-            # no session for a message that does not decode, nor beyond the session cap: answered (within a
-            # server-wide budget) and forgotten, so stray datagrams from many ports hold no memory
-            if not isinstance(msg, dict) or server.udp_count() >= server.max_udp_sessions:
+        if session is not None:
+            # a source address is easily forged: only a datagram with the session's secret is the simulator's;
+            # others are dropped unanswered (an answer would go to the forged address) and counted
+            if not _has_secret(msg, session.secret):
+                server.forged(session)
+                return
+            if not session.throttle.take():
+                return   # over the client's rate: dropped unanswered (UDP has no back-pressure)
+        else:
+            # only a hello makes a session (its ready carries the secret); anything else, and a hello beyond the
+            # session cap, is answered (within a server-wide budget) and forgotten, so stray datagrams from many
+            # ports hold no memory
+            if not isinstance(msg, dict) or msg["type"] != "hello" or server.udp_count() >= server.max_udp_sessions:
                 if server.strays.take():
                     why = (_decode_error(msg) if not isinstance(msg, dict) else
+                           error_message(msg.get("seq"), "a UDP session starts with hello: its ready carries the "
+                                                         "secret that every later datagram must carry")
+                           if msg["type"] != "hello" else
                            error_message(msg.get("seq"), f"too many UDP sessions ({server.max_udp_sessions} at "
                                                          f"once): try again after {server.udp_idle:g} s"))
                     self.transport.sendto(why.encode(), addr)
                 return
             session = server.session_for(key)
+            session.secret = secrets.token_hex(16)
         session.last_seen = time.monotonic()
         if store:
             asyncio.ensure_future(self._reply_later(session, msg, addr, key))
@@ -316,6 +338,13 @@ class LiveServer:
             self.paired[session.pair] = session
         return self.sessions[key]
 
+    def forged(self, session: LiveSession) -> None:
+        """Count a datagram from a UDP session's address without its secret; the first is a console line."""
+        session.forged += 1
+        if session.forged == 1:
+            self.announce(f"session {session.peer}: a datagram without the session's secret dropped (forged, or a "
+                          "simulator that does not send the secret of its ready); further ones are counted")
+
     def udp_count(self) -> int:
         return sum(1 for key in self.sessions if key[0] == "udp")
 
@@ -347,7 +376,8 @@ class LiveServer:
         for page in list(self.displays.pop(session.pair, ())):   # not awaited: a slow page delays nothing
             asyncio.ensure_future(page.close(1000, "session ended"))
         if key[0] == "udp":
-            self.announce(f"session {session.peer} ended: {why}")
+            forged = f" ({session.forged} datagrams without its secret dropped)" if session.forged else ""
+            self.announce(f"session {session.peer} ended: {why}{forged}")
 
     def _http(self, connection, request):
         from websockets.datastructures import Headers

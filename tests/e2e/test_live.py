@@ -188,32 +188,61 @@ def test_killed_session_keeps_what_was_logged(paper_db, cli_proc):
         {"sent": sent, "kept": int(n), "duration_s": float(d["duration_s"]), "meta": meta}, indent=1))
 
 
+def doc_udp_client():
+    """The class LiveUdp of docs/hud.md ("UDP: the session's secret"), from the code block as written there."""
+    text = (REPO / "docs" / "hud.md").read_text()
+    block = text.split("### UDP: the session's secret", 1)[1].split("```python\n", 1)[1].split("```", 1)[0]
+    space: dict = {}
+    exec(compile(block, "docs/hud.md", "exec"), space)
+    return space["LiveUdp"]
+
+
 def test_udp_and_the_hud_page_feed(cli_proc):
-    """A simulator speaking UDP gets the advice; the feed of the HUD page paired with its session gets each frame;
-    a second server on the same port and a client without a server are one-line errors."""
+    """A simulator speaking UDP (the client of docs/hud.md) gets the advice; the feed of the HUD page paired with
+    its session gets each frame. A datagram from the session's address without its secret, or with another, is
+    dropped unanswered and never reaches the page (the console says so once, and counts); a state from an address
+    without a session is told to say hello; a second server on the same port is a one-line error."""
     from websockets.sync.client import connect
 
-    proc, port = start_server(None)
+    proc, port = start_server(None, "--udp-idle", "2")
     try:
         r = cli_proc("live", "serve", "--no-log", "--route", "synthetic-mixed", "--port", port, db=None, timeout=120)
         assert r.code == 2 and r.err.count("\n") == 1 and f"cannot listen on 127.0.0.1:{port}" in r.err
-        udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        udp.settimeout(30)
-        udp.sendto(b'{"type":"hello"}', ("127.0.0.1", port))
-        ready = json.loads(udp.recv(65536))
-        assert ready["type"] == "ready"
-        with connect(f"ws://127.0.0.1:{port}/display?pair={ready['pair']}") as display:
-            for msg in states(5):
-                udp.sendto(json.dumps(msg).encode(), ("127.0.0.1", port))
-                reply = json.loads(udp.recv(65536))
+        stray = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        stray.settimeout(30)
+        stray.sendto(json.dumps(next(states(1))).encode(), ("127.0.0.1", port))
+        assert json.loads(stray.recv(65536))["error"] == ("a UDP session starts with hello: its ready carries the "
+                                                          "secret that every later datagram must carry")
+        sim = doc_udp_client()(port=port, timeout=30)
+        assert sim.ready["type"] == "ready" and len(sim.secret) == 32 and int(sim.secret, 16) >= 0
+        with connect(f"ws://127.0.0.1:{port}/display?pair={sim.ready['pair']}") as display:
+            msgs = list(states(6))
+            for msg in msgs[:5]:
+                reply = sim.state(msg["seq"], msg["t"], msg["s"], msg["v"])
                 assert reply["type"] == "advice" and reply["seq"] == msg["seq"]
                 shown = json.loads(display.recv(timeout=30))
                 assert shown["seq"] == msg["seq"] and shown["hud"] == reply["hud"]
-            udp.sendto(b'{"type":"state"}', ("127.0.0.1", port))
-            assert json.loads(udp.recv(65536))["error"].startswith("'t' must be")
+            # what a forged datagram looks like to the server: the session's address, no (or another) secret
+            for secret in ({}, {"secret": "0" * 32}, {"secret": sim.secret[:-1]}, {"secret": 7}):
+                sim.sock.send(json.dumps({**msgs[5], "v": 99.0, **secret}).encode())
+                sim.sock.send(b'{"type":"bye"}')
+            with pytest.raises(TimeoutError):
+                display.recv(timeout=1.0)                                  # nothing reached the page
+            sim.sock.settimeout(0.5)
+            with pytest.raises(TimeoutError):
+                sim.sock.recv(65536)                                       # nor was anything answered
+            sim.sock.settimeout(30)
+            assert sim.state(5, msgs[5]["t"], msgs[5]["s"], 10.0)["hud"]["speed"] == 36   # the session goes on
+            sim.sock.send(json.dumps({"type": "state", "secret": sim.secret}).encode())
+            assert json.loads(sim.sock.recv(65536))["error"].startswith("'t' must be")
+            assert sim.bye() == {"type": "done", "samples": 6, "drive_id": None}
+        time.sleep(3.5)                                                    # the session idles out (2 s)
     finally:
         proc.send_signal(signal.SIGINT)
-        proc.wait(timeout=30)
+        out, _ = proc.communicate(timeout=30)
+    peer = f"session udp 127.0.0.1:{sim.sock.getsockname()[1]}"
+    assert f"{peer}: a datagram without the session's secret dropped" in out
+    assert f"{peer} ended: 2 s without a datagram (8 datagrams without its secret dropped)" in out
 
 
 def test_udp_session_logs_a_complete_drive(paper_db):
@@ -224,15 +253,11 @@ def test_udp_session_logs_a_complete_drive(paper_db):
         add_participant(st, "P003")
     proc, port = start_server(paper_db)
     try:
-        udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        udp.settimeout(60)
-        udp.sendto(b'{"type":"hello","participant":"P003","condition":"pedas"}', ("127.0.0.1", port))
-        assert json.loads(udp.recv(65536))["logging"] is True
+        sim = doc_udp_client()(port=port, participant="P003", timeout=60)
+        assert sim.ready["logging"] is True
         for msg in states(40):
-            udp.sendto(json.dumps(msg).encode(), ("127.0.0.1", port))
-            assert json.loads(udp.recv(65536))["seq"] == msg["seq"]
-        udp.sendto(b'{"type":"bye"}', ("127.0.0.1", port))
-        done = json.loads(udp.recv(65536))
+            assert sim.state(msg["seq"], msg["t"], msg["s"], msg["v"])["seq"] == msg["seq"]
+        done = sim.bye()
     finally:
         proc.send_signal(signal.SIGINT)
         proc.wait(timeout=60)

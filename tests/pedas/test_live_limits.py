@@ -192,13 +192,17 @@ def test_a_hud_page_shows_only_its_session(live):
 
 def test_idle_udp_sessions_end_and_strays_hold_nothing(live):
     """A UDP session ends after udp_idle s without a datagram (its page is closed, its code forgotten); datagrams
-    that do not decode make no session; beyond max_udp_sessions a new peer gets a one-line error."""
+    that do not decode, or are not a hello, make no session; beyond max_udp_sessions a new peer gets a one-line
+    error."""
     with running(live, udp_idle=2.0, max_udp_sessions=2) as (server, port, lines):
         peers = [socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(4)]
         for p in peers:
             p.settimeout(30)
         peers[0].sendto(b"[[[", ("127.0.0.1", port))
         assert json.loads(peers[0].recv(65536))["error"].startswith("not JSON")
+        assert server.sessions == {}
+        peers[0].sendto(state(0).encode(), ("127.0.0.1", port))               # not a hello: no session
+        assert json.loads(peers[0].recv(65536))["error"].startswith("a UDP session starts with hello")
         assert server.sessions == {}
         peers[0].sendto(b'{"type":"hello"}', ("127.0.0.1", port))
         code = json.loads(peers[0].recv(65536))["pair"]
