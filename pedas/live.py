@@ -29,7 +29,7 @@ import numpy as np
 from pedas.hud_frame import hud_frame
 from pedas.hud_log import channel_values
 from pedas.live_display import hud_page, new_pair_code, pair_of
-from pedas.live_limits import BURST, MAX_UDP_SESSIONS, RATE, UDP_IDLE, WS_MAX_FRAME, Throttle
+from pedas.live_limits import BURST, MAX_PAGES, MAX_SESSIONS, RATE, UDP_IDLE, WS_MAX_FRAME, Throttle
 from pedas.live_protocol import ProtocolError, advice_message, decode, error_message, parse_state
 
 FLUSH_EVERY = 1.0  # s of wall time between drive-log commits
@@ -239,13 +239,13 @@ class _Udp(asyncio.DatagramProtocol):
             # only a hello makes a session (its ready carries the secret); anything else, and a hello beyond the
             # session cap, is answered (within a server-wide budget) and forgotten, so stray datagrams from many
             # ports hold no memory
-            if not isinstance(msg, dict) or msg["type"] != "hello" or server.udp_count() >= server.max_udp_sessions:
+            if not isinstance(msg, dict) or msg["type"] != "hello" or server.count("udp") >= server.max_sessions:
                 if server.strays.take():
                     why = (_decode_error(msg) if not isinstance(msg, dict) else
                            error_message(msg.get("seq"), "a UDP session starts with hello: its ready carries the "
                                                          "secret that every later datagram must carry")
                            if msg["type"] != "hello" else
-                           error_message(msg.get("seq"), f"too many UDP sessions ({server.max_udp_sessions} at "
+                           error_message(msg.get("seq"), f"too many UDP sessions ({server.max_sessions} at "
                                                          f"once): try again after {server.udp_idle:g} s"))
                     self.transport.sendto(why.encode(), addr)
                 return
@@ -269,22 +269,24 @@ class LiveServer:
     """The sockets around :class:`LiveSession`s; run with :meth:`run` (blocks) or ``asyncio.run(server.start())``.
 
     ``rate``/``burst``: each client's throttle (messages/s, messages at once); ``udp_idle``: s without a datagram
-    after which a UDP session ends; ``max_udp_sessions``: UDP sessions at once; ``announce``: called with a console
+    after which a UDP session ends; ``max_sessions``: simulator sessions at once, per transport (WebSocket
+    connections, UDP peers); ``announce``: called with a console
     line when a session says hello (its pairing code and HUD page) and when a session ends."""
 
     def __init__(self, live: LiveRoute, host: str = "127.0.0.1", port: int = 8765,
                  logger_factory: LoggerFactory | None = None, on_ready: Callable[[int], None] | None = None,
                  announce: Announce | None = None, rate: float = RATE, burst: int = BURST,
-                 udp_idle: float = UDP_IDLE, max_udp_sessions: int = MAX_UDP_SESSIONS) -> None:
+                 udp_idle: float = UDP_IDLE, max_sessions: int = MAX_SESSIONS) -> None:
         self.live, self.host, self.port = live, host, port
         self.logger_factory = logger_factory
         self.on_ready = on_ready
         self.announce = announce or (lambda line: None)
-        self.rate, self.burst, self.udp_idle, self.max_udp_sessions = rate, burst, udp_idle, max_udp_sessions
+        self.rate, self.burst, self.udp_idle, self.max_sessions = rate, burst, udp_idle, max_sessions
         self.sessions: dict[tuple, LiveSession] = {}
         self.writers: dict[tuple[str, str], LiveSession] = {}   # (participant, condition) -> the session logging it
         self.paired: dict[str, LiveSession] = {}    # pairing code -> its session
         self.displays: dict[str, set] = {}          # pairing code -> the HUD pages showing that session
+        self.full = False                           # the WebSocket session cap was met (and said) since one ended
         self.strays = Throttle(rate, burst)         # answers to UDP datagrams that get no session, all peers together
         self.pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="drive-log")   # the store's one writer
         self.bound_port = port
@@ -345,8 +347,9 @@ class LiveServer:
             self.announce(f"session {session.peer}: a datagram without the session's secret dropped (forged, or a "
                           "simulator that does not send the secret of its ready); further ones are counted")
 
-    def udp_count(self) -> int:
-        return sum(1 for key in self.sessions if key[0] == "udp")
+    def count(self, transport: str) -> int:
+        """Sessions of a transport ("ws" or "udp") at this moment."""
+        return sum(1 for key in self.sessions if key[0] == transport)
 
     def answered(self, session: LiveSession, key: tuple, msg, reply: str) -> None:
         """After each answer: an advice goes to the session's HUD pages; a hello is announced (accepted: its pairing
@@ -370,6 +373,7 @@ class LiveServer:
         session = self.sessions.pop(key, None)
         if session is None:
             return
+        self.full = False
         self.paired.pop(session.pair, None)
         await self.flush(session, then="the samples since the last flush are lost")
         session.release()
@@ -397,9 +401,12 @@ class LiveServer:
 
         code = pair_of(connection.request.path)
         if code not in self.paired:
-            await connection.send(error_message(None, f"unknown pairing code {code!r}: open the HUD page address "
-                                                      "the console printed for the session (/?pair=CODE)"))
-            await connection.close(1008, "unknown pairing code")
+            await self._refuse(connection, f"unknown pairing code {code!r}: open the HUD page address the console "
+                                           "printed for the session (/?pair=CODE)", 1008, "unknown pairing code")
+            return
+        if len(self.displays.get(code, ())) >= MAX_PAGES:
+            await self._refuse(connection, f"too many HUD pages for session {code} ({MAX_PAGES} at once)", 1008,
+                               "too many pages")
             return
         self.displays.setdefault(code, set()).add(connection)
         throttle = Throttle(self.rate, self.burst)
@@ -416,11 +423,28 @@ class LiveServer:
                 if not pages:
                     self.displays.pop(code, None)
 
+    async def _refuse(self, connection, why: str, code: int, reason: str) -> None:
+        """One error line, then the connection closed with `code` and `reason`."""
+        from websockets.exceptions import ConnectionClosed
+
+        try:
+            await connection.send(error_message(None, why))
+            await connection.close(code, reason)
+        except ConnectionClosed:   # it went away first
+            pass
+
     async def _ws(self, connection) -> None:
         from websockets.exceptions import ConnectionClosed
 
         if connection.request.path.split("?")[0] == "/display":
             await self._display(connection)
+            return
+        if self.count("ws") >= self.max_sessions:
+            if not self.full:   # said once until a session ends: a burst of connections is not a burst of lines
+                self.full = True
+                self.announce(f"{self.max_sessions} WebSocket sessions at once: new connections are refused")
+            await self._refuse(connection, f"too many WebSocket sessions ({self.max_sessions} at once): try again "
+                                           "when one has ended", 1013, "too many sessions")
             return
         key = ("ws",) + tuple(connection.remote_address[:2]) + (id(connection),)
         session = self.session_for(key)

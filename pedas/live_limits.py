@@ -4,7 +4,8 @@ with :class:`Throttle`, the token bucket that enforces the rate.
 
 Each limit answers a failure seen on the server (docs/hud.md, "Limits"): a speed of 1e6 m/s was advised on and
 shown as 3,600,000 km/h, 50,000-deep JSON closed the socket with a traceback, 5,000 messages in 1 s from one client
-stalled another client's advice for 1.9 s, 500 UDP source ports kept a controller each for ever.
+stalled another client's advice for 1.9 s, 500 UDP source ports kept a controller each for ever, 300 WebSocket
+sessions held 443 MB.
 """
 from __future__ import annotations
 
@@ -35,8 +36,11 @@ BURST = 100        # messages a client may send at once above RATE: half a secon
                    # after a pause); `live serve --max-rate` keeps this ratio
 UDP_IDLE = 30.0    # s without a datagram after which a UDP session ends (UDP has no close; a WebSocket session
                    # ends with its connection)
-MAX_UDP_SESSIONS = 32   # UDP peers with a session at once (a lab runs one or a few simulators): each holds a
-                        # controller (about 1 MB); a datagram from a new peer beyond this is answered with an error
+MAX_SESSIONS = 32  # simulator sessions at once, per transport: WebSocket connections, UDP peers (a lab runs one or
+                   # a few simulators); each holds a controller (about 1.5 MB: 300 WebSocket sessions grew the server
+                   # by 443 MB). Beyond it: a WebSocket connection gets an error line and is closed (1013), a UDP
+                   # peer's hello an error line. `live serve --max-sessions`
+MAX_PAGES = 8      # HUD pages (/display) at once per session: a projector, a monitor, the experimenter's screen
 
 
 class Throttle:

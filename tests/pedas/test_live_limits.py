@@ -11,7 +11,7 @@ import re
 import socket
 import threading
 import time
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 
 import pytest
 from websockets.exceptions import ConnectionClosed
@@ -19,7 +19,7 @@ from websockets.sync.client import connect
 
 from pedas.live import LiveRoute, LiveServer, LiveSession
 from pedas.live_display import PAIR_ALPHABET, pair_of
-from pedas.live_limits import MAX_DEPTH, MAX_MESSAGE_BYTES, S_MARGIN, T_MAX, V_MAX, WS_MAX_FRAME, Throttle
+from pedas.live_limits import MAX_DEPTH, MAX_MESSAGE_BYTES, MAX_PAGES, S_MARGIN, T_MAX, V_MAX, WS_MAX_FRAME, Throttle
 from pedas.live_protocol import ProtocolError, decode, parse_state
 
 
@@ -192,9 +192,9 @@ def test_a_hud_page_shows_only_its_session(live):
 
 def test_idle_udp_sessions_end_and_strays_hold_nothing(live):
     """A UDP session ends after udp_idle s without a datagram (its page is closed, its code forgotten); datagrams
-    that do not decode, or are not a hello, make no session; beyond max_udp_sessions a new peer gets a one-line
+    that do not decode, or are not a hello, make no session; beyond max_sessions a new peer gets a one-line
     error."""
-    with running(live, udp_idle=2.0, max_udp_sessions=2) as (server, port, lines):
+    with running(live, udp_idle=2.0, max_sessions=2) as (server, port, lines):
         peers = [socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(4)]
         for p in peers:
             p.settimeout(30)
@@ -282,7 +282,42 @@ def test_bad_input_is_answered_and_the_server_goes_on(live):
             assert ask(ws, '{"type":"hello"}')["type"] == "ready"
 
 
+def test_websocket_sessions_and_pages_are_capped(live):
+    """Beyond max_sessions a WebSocket connection gets one error line and is closed (1013), the console says so
+    once; when a session ends there is room again. A session's HUD pages are capped at MAX_PAGES."""
+    with running(live, max_sessions=2) as (server, port, lines):
+        with connect(f"ws://127.0.0.1:{port}/") as a, connect(f"ws://127.0.0.1:{port}/") as b:
+            code = ask(a, '{"type":"hello"}')["pair"]
+            ask(b, '{"type":"hello"}')
+            for _ in range(2):
+                with connect(f"ws://127.0.0.1:{port}/") as c:
+                    assert json.loads(c.recv(timeout=30)) == {
+                        "type": "error", "seq": None,
+                        "error": "too many WebSocket sessions (2 at once): try again when one has ended"}
+                    with pytest.raises(ConnectionClosed) as closed:
+                        c.recv(timeout=30)
+                    assert closed.value.rcvd.code == 1013
+            assert lines.count("2 WebSocket sessions at once: new connections are refused") == 1
+            with ExitStack() as stack:
+                pages = [stack.enter_context(connect(f"ws://127.0.0.1:{port}/display?pair={code}"))
+                         for _ in range(MAX_PAGES)]
+                with connect(f"ws://127.0.0.1:{port}/display?pair={code}") as extra:
+                    assert json.loads(extra.recv(timeout=30))["error"] == \
+                        f"too many HUD pages for session {code} ({MAX_PAGES} at once)"
+                assert ask(a, state(0))["type"] == "advice"
+                assert all(json.loads(page.recv(timeout=30))["seq"] == 0 for page in pages)   # each page is fed
+        deadline = time.monotonic() + 30
+        while server.sessions and time.monotonic() < deadline:
+            time.sleep(0.05)
+        with connect(f"ws://127.0.0.1:{port}/") as c:
+            assert ask(c, '{"type":"hello"}')["type"] == "ready"
+
+
 def test_serve_refuses_bad_limits(cli):
-    for flag in ("--udp-idle", "--max-rate"):
+    for flag in ("--udp-idle", "--max-rate", "--max-sessions"):
         r = cli("live", "serve", "--no-log", flag, "0", db=None)
         assert r.code == 2 and r.err.count("\n") == 1 and f"{flag} must be a positive number, got 0" in r.err
+    for port in ("99999", "-1", "65536"):
+        r = cli("live", "serve", "--no-log", "--port", port, db=None)
+        assert r.code == 2 and r.err.count("\n") == 1 and \
+            f"--port must be 1-65535 (or 0: any free port), got {port}" in r.err
