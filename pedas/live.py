@@ -7,8 +7,10 @@ optional drive log (:class:`study.logs.live_log.LiveDriveLog`, any object with a
 the sockets: WebSocket and HTTP on ``port`` (``/?pair=CODE`` is the HUD page of one session, ``/display?pair=CODE``
 its feed of HUD frames, any other path the simulator's channel) and UDP on the same port number; drive logs are
 flushed about once a second in a worker thread so that the store never delays an answer. Each client is throttled
-to :data:`pedas.live_limits.RATE` messages/s and UDP sessions end after :data:`~pedas.live_limits.UDP_IDLE` s
-without a datagram (docs/hud.md, "Limits").
+to :data:`pedas.live_limits.RATE` messages/s, sessions are capped at :data:`~pedas.live_limits.MAX_SESSIONS` per
+transport and UDP sessions end after :data:`~pedas.live_limits.UDP_IDLE` s without a datagram (docs/hud.md,
+"Limits"). A participant's drive has one writer: a second session's hello for it is refused. A UDP session is its
+source address plus the secret its ready carried; a datagram without the secret is dropped.
 """
 from __future__ import annotations
 
