@@ -7,15 +7,19 @@ optional drive log (:class:`study.logs.live_log.LiveDriveLog`, any object with a
 the sockets: WebSocket and HTTP on ``port`` (``/?pair=CODE`` is the HUD page of one session, ``/display?pair=CODE``
 its feed of HUD frames, any other path the simulator's channel) and UDP on the same port number; drive logs are
 flushed about once a second in a worker thread so that the store never delays an answer. Each client is throttled
-to :data:`pedas.live_limits.RATE` messages/s and UDP sessions end after :data:`~pedas.live_limits.UDP_IDLE` s
-without a datagram (docs/hud.md, "Limits").
+to :data:`pedas.live_limits.RATE` messages/s, sessions are capped at :data:`~pedas.live_limits.MAX_SESSIONS` per
+transport and UDP sessions end after :data:`~pedas.live_limits.UDP_IDLE` s without a datagram (docs/hud.md,
+"Limits"). A participant's drive has one writer: a second session's hello for it is refused. A UDP session is its
+source address plus the secret its ready carried; a datagram without the secret is dropped.
 """
 from __future__ import annotations
 
 import asyncio
 import gc
+import hmac
 import json
 import math
+import secrets
 import time
 from bisect import bisect_left
 from concurrent.futures import ThreadPoolExecutor
@@ -27,7 +31,7 @@ import numpy as np
 from pedas.hud_frame import hud_frame
 from pedas.hud_log import channel_values
 from pedas.live_display import hud_page, new_pair_code, pair_of
-from pedas.live_limits import BURST, MAX_UDP_SESSIONS, RATE, UDP_IDLE, WS_MAX_FRAME, Throttle
+from pedas.live_limits import BURST, MAX_PAGES, MAX_SESSIONS, RATE, UDP_IDLE, WS_MAX_FRAME, Throttle
 from pedas.live_protocol import ProtocolError, advice_message, decode, error_message, parse_state
 
 FLUSH_EVERY = 1.0  # s of wall time between drive-log commits
@@ -65,12 +69,19 @@ class LiveSession:
     """One simulator's session: hello -> state* -> bye; :meth:`handle` maps each message text to its reply text.
     ``pair`` is the session's pairing code (its HUD page's key), fixed for the session's life and sent in ready."""
 
-    def __init__(self, live: LiveRoute, logger_factory: LoggerFactory | None = None, settings=None) -> None:
+    def __init__(self, live: LiveRoute, logger_factory: LoggerFactory | None = None, settings=None,
+                 writers: dict | None = None, peer: str = "") -> None:
         from pedas.params import CONTROLLER
 
         self.live, self.settings = live, settings or CONTROLLER
         self.logger_factory = logger_factory
         self.log = None
+        # (participant, condition) -> the session logging that drive, shared by a server's sessions: one writer per
+        # drive; `peer` names this session in another's refusal
+        self.writers = {} if writers is None else writers
+        self.peer = peer
+        self.drive: tuple[str, str] | None = None   # (participant, condition) of the drive logged, since (UTC)
+        self.since = ""
         self.samples = 0
         self.pair = new_pair_code()
         self._lights = tuple(live.route.lights)
@@ -80,6 +91,9 @@ class LiveSession:
         self._prev = None
         self.throttle: Throttle | None = None   # the server's: this client's rate limit
         self.last_seen = 0.0                    # the server's: time.monotonic() of the client's last message
+        self.flush_error: str | None = None     # the server's: why the last flush of the drive log failed
+        self.secret: str | None = None          # the server's, UDP: what every datagram after the first hello carries
+        self.forged = 0                         # the server's, UDP: datagrams from its address without the secret
 
     def _reset(self) -> None:
         from pedas.controller import PedasController
@@ -110,11 +124,19 @@ class LiveSession:
         if participant is not None:
             if self.logger_factory is None:
                 raise ProtocolError("this server logs no drives (start it with a store: --db)")
-            self.log = self.logger_factory(str(participant), str(condition))
+            drive = (str(participant), str(condition))
+            other = self.writers.get(drive)
+            if other is not None and other is not self:
+                raise ProtocolError(f"{drive[0]}'s {drive[1]} drive is being logged by another session ({other.peer}, "
+                                    f"since {other.since} UTC): one simulator per drive; that session must say bye "
+                                    "or disconnect first")
+            self.log = self.logger_factory(*drive)
+            self.writers[drive], self.drive, self.since = self, drive, time.strftime("%H:%M:%S", time.gmtime())
         self._reset()
         self.samples = 0
         return json.dumps({"type": "ready", "route": self.live.name, "length_m": float(self.live.route.length),
-                           "logging": self.log is not None, "pair": self.pair})
+                           "logging": self.log is not None, "pair": self.pair,
+                           **({"secret": self.secret} if self.secret else {})})
 
     def _state(self, msg: dict) -> str:
         st = parse_state(msg, float(self.live.route.length))
@@ -141,8 +163,14 @@ class LiveSession:
         if self.log is not None:
             result = self.log.close()
             drive_id = getattr(result, "drive_id", None) or getattr(self.log, "drive_id", None)
-            self.log = None
+            self.release()
         return json.dumps({"type": "done", "samples": self.samples, "drive_id": drive_id})
+
+    def release(self) -> None:
+        """Forget the drive log (after bye, or when the session ends): its drive is free for another session."""
+        if self.writers.get(self.drive) is self:
+            del self.writers[self.drive]
+        self.log = self.drive = None
 
     def _next_light(self, s: float):
         j = bisect_left(self._light_s, s)
@@ -170,6 +198,16 @@ class LiveSession:
 Announce = Callable[[str], None]   # one console line: a session's pairing code and HUD page, a session's end
 
 
+def _has_secret(msg, secret: str) -> bool:
+    """Whether a decoded datagram carries the session's secret (compared in constant time)."""
+    given = msg.get("secret") if isinstance(msg, dict) else None
+    return isinstance(given, str) and hmac.compare_digest(given.encode(), secret.encode())
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split()) or type(exc).__name__
+
+
 def _decode_error(text: str | bytes) -> str:
     """The error answer to a message that does not decode."""
     try:
@@ -190,20 +228,31 @@ class _Udp(asyncio.DatagramProtocol):
     def datagram_received(self, data: bytes, addr) -> None:
         server, key = self.server, ("udp",) + tuple(addr)
         session = server.sessions.get(key)
-        if session is not None and not session.throttle.take():
-            return   # over the client's rate: dropped unanswered (UDP has no back-pressure; an answer would double it)
         msg, store = server.triage(data)
-        if session is None:
-            # no session for a message that does not decode, nor beyond the session cap: answered (within a
-            # server-wide budget) and forgotten, so stray datagrams from many ports hold no memory
-            if not isinstance(msg, dict) or server.udp_count() >= server.max_udp_sessions:
+        if session is not None:
+            # a source address is easily forged: only a datagram with the session's secret is the simulator's;
+            # others are dropped unanswered (an answer would go to the forged address) and counted
+            if not _has_secret(msg, session.secret):
+                server.forged(session)
+                return
+            if not session.throttle.take():
+                return   # over the client's rate: dropped unanswered (UDP has no back-pressure)
+        else:
+            # only a hello makes a session (its ready carries the secret); anything else, and a hello beyond the
+            # session cap, is answered (within a server-wide budget) and forgotten, so stray datagrams from many
+            # ports hold no memory
+            if not isinstance(msg, dict) or msg["type"] != "hello" or server.count("udp") >= server.max_sessions:
                 if server.strays.take():
                     why = (_decode_error(msg) if not isinstance(msg, dict) else
-                           error_message(msg.get("seq"), f"too many UDP sessions ({server.max_udp_sessions} at "
+                           error_message(msg.get("seq"), "a UDP session starts with hello: its ready carries the "
+                                                         "secret that every later datagram must carry")
+                           if msg["type"] != "hello" else
+                           error_message(msg.get("seq"), f"too many UDP sessions ({server.max_sessions} at "
                                                          f"once): try again after {server.udp_idle:g} s"))
                     self.transport.sendto(why.encode(), addr)
                 return
             session = server.session_for(key)
+            session.secret = secrets.token_hex(16)
         session.last_seen = time.monotonic()
         if store:
             asyncio.ensure_future(self._reply_later(session, msg, addr, key))
@@ -211,7 +260,7 @@ class _Udp(asyncio.DatagramProtocol):
         self._send(session, session.handle(msg), addr, key, msg)
 
     async def _reply_later(self, session: LiveSession, msg: dict, addr, key) -> None:
-        self._send(session, await self.server.in_store_thread(session.handle, msg), addr, key, msg)
+        self._send(session, await self.server.handle_in_store_thread(session, msg), addr, key, msg)
 
     def _send(self, session: LiveSession, reply: str, addr, key, msg) -> None:
         self.transport.sendto(reply.encode(), addr)
@@ -222,21 +271,24 @@ class LiveServer:
     """The sockets around :class:`LiveSession`s; run with :meth:`run` (blocks) or ``asyncio.run(server.start())``.
 
     ``rate``/``burst``: each client's throttle (messages/s, messages at once); ``udp_idle``: s without a datagram
-    after which a UDP session ends; ``max_udp_sessions``: UDP sessions at once; ``announce``: called with a console
+    after which a UDP session ends; ``max_sessions``: simulator sessions at once, per transport (WebSocket
+    connections, UDP peers); ``announce``: called with a console
     line when a session says hello (its pairing code and HUD page) and when a session ends."""
 
     def __init__(self, live: LiveRoute, host: str = "127.0.0.1", port: int = 8765,
                  logger_factory: LoggerFactory | None = None, on_ready: Callable[[int], None] | None = None,
                  announce: Announce | None = None, rate: float = RATE, burst: int = BURST,
-                 udp_idle: float = UDP_IDLE, max_udp_sessions: int = MAX_UDP_SESSIONS) -> None:
+                 udp_idle: float = UDP_IDLE, max_sessions: int = MAX_SESSIONS) -> None:
         self.live, self.host, self.port = live, host, port
         self.logger_factory = logger_factory
         self.on_ready = on_ready
         self.announce = announce or (lambda line: None)
-        self.rate, self.burst, self.udp_idle, self.max_udp_sessions = rate, burst, udp_idle, max_udp_sessions
+        self.rate, self.burst, self.udp_idle, self.max_sessions = rate, burst, udp_idle, max_sessions
         self.sessions: dict[tuple, LiveSession] = {}
+        self.writers: dict[tuple[str, str], LiveSession] = {}   # (participant, condition) -> the session logging it
         self.paired: dict[str, LiveSession] = {}    # pairing code -> its session
         self.displays: dict[str, set] = {}          # pairing code -> the HUD pages showing that session
+        self.full = False                           # the WebSocket session cap was met (and said) since one ended
         self.strays = Throttle(rate, burst)         # answers to UDP datagrams that get no session, all peers together
         self.pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="drive-log")   # the store's one writer
         self.bound_port = port
@@ -255,42 +307,83 @@ class LiveServer:
         """Run fn in the one thread that uses the store (DuckDB's connection is not shared between threads)."""
         return await asyncio.get_running_loop().run_in_executor(self.pool, fn, *args)
 
+    async def handle_in_store_thread(self, session: LiveSession, msg: dict) -> str:
+        """The session's answer to a hello or bye that opens or completes a drive log; a failure the session does
+        not answer itself (a store that cannot be opened) is one error line to the client and to the console."""
+        try:
+            return await self.in_store_thread(session.handle, msg)
+        except Exception as exc:   # the server goes on: the client may say bye again
+            why = _one_line(exc)
+            self.announce(f"session {session.peer}: {msg['type']} failed: {why}")
+            return error_message(msg.get("seq"), f"{msg['type']} failed: {why}")
+
+    async def flush(self, session: LiveSession, then: str = "its samples stay queued for the next flush") -> None:
+        """Commit a session's drive log in the store's thread. A failure is one console line (again only when its
+        cause changes), never the end of the flushing: `then` says what becomes of the samples."""
+        log = session.log
+        if log is None:
+            return
+        try:
+            await self.in_store_thread(log.flush)
+            session.flush_error = None
+        except Exception as exc:
+            why = _one_line(exc)
+            if why != session.flush_error:
+                session.flush_error = why
+                self.announce(f"session {session.peer} ({', '.join(session.drive or ())}): drive log not written: "
+                              f"{why}; {then}")
+
     def session_for(self, key: tuple) -> LiveSession:
         if key not in self.sessions:
-            session = LiveSession(self.live, self.logger_factory)
+            session = LiveSession(self.live, self.logger_factory, writers=self.writers,
+                                  peer=f"{key[0]} {key[1]}:{key[2]}")
             session.throttle, session.last_seen = Throttle(self.rate, self.burst), time.monotonic()
             self.sessions[key] = session
             self.paired[session.pair] = session
         return self.sessions[key]
 
-    def udp_count(self) -> int:
-        return sum(1 for key in self.sessions if key[0] == "udp")
+    def forged(self, session: LiveSession) -> None:
+        """Count a datagram from a UDP session's address without its secret; the first is a console line."""
+        session.forged += 1
+        if session.forged == 1:
+            self.announce(f"session {session.peer}: a datagram without the session's secret dropped (forged, or a "
+                          "simulator that does not send the secret of its ready); further ones are counted")
+
+    def count(self, transport: str) -> int:
+        """Sessions of a transport ("ws" or "udp") at this moment."""
+        return sum(1 for key in self.sessions if key[0] == transport)
 
     def answered(self, session: LiveSession, key: tuple, msg, reply: str) -> None:
-        """After each answer: an advice goes to the session's HUD pages; a hello that was accepted is announced."""
+        """After each answer: an advice goes to the session's HUD pages; a hello is announced (accepted: its pairing
+        code; refused, with a participant: why)."""
         if reply.startswith('{"type":"advice"'):
             pages = self.displays.get(session.pair)
             if pages:
                 from websockets.asyncio.server import broadcast
 
                 broadcast(pages, reply)
-        elif reply.startswith('{"type": "ready"') and isinstance(msg, dict):
+        elif isinstance(msg, dict) and msg["type"] == "hello":
             who = ", ".join(str(msg[k]) for k in ("participant", "condition") if msg.get(k) is not None)
-            self.announce(f"session {key[0]} {':'.join(map(str, key[1:3]))}{f' ({who})' if who else ''}: pairing "
-                          f"code {session.pair}, HUD page http://{self.host}:{self.bound_port}/?pair={session.pair}")
+            if reply.startswith('{"type": "ready"'):
+                self.announce(f"session {session.peer}{f' ({who})' if who else ''}: pairing code {session.pair}, "
+                              f"HUD page http://{self.host}:{self.bound_port}/?pair={session.pair}")
+            elif who:   # a refused hello of a participant: the researcher sees why no drive is logged
+                self.announce(f"session {session.peer} ({who}): hello refused: {json.loads(reply)['error']}")
 
     async def end_session(self, key: tuple, why: str) -> None:
         """Forget a session: its log flushed (a drive without bye stays incomplete), its HUD pages closed."""
         session = self.sessions.pop(key, None)
         if session is None:
             return
+        self.full = False
         self.paired.pop(session.pair, None)
-        if session.log is not None:
-            await self.in_store_thread(session.log.flush)
+        await self.flush(session, then="the samples since the last flush are lost")
+        session.release()
         for page in list(self.displays.pop(session.pair, ())):   # not awaited: a slow page delays nothing
             asyncio.ensure_future(page.close(1000, "session ended"))
         if key[0] == "udp":
-            self.announce(f"session udp {':'.join(map(str, key[1:3]))} ended: {why}")
+            forged = f" ({session.forged} datagrams without its secret dropped)" if session.forged else ""
+            self.announce(f"session {session.peer} ended: {why}{forged}")
 
     def _http(self, connection, request):
         from websockets.datastructures import Headers
@@ -310,9 +403,12 @@ class LiveServer:
 
         code = pair_of(connection.request.path)
         if code not in self.paired:
-            await connection.send(error_message(None, f"unknown pairing code {code!r}: open the HUD page address "
-                                                      "the console printed for the session (/?pair=CODE)"))
-            await connection.close(1008, "unknown pairing code")
+            await self._refuse(connection, f"unknown pairing code {code!r}: open the HUD page address the console "
+                                           "printed for the session (/?pair=CODE)", 1008, "unknown pairing code")
+            return
+        if len(self.displays.get(code, ())) >= MAX_PAGES:
+            await self._refuse(connection, f"too many HUD pages for session {code} ({MAX_PAGES} at once)", 1008,
+                               "too many pages")
             return
         self.displays.setdefault(code, set()).add(connection)
         throttle = Throttle(self.rate, self.burst)
@@ -329,11 +425,28 @@ class LiveServer:
                 if not pages:
                     self.displays.pop(code, None)
 
+    async def _refuse(self, connection, why: str, code: int, reason: str) -> None:
+        """One error line, then the connection closed with `code` and `reason`."""
+        from websockets.exceptions import ConnectionClosed
+
+        try:
+            await connection.send(error_message(None, why))
+            await connection.close(code, reason)
+        except ConnectionClosed:   # it went away first
+            pass
+
     async def _ws(self, connection) -> None:
         from websockets.exceptions import ConnectionClosed
 
         if connection.request.path.split("?")[0] == "/display":
             await self._display(connection)
+            return
+        if self.count("ws") >= self.max_sessions:
+            if not self.full:   # said once until a session ends: a burst of connections is not a burst of lines
+                self.full = True
+                self.announce(f"{self.max_sessions} WebSocket sessions at once: new connections are refused")
+            await self._refuse(connection, f"too many WebSocket sessions ({self.max_sessions} at once): try again "
+                                           "when one has ended", 1013, "too many sessions")
             return
         key = ("ws",) + tuple(connection.remote_address[:2]) + (id(connection),)
         session = self.session_for(key)
@@ -342,7 +455,7 @@ class LiveServer:
                 if delay := session.throttle.delay():   # over the rate: wait, and TCP back-pressure slows the sender
                     await asyncio.sleep(delay)
                 msg, store = self.triage(text)
-                reply = await self.in_store_thread(session.handle, msg) if store else session.handle(msg)
+                reply = await self.handle_in_store_thread(session, msg) if store else session.handle(msg)
                 await connection.send(reply)
                 self.answered(session, key, msg, reply)
                 await asyncio.sleep(0)   # let the other clients' messages in between: one busy client cannot hog
@@ -352,22 +465,25 @@ class LiveServer:
             await self.end_session(key, "disconnected")
 
     async def _housekeeper(self) -> None:
-        """Flush the drive logs about every FLUSH_EVERY s; end UDP sessions idle for udp_idle s."""
+        """Flush the drive logs about every FLUSH_EVERY s; end UDP sessions idle for udp_idle s. Runs for the
+        server's life: a failure is a console line, and the next round comes as usual."""
         tick = min(FLUSH_EVERY, self.udp_idle / 4)
         last_flush = time.monotonic()
         while True:
             await asyncio.sleep(tick)
-            now = time.monotonic()
-            idle = [k for k, s in self.sessions.items() if k[0] == "udp" and now - s.last_seen > self.udp_idle]
-            for key in idle:
-                await self.end_session(key, f"{self.udp_idle:g} s without a datagram")
-            if idle:
-                gc.collect()   # a controller holds reference cycles: give its memory back now, not some time later
-            if now - last_flush >= FLUSH_EVERY:
-                last_flush = now
-                for session in list(self.sessions.values()):
-                    if session.log is not None:
-                        await self.in_store_thread(session.log.flush)
+            try:
+                now = time.monotonic()
+                idle = [k for k, s in self.sessions.items() if k[0] == "udp" and now - s.last_seen > self.udp_idle]
+                for key in idle:
+                    await self.end_session(key, f"{self.udp_idle:g} s without a datagram")
+                if idle:
+                    gc.collect()   # a controller holds reference cycles: give its memory back now, not later
+                if now - last_flush >= FLUSH_EVERY:
+                    last_flush = now
+                    for session in list(self.sessions.values()):
+                        await self.flush(session)
+            except Exception as exc:
+                self.announce(f"housekeeping failed: {_one_line(exc)}; it goes on")
 
     async def start(self) -> None:
         """Serve until cancelled."""

@@ -4,7 +4,8 @@ with :class:`Throttle`, the token bucket that enforces the rate.
 
 Each limit answers a failure seen on the server (docs/hud.md, "Limits"): a speed of 1e6 m/s was advised on and
 shown as 3,600,000 km/h, 50,000-deep JSON closed the socket with a traceback, 5,000 messages in 1 s from one client
-stalled another client's advice for 1.9 s, 500 UDP source ports kept a controller each for ever.
+stalled another client's advice for 1.9 s, 500 UDP source ports kept a controller each for ever, 300 WebSocket
+sessions held 443 MB.
 """
 from __future__ import annotations
 
@@ -16,6 +17,9 @@ V_MAX = 100.0     # m/s (360 km/h), for the ego and the leader: above any car's 
                   # largest speed the HUD's three digits can show
 S_MARGIN = 100.0  # m: s lies in [0, route length + S_MARGIN]; a simulator's car may run on a little past the route's
                   # end before it is removed (2 s at 50 m/s), never before its start
+T_MAX = 1e7       # s (116 days): |t| on the clock of the route's signal programs; a lab's drive starts near 0 (or
+                  # at a program's offset) and lasts an hour, and the controller's scans over phase starts must stay
+                  # short: t = 1e18 once stalled every session for 9 s and grew the server by 3 GB
 # time: a session's t never decreases (t >= the previous state's t; equal is allowed, a simulator may resend a
 # frame): the controller plans the green wave on the route's signal clock, which only moves on; hello restarts it
 
@@ -32,8 +36,11 @@ BURST = 100        # messages a client may send at once above RATE: half a secon
                    # after a pause); `live serve --max-rate` keeps this ratio
 UDP_IDLE = 30.0    # s without a datagram after which a UDP session ends (UDP has no close; a WebSocket session
                    # ends with its connection)
-MAX_UDP_SESSIONS = 32   # UDP peers with a session at once (a lab runs one or a few simulators): each holds a
-                        # controller (about 1 MB); a datagram from a new peer beyond this is answered with an error
+MAX_SESSIONS = 32  # simulator sessions at once, per transport: WebSocket connections, UDP peers (a lab runs one or
+                   # a few simulators); each holds a controller (about 1.5 MB: 300 WebSocket sessions grew the server
+                   # by 443 MB). Beyond it: a WebSocket connection gets an error line and is closed (1013), a UDP
+                   # peer's hello an error line. `live serve --max-sessions`
+MAX_PAGES = 8      # HUD pages (/display) at once per session: a projector, a monitor, the experimenter's screen
 
 
 class Throttle:

@@ -3,7 +3,8 @@
 One JSON object per WebSocket text message or UDP datagram. The simulator sends
 
 * ``{"type": "hello", "participant": "P007", "condition": "pedas"}`` once (both optional: without a participant
-  nothing is logged); the server answers ``{"type": "ready", "route": ..., "length_m": ..., "logging": bool}``;
+  nothing is logged); the server answers ``{"type": "ready", "route": ..., "length_m": ..., "logging": bool,
+  "pair": code}``, over UDP also ``"secret": 32 hex digits``, which every later datagram of the session carries;
 * ``{"type": "state", "seq": 17, "t": 412.2, "s": 1830.4, "v": 12.9, "leader": {"gap": 35.0, "v": 11.2},
   "spat": {"id": "tl3", "state": "red", "remaining": 4.2}}`` at 5-50 Hz: t in s on the clock of the route's signal
   programs, s in m along the route, v in m/s, leader null or gap (m, bumper to bumper) and speed (m/s), spat
@@ -22,7 +23,7 @@ import json
 import math
 from dataclasses import dataclass
 
-from pedas.live_limits import MAX_DEPTH, MAX_MESSAGE_BYTES, S_MARGIN, V_MAX
+from pedas.live_limits import MAX_DEPTH, MAX_MESSAGE_BYTES, S_MARGIN, T_MAX, V_MAX
 from pedas.route import STATES
 
 ADVICE_FIELDS = ("v_advice", "controller", "mode", "ft", "fb", "hud_arrow", "arrow_len", "hud_in_band", "warning",
@@ -105,13 +106,15 @@ def decode(text: str | bytes) -> dict:
 
 def parse_state(msg: dict, route_length: float | None = None) -> State:
     """The :class:`State` of a state message; ProtocolError names the first bad field. Speeds lie in [0, V_MAX]
-    m/s and s in [0, route_length + S_MARGIN] m (s >= 0 only without a route length); the time order is the
+    m/s, t in [-T_MAX, T_MAX] s and s in [0, route_length + S_MARGIN] m (s >= 0 only without a route length); the
+    time order is the
     session's to check (:class:`pedas.live.LiveSession`)."""
     seq = msg.get("seq")
     if seq is not None and (isinstance(seq, bool) or not isinstance(seq, int)):
         raise ProtocolError(f"'seq' must be an integer, got {seq!r}")
     s_max = math.inf if route_length is None else float(route_length) + S_MARGIN
-    t, s, v = _number(msg, "t"), _number(msg, "s", 0.0, s_max, "m"), _number(msg, "v", 0.0, V_MAX, "m/s")
+    t = _number(msg, "t", -T_MAX, T_MAX, "s")
+    s, v = _number(msg, "s", 0.0, s_max, "m"), _number(msg, "v", 0.0, V_MAX, "m/s")
     lead = msg.get("leader")
     leader = None
     if lead is not None:

@@ -17,6 +17,8 @@ from pedas.constants import HIGHWAY_MIN_SPEED, KMH
 STATES = ("green", "yellow", "red")
 D_STOPLINE_DEFAULT = 5.0  # m, d_s,ITS: the soft stop-line approach band of eq. (8b) (not printed in the paper)
 A_LAT_MAX_DEFAULT = 2.0  # m/s^2, comfortable lateral acceleration for the curve speed limit (not printed)
+CLOCK_MAX = 1e9  # s (32 years): |t| a signal program is evaluated at; the float spacing there is 1.2e-7 s, beyond
+                 # ~1e16 s adding a phase no longer moves the clock, and a scan over phase starts would never end
 
 
 def braking_envelope(s: np.ndarray, v: np.ndarray, b: float) -> np.ndarray:
@@ -63,8 +65,15 @@ class TrafficLight:
         """Cycle time in s."""
         return self._cycle
 
+    def _check_clock(self, t: float) -> None:
+        if not abs(t) <= CLOCK_MAX:   # also nan
+            raise ValueError(f"traffic light {self.tl_id}: time {t!r} s outside the signal clock's range "
+                             f"(|t| <= {CLOCK_MAX:g} s)")
+
     def _locate(self, t: float) -> tuple[int, float, float]:
-        """(phase index, absolute start of that phase, absolute start of the cycle containing t)."""
+        """(phase index, absolute start of that phase, absolute start of the cycle containing t); ValueError for a
+        t that is not finite or beyond CLOCK_MAX."""
+        self._check_clock(t)
         c = self.cycle
         k = math.floor((t - self.offset) / c)
         c0 = self.offset + k * c
@@ -98,17 +107,20 @@ class TrafficLight:
         return state, start + dur - t0, [(t, st) for t, st in self._starts_from(i, start, t0 + horizon) if t > t0]
 
     def _starts_from(self, i: int, start: float, t1: float) -> list[tuple[float, str]]:
-        """Phase i (starting at `start`) and the phase starts after it up to t1."""
+        """Phase i (starting at `start`) and the phase starts after it up to t1. The scan is bounded by the phases
+        that fit between start and t1 (one cycle of margin for rounding); t1 beyond CLOCK_MAX is a ValueError."""
+        self._check_clock(t1)
         out = [(start, self.phases[i][0])]
         t = start
         n = len(self.phases)
-        while True:
+        for _ in range(n * (math.floor(max(t1 - start, 0.0) / self.cycle) + 2)):
             t += self.phases[i][1]
             i = (i + 1) % n
             if t > t1:
-                break
+                return out
             out.append((t, self.phases[i][0]))
-        return out
+        raise ValueError(f"traffic light {self.tl_id}: phase starts from {start!r} s do not reach {t1!r} s (phases too "
+                         "short for the clock's precision)")
 
     def next_phase_starts(self, t0: float, horizon: float) -> list[tuple[float, str]]:
         """Phase changes (absolute time, new state) in (t0, t0 + horizon]."""

@@ -13,9 +13,12 @@ def _serve(args) -> None:
 
     from study.store.store import StoreHolder
 
-    for flag, value in (("--udp-idle", args.udp_idle), ("--max-rate", args.max_rate)):
+    for flag, value in (("--udp-idle", args.udp_idle), ("--max-rate", args.max_rate),
+                        ("--max-sessions", args.max_sessions)):
         if not value > 0:   # also refuses nan
             raise UserError(f"{flag} must be a positive number, got {value:g}")
+    if not 0 <= args.port <= 65535:
+        raise UserError(f"--port must be 1-65535 (or 0: any free port), got {args.port}")
 
     st = None
     if not args.no_log:
@@ -41,7 +44,8 @@ def _serve(args) -> None:
 
         server = LiveServer(live, args.host, args.port, logger_factory=None if st is None else drive_log,
                             on_ready=ready, announce=announce, rate=args.max_rate,
-                            burst=max(1, round(args.max_rate / 2)), udp_idle=args.udp_idle)
+                            burst=max(1, round(args.max_rate / 2)), udp_idle=args.udp_idle,
+                            max_sessions=args.max_sessions)
         try:
             server.run()
         except OSError as exc:   # address in use, no such interface: the operator's input
@@ -83,7 +87,7 @@ def _drive(args) -> None:
 
 def register(cli) -> None:
     """Declare the `live` group."""
-    from pedas.live_limits import RATE, UDP_IDLE
+    from pedas.live_limits import MAX_SESSIONS, RATE, UDP_IDLE
     from pedas.vocabulary import STYLES
 
     g = cli.group("live", "live pEDAS advice for a driving simulator (WebSocket/UDP, docs/hud.md)")
@@ -98,6 +102,9 @@ def register(cli) -> None:
                    help=f"messages/s one client may send; faster ones are slowed (UDP: dropped) (default {RATE:g})")
     p.add_argument("--udp-idle", dest="udp_idle", type=float, default=UDP_IDLE, metavar="S",
                    help=f"seconds without a datagram after which a UDP session ends (default {UDP_IDLE:g})")
+    p.add_argument("--max-sessions", dest="max_sessions", type=int, default=MAX_SESSIONS, metavar="N",
+                   help=f"simulator sessions at once over WebSocket, and over UDP; more are refused "
+                        f"(default {MAX_SESSIONS})")
     p = g.command("drive", "reference client: a virtual participant drives in SUMO with advice from a live server",
                   _drive)
     p.add_argument("--url", default="ws://127.0.0.1:8765/", help="the server (default ws://127.0.0.1:8765/)")

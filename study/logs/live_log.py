@@ -52,6 +52,7 @@ class LiveDriveLog:
         if have is not None and not replace:
             raise UserError(f"{participant_id} already has a {condition} drive; start the session with replace")
         self.participant_id, self.condition, self.route = participant_id, condition, route
+        self._replaces = have   # the one drive this log may replace: the one stored when it started (with replace)
         self.session = str(uuid.uuid4())
         self.started_at = utcnow()
         self.drive_id: int | None = None
@@ -83,13 +84,14 @@ class LiveDriveLog:
 
     def flush(self) -> int:
         """Commit the queued samples (one transaction with the drive's row); returns the samples committed so far.
-        The drive's row appears once two samples with a positive duration exist (the store's constraints)."""
+        The drive's row appears once two samples with a positive duration exist (the store's constraints). A flush
+        that fails keeps the samples queued for the next one. A drive of the participant and condition stored by
+        another writer since this log started is never replaced: UserError, and nothing of this log is stored."""
         with self._write:
             with self._lock:
-                rows = self._pending
+                rows = list(self._pending)
                 if not rows or (self.drive_id is None and (len(rows) < 2 or rows[-1]["t"] <= rows[0]["t"])):
                     return self.n
-                self._pending = []
             first = self._first or rows[0]
             if self._hud is None:   # the session's first flush decides: the rows carry the HUD channels or not
                 from study.logs.hud_channels import hud_names
@@ -101,7 +103,11 @@ class LiveDriveLog:
                 if self.drive_id is None:
                     old = st.one("SELECT drive_id FROM drives WHERE participant_id = ? AND condition = ?",
                                  [self.participant_id, self.condition])
-                    if old is not None:   # replace=True was checked at the start
+                    if old is not None and old != self._replaces:
+                        raise UserError(f"{self.participant_id}'s {self.condition} drive {old} was stored by another "
+                                        f"writer after live session {self.session} started: this session's samples "
+                                        "are not stored over it")
+                    if old is not None:   # the drive stored at the start, which replace=True allowed to replace
                         st.con.execute("DELETE FROM drive_samples WHERE drive_id = ?", [old])
                         st.delete("drives", {"drive_id": int(old)})
                     row = st.insert("drives", {
@@ -119,6 +125,8 @@ class LiveDriveLog:
                 samples.insert(0, "idx", np.arange(self.n, self.n + len(rows), dtype=np.int32))
                 samples.insert(0, "drive_id", np.full(len(rows), self.drive_id, dtype=np.int64))
                 st.insert_df("drive_samples", samples)
+            with self._lock:
+                del self._pending[:len(rows)]
             self.n += len(rows)
             self._first = first
             return self.n

@@ -65,7 +65,8 @@ def test_session_advice_equals_the_in_process_controller(live):
     for k, msg in enumerate(states(150)):
         if k == 50:
             err = json.loads(session.handle('{"type":"state","seq":50,"t":"soon","s":1,"v":1}'))
-            assert err == {"type": "error", "seq": 50, "error": "'t' must be a finite number, got 'soon'"}
+            assert err == {"type": "error", "seq": 50,
+                           "error": "'t' must be a finite number >= -1e+07 and <= 1e+07 s, got 'soon'"}
         reply = json.loads(session.handle(json.dumps(msg)))
         lead = (msg["leader"]["gap"], msg["leader"]["v"]) if msg["leader"] else None
         want = ref.step(msg["t"], msg["s"], msg["v"], lead)
@@ -187,32 +188,61 @@ def test_killed_session_keeps_what_was_logged(paper_db, cli_proc):
         {"sent": sent, "kept": int(n), "duration_s": float(d["duration_s"]), "meta": meta}, indent=1))
 
 
+def doc_udp_client():
+    """The class LiveUdp of docs/hud.md ("UDP: the session's secret"), from the code block as written there."""
+    text = (REPO / "docs" / "hud.md").read_text()
+    block = text.split("### UDP: the session's secret", 1)[1].split("```python\n", 1)[1].split("```", 1)[0]
+    space: dict = {}
+    exec(compile(block, "docs/hud.md", "exec"), space)
+    return space["LiveUdp"]
+
+
 def test_udp_and_the_hud_page_feed(cli_proc):
-    """A simulator speaking UDP gets the advice; the feed of the HUD page paired with its session gets each frame;
-    a second server on the same port and a client without a server are one-line errors."""
+    """A simulator speaking UDP (the client of docs/hud.md) gets the advice; the feed of the HUD page paired with
+    its session gets each frame. A datagram from the session's address without its secret, or with another, is
+    dropped unanswered and never reaches the page (the console says so once, and counts); a state from an address
+    without a session is told to say hello; a second server on the same port is a one-line error."""
     from websockets.sync.client import connect
 
-    proc, port = start_server(None)
+    proc, port = start_server(None, "--udp-idle", "2")
     try:
         r = cli_proc("live", "serve", "--no-log", "--route", "synthetic-mixed", "--port", port, db=None, timeout=120)
         assert r.code == 2 and r.err.count("\n") == 1 and f"cannot listen on 127.0.0.1:{port}" in r.err
-        udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        udp.settimeout(30)
-        udp.sendto(b'{"type":"hello"}', ("127.0.0.1", port))
-        ready = json.loads(udp.recv(65536))
-        assert ready["type"] == "ready"
-        with connect(f"ws://127.0.0.1:{port}/display?pair={ready['pair']}") as display:
-            for msg in states(5):
-                udp.sendto(json.dumps(msg).encode(), ("127.0.0.1", port))
-                reply = json.loads(udp.recv(65536))
+        stray = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        stray.settimeout(30)
+        stray.sendto(json.dumps(next(states(1))).encode(), ("127.0.0.1", port))
+        assert json.loads(stray.recv(65536))["error"] == ("a UDP session starts with hello: its ready carries the "
+                                                          "secret that every later datagram must carry")
+        sim = doc_udp_client()(port=port, timeout=30)
+        assert sim.ready["type"] == "ready" and len(sim.secret) == 32 and int(sim.secret, 16) >= 0
+        with connect(f"ws://127.0.0.1:{port}/display?pair={sim.ready['pair']}") as display:
+            msgs = list(states(6))
+            for msg in msgs[:5]:
+                reply = sim.state(msg["seq"], msg["t"], msg["s"], msg["v"])
                 assert reply["type"] == "advice" and reply["seq"] == msg["seq"]
                 shown = json.loads(display.recv(timeout=30))
                 assert shown["seq"] == msg["seq"] and shown["hud"] == reply["hud"]
-            udp.sendto(b'{"type":"state"}', ("127.0.0.1", port))
-            assert json.loads(udp.recv(65536))["error"].startswith("'t' must be")
+            # what a forged datagram looks like to the server: the session's address, no (or another) secret
+            for secret in ({}, {"secret": "0" * 32}, {"secret": sim.secret[:-1]}, {"secret": 7}):
+                sim.sock.send(json.dumps({**msgs[5], "v": 99.0, **secret}).encode())
+                sim.sock.send(b'{"type":"bye"}')
+            with pytest.raises(TimeoutError):
+                display.recv(timeout=1.0)                                  # nothing reached the page
+            sim.sock.settimeout(0.5)
+            with pytest.raises(TimeoutError):
+                sim.sock.recv(65536)                                       # nor was anything answered
+            sim.sock.settimeout(30)
+            assert sim.state(5, msgs[5]["t"], msgs[5]["s"], 10.0)["hud"]["speed"] == 36   # the session goes on
+            sim.sock.send(json.dumps({"type": "state", "secret": sim.secret}).encode())
+            assert json.loads(sim.sock.recv(65536))["error"].startswith("'t' must be")
+            assert sim.bye() == {"type": "done", "samples": 6, "drive_id": None}
+        time.sleep(3.5)                                                    # the session idles out (2 s)
     finally:
         proc.send_signal(signal.SIGINT)
-        proc.wait(timeout=30)
+        out, _ = proc.communicate(timeout=30)
+    peer = f"session udp 127.0.0.1:{sim.sock.getsockname()[1]}"
+    assert f"{peer}: a datagram without the session's secret dropped" in out
+    assert f"{peer} ended: 2 s without a datagram (8 datagrams without its secret dropped)" in out
 
 
 def test_udp_session_logs_a_complete_drive(paper_db):
@@ -223,15 +253,11 @@ def test_udp_session_logs_a_complete_drive(paper_db):
         add_participant(st, "P003")
     proc, port = start_server(paper_db)
     try:
-        udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        udp.settimeout(60)
-        udp.sendto(b'{"type":"hello","participant":"P003","condition":"pedas"}', ("127.0.0.1", port))
-        assert json.loads(udp.recv(65536))["logging"] is True
+        sim = doc_udp_client()(port=port, participant="P003", timeout=60)
+        assert sim.ready["logging"] is True
         for msg in states(40):
-            udp.sendto(json.dumps(msg).encode(), ("127.0.0.1", port))
-            assert json.loads(udp.recv(65536))["seq"] == msg["seq"]
-        udp.sendto(b'{"type":"bye"}', ("127.0.0.1", port))
-        done = json.loads(udp.recv(65536))
+            assert sim.state(msg["seq"], msg["t"], msg["s"], msg["v"])["seq"] == msg["seq"]
+        done = sim.bye()
     finally:
         proc.send_signal(signal.SIGINT)
         proc.wait(timeout=60)
@@ -240,6 +266,120 @@ def test_udp_session_logs_a_complete_drive(paper_db):
         d = st.df("SELECT drive_id, n_samples, meta FROM drives WHERE participant_id = 'P003'").iloc[0]
     assert int(d["drive_id"]) == done["drive_id"] and d["n_samples"] == 40
     assert json.loads(d["meta"])["live"]["complete"] is True
+
+
+def _stored(holder, participant: str) -> tuple[int, int, dict] | None:
+    """(drive_id, samples stored, meta.live) of the participant's pedas drive, read through the server's holder."""
+    with holder:
+        d = holder.store.df("SELECT drive_id, meta FROM drives WHERE participant_id = ? AND condition = 'pedas'",
+                            [participant])
+        if d.empty:
+            return None
+        drive_id = int(d["drive_id"].iloc[0])
+        n = holder.store.one("SELECT count(*) FROM drive_samples WHERE drive_id = ?", [drive_id])
+    return drive_id, n, json.loads(d["meta"].iloc[0])["live"]
+
+
+def _until(what, timeout: float = 20.0):
+    """Poll `what()` until it is truthy (a flush comes about once a second)."""
+    t_end = time.monotonic() + timeout
+    while not (got := what()) and time.monotonic() < t_end:
+        time.sleep(0.1)
+    return got
+
+
+def test_one_simulator_per_drive(paper_db, live):
+    """A second hello for the drive a session logs is refused in one line (the console says so) and deletes
+    nothing: the first session's partial drive grows in the store each second, the refused session is advised
+    without a log, and the first's bye stores its every sample. A flush that fails (the drive removed behind the
+    server's back) is a console line, and the other sessions are flushed on."""
+    from websockets.sync.client import connect
+
+    from study.logs.live_log import LiveDriveLog
+    from study.people.participants import add_participant
+    from study.store.store import Store, StoreHolder
+    from tests.pedas.test_live_limits import ask, running
+
+    with Store.open(paper_db, actor="lab") as st:
+        add_participant(st, "P001")
+        add_participant(st, "P002")
+    holder = StoreHolder(paper_db, "lab")
+    hello = '{"type":"hello","participant":"%s","condition":"pedas"}'
+    with running(live, logger_factory=lambda p, c: LiveDriveLog(holder, p, c, "synthetic-mixed")) as (
+            server, port, lines), connect(f"ws://127.0.0.1:{port}/") as first, \
+            connect(f"ws://127.0.0.1:{port}/") as second:
+        assert ask(first, hello % "P001")["logging"] is True
+        peer = f"ws 127.0.0.1:{first.local_address[1]}"
+        err = ask(second, hello % "P001")["error"]
+        assert err.startswith(f"P001's pedas drive is being logged by another session ({peer}, since ") and \
+            err.endswith("one simulator per drive; that session must say bye or disconnect first")
+        assert _until(lambda: any(line.startswith("session ws 127.0.0.1:") and
+                                  line.endswith(f"(P001, pedas): hello refused: {err}") for line in lines))
+        msgs = [json.dumps(m) for m in states(60)]
+        for m in msgs[:20]:
+            assert ask(first, m)["type"] == "advice"
+        for m in states(10, t0=100.0):
+            assert ask(second, json.dumps(m))["type"] == "advice"          # advised, not logged
+        drive_id, n, meta = _until(lambda: (got := _stored(holder, "P001")) and got[1] == 20 and got)
+        assert meta["complete"] is False                                   # the partial drive, during the session
+        for m in msgs[20:40]:
+            ask(first, m)
+        assert _until(lambda: _stored(holder, "P001")[1] == 40)            # flushed on: nothing deleted it
+        # the drive removed behind the server's back: the first's flush fails, says so once, and flushing goes on
+        assert ask(second, hello % "P002")["logging"] is True
+        for m in msgs[:20]:
+            ask(second, m)
+        with holder:
+            holder.store.con.execute("DELETE FROM drive_samples WHERE drive_id = ?", [drive_id])
+            holder.store.con.execute("DELETE FROM drives WHERE drive_id = ?", [drive_id])
+        for m in msgs[40:]:
+            ask(first, m)
+        failed = _until(lambda: [line for line in lines if "drive log not written" in line])
+        assert failed[0].startswith(f"session {peer} (P001, pedas): drive log not written: ") and \
+            failed[0].endswith("its samples stay queued for the next flush")
+        for m in states(20, t0=4.0):
+            ask(second, json.dumps(m))
+        assert _until(lambda: (_stored(holder, "P002") or (0, 0))[1] == 40)   # the other session is flushed on
+        time.sleep(2.5)
+        assert len([line for line in lines if "drive log not written" in line]) == 1   # said once per cause
+        assert ask(second, '{"type":"bye"}')["samples"] == 40
+    holder.shut()
+    with Store.open(paper_db, actor="lab", read_only=True) as st:
+        d = st.df("SELECT participant_id, n_samples, meta FROM drives ORDER BY participant_id")
+    assert d["participant_id"].tolist() == ["P002"] and d["n_samples"].tolist() == [40]
+    assert json.loads(d["meta"].iloc[0])["live"]["complete"] is True
+
+
+def test_a_drive_stored_by_another_writer_is_never_replaced(paper_db):
+    """Two drive logs of one participant's drive (two servers on one store): the second's flush is refused and
+    deletes nothing; the first's samples stay whole. A log with replace replaces only the drive it started over."""
+    from study.logs.live_log import LiveDriveLog
+    from study.people.participants import add_participant
+    from study.store.store import Store
+
+    rows = [{"t": 0.2 * k, "s": 5.0 + 2 * k, "v": 10.0, "segment": "urban", "speed_limit": 13.9, "a": 0.0,
+             "grade": 0.0, "tl_id": None, "tl_state": None, "d_tl": float("nan"), "leader_gap": float("nan"),
+             "leader_v": float("nan"), "v_advice": 10.0, "controller": "rt", "hud_arrow": 0, "hud_in_band": True,
+             "warning": False} for k in range(30)]
+    with Store.open(paper_db, actor="lab") as st:
+        add_participant(st, "P001")
+        a = LiveDriveLog(st, "P001", "pedas", "synthetic-mixed")
+        b = LiveDriveLog(st, "P001", "pedas", "synthetic-mixed", replace=True)   # started before a stored any
+        for row in rows[:20]:
+            a.append(row)
+            b.append(row)
+        assert a.flush() == 20
+        with pytest.raises(ValueError, match=f"P001's pedas drive {a.drive_id} was stored by another writer"):
+            b.flush()
+        for row in rows[20:]:
+            a.append(row)
+        assert a.flush() == 30 and a.close() is not None
+        assert st.one("SELECT n_samples FROM drives WHERE participant_id = 'P001'") == 30
+        assert st.one("SELECT count(*) FROM drive_samples") == 30
+        c = LiveDriveLog(st, "P001", "pedas", "synthetic-mixed", replace=True)   # over the drive stored now
+        for row in rows[:10]:
+            c.append(row)
+        assert c.flush() == 10 and st.one("SELECT count(*) FROM drive_samples") == 10
 
 
 @pytest.mark.browser

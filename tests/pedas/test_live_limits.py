@@ -7,10 +7,11 @@ from __future__ import annotations
 
 import asyncio
 import json
+import re
 import socket
 import threading
 import time
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 
 import pytest
 from websockets.exceptions import ConnectionClosed
@@ -18,13 +19,18 @@ from websockets.sync.client import connect
 
 from pedas.live import LiveRoute, LiveServer, LiveSession
 from pedas.live_display import PAIR_ALPHABET, pair_of
-from pedas.live_limits import MAX_DEPTH, MAX_MESSAGE_BYTES, S_MARGIN, V_MAX, WS_MAX_FRAME, Throttle
+from pedas.live_limits import MAX_DEPTH, MAX_MESSAGE_BYTES, MAX_PAGES, S_MARGIN, T_MAX, V_MAX, WS_MAX_FRAME, Throttle
 from pedas.live_protocol import ProtocolError, decode, parse_state
 
 
 @pytest.fixture(scope="module")
 def live():
-    return LiveRoute.load("synthetic-mixed")   # 13,200 m
+    return LiveRoute.load("synthetic-mixed")   # 13,200 m, no traffic lights
+
+
+@pytest.fixture(scope="module")
+def study():
+    return LiveRoute.load("study")   # the study network's route, with its signal programs
 
 
 @contextmanager
@@ -57,6 +63,7 @@ def running(live, **limits):
 
 def state(k: int, v: float = 10.0, **kw) -> str:
     return json.dumps({"type": "state", "seq": k, "t": 0.2 * k, "s": 5.0 + 2.0 * k, "v": v, **kw})
+
 
 
 def ask(ws, text: str) -> dict:
@@ -106,9 +113,32 @@ def test_physical_ranges(live):
                       ({"v": 100.001}, "'v' must be a finite number >= 0 and <= 100 m/s, got 100.001"),
                       ({"s": -0.5}, "'s' must be a finite number >= 0 and <= 13300 m, got -0.5"),
                       ({"s": 1e7}, "'s' must be a finite number >= 0 and <= 13300 m, got 10000000.0"),
-                      ({"leader": {"gap": 5, "v": 101}}, "'v' must be a finite number >= 0 and <= 100 m/s")]:
-        with pytest.raises(ProtocolError, match=says.replace("(", r"\(")):
+                      ({"leader": {"gap": 5, "v": 101}}, "'v' must be a finite number >= 0 and <= 100 m/s"),
+                      ({"t": 1e18}, "'t' must be a finite number >= -1e+07 and <= 1e+07 s, got 1e+18"),
+                      ({"t": -1e300}, "'t' must be a finite number >= -1e+07 and <= 1e+07 s, got -1e+300"),
+                      ({"t": T_MAX * (1 + 1e-15)}, "'t' must be a finite number >= -1e+07 and <= 1e+07 s")]:
+        with pytest.raises(ProtocolError, match=re.escape(says)):
             parse_state({"t": 0, "s": 5.0, "v": 10.0, **bad}, length)
+
+
+def test_a_time_far_off_is_refused_at_once_and_other_sessions_go_on(study):
+    """On a route with signal programs, t = 1e18 (-1e300, 1e308, a jump of 1e9 s within a session) once stalled
+    every session in an endless scan over phase starts: now each is a one-line error answered at once, the
+    session's clock unchanged, and a good client on the same server gets each advice meanwhile."""
+    with running(study) as (server, port, lines):
+        with connect(f"ws://127.0.0.1:{port}/") as good, connect(f"ws://127.0.0.1:{port}/") as bad:
+            ask(good, '{"type":"hello"}')
+            ask(bad, '{"type":"hello"}')
+            for k, t in enumerate((1e18, -1e300, 1e308)):
+                err = ask(bad, json.dumps({"type": "state", "seq": k, "t": t, "s": 1000, "v": 10, "leader": None}))
+                assert err == {"type": "error", "seq": k,
+                               "error": f"'t' must be a finite number >= -1e+07 and <= 1e+07 s, got {t!r}"}
+                assert ask(good, state(k))["type"] == "advice"
+            assert ask(bad, state(25))["type"] == "advice"                         # t = 5 s
+            err = ask(bad, state(26, t=5.0 + 1e9))
+            assert err["error"] == "'t' must be a finite number >= -1e+07 and <= 1e+07 s, got 1000000005.0"
+            assert ask(bad, state(27))["type"] == "advice"                         # its clock is still at 5 s
+            assert ask(good, state(3))["type"] == "advice"
 
 
 def test_time_never_goes_back_within_a_session(live):
@@ -162,13 +192,17 @@ def test_a_hud_page_shows_only_its_session(live):
 
 def test_idle_udp_sessions_end_and_strays_hold_nothing(live):
     """A UDP session ends after udp_idle s without a datagram (its page is closed, its code forgotten); datagrams
-    that do not decode make no session; beyond max_udp_sessions a new peer gets a one-line error."""
-    with running(live, udp_idle=2.0, max_udp_sessions=2) as (server, port, lines):
+    that do not decode, or are not a hello, make no session; beyond max_sessions a new peer gets a one-line
+    error."""
+    with running(live, udp_idle=2.0, max_sessions=2) as (server, port, lines):
         peers = [socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(4)]
         for p in peers:
             p.settimeout(30)
         peers[0].sendto(b"[[[", ("127.0.0.1", port))
         assert json.loads(peers[0].recv(65536))["error"].startswith("not JSON")
+        assert server.sessions == {}
+        peers[0].sendto(state(0).encode(), ("127.0.0.1", port))               # not a hello: no session
+        assert json.loads(peers[0].recv(65536))["error"].startswith("a UDP session starts with hello")
         assert server.sessions == {}
         peers[0].sendto(b'{"type":"hello"}', ("127.0.0.1", port))
         code = json.loads(peers[0].recv(65536))["pair"]
@@ -248,7 +282,42 @@ def test_bad_input_is_answered_and_the_server_goes_on(live):
             assert ask(ws, '{"type":"hello"}')["type"] == "ready"
 
 
+def test_websocket_sessions_and_pages_are_capped(live):
+    """Beyond max_sessions a WebSocket connection gets one error line and is closed (1013), the console says so
+    once; when a session ends there is room again. A session's HUD pages are capped at MAX_PAGES."""
+    with running(live, max_sessions=2) as (server, port, lines):
+        with connect(f"ws://127.0.0.1:{port}/") as a, connect(f"ws://127.0.0.1:{port}/") as b:
+            code = ask(a, '{"type":"hello"}')["pair"]
+            ask(b, '{"type":"hello"}')
+            for _ in range(2):
+                with connect(f"ws://127.0.0.1:{port}/") as c:
+                    assert json.loads(c.recv(timeout=30)) == {
+                        "type": "error", "seq": None,
+                        "error": "too many WebSocket sessions (2 at once): try again when one has ended"}
+                    with pytest.raises(ConnectionClosed) as closed:
+                        c.recv(timeout=30)
+                    assert closed.value.rcvd.code == 1013
+            assert lines.count("2 WebSocket sessions at once: new connections are refused") == 1
+            with ExitStack() as stack:
+                pages = [stack.enter_context(connect(f"ws://127.0.0.1:{port}/display?pair={code}"))
+                         for _ in range(MAX_PAGES)]
+                with connect(f"ws://127.0.0.1:{port}/display?pair={code}") as extra:
+                    assert json.loads(extra.recv(timeout=30))["error"] == \
+                        f"too many HUD pages for session {code} ({MAX_PAGES} at once)"
+                assert ask(a, state(0))["type"] == "advice"
+                assert all(json.loads(page.recv(timeout=30))["seq"] == 0 for page in pages)   # each page is fed
+        deadline = time.monotonic() + 30
+        while server.sessions and time.monotonic() < deadline:
+            time.sleep(0.05)
+        with connect(f"ws://127.0.0.1:{port}/") as c:
+            assert ask(c, '{"type":"hello"}')["type"] == "ready"
+
+
 def test_serve_refuses_bad_limits(cli):
-    for flag in ("--udp-idle", "--max-rate"):
+    for flag in ("--udp-idle", "--max-rate", "--max-sessions"):
         r = cli("live", "serve", "--no-log", flag, "0", db=None)
         assert r.code == 2 and r.err.count("\n") == 1 and f"{flag} must be a positive number, got 0" in r.err
+    for port in ("99999", "-1", "65536"):
+        r = cli("live", "serve", "--no-log", "--port", port, db=None)
+        assert r.code == 2 and r.err.count("\n") == 1 and \
+            f"--port must be 1-65535 (or 0: any free port), got {port}" in r.err

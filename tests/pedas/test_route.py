@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from pedas.constants import HIGHWAY_MIN_SPEED, KMH, ROUTE_LENGTH
-from pedas.route import Route, StopSign, TrafficLight
+from pedas.route import CLOCK_MAX, Route, StopSign, TrafficLight
 
 TL = TrafficLight("TL1", 300.0, (("green", 20.0), ("yellow", 3.0), ("red", 27.0)), offset=5.0)
 
@@ -38,6 +38,29 @@ def test_green_windows_are_unclipped_and_merged():
 def test_next_phase_starts():
     assert TL.next_phase_starts(0.0, 60.0) == [(5.0, "green"), (25.0, "yellow"), (28.0, "red"), (55.0, "green")]
     assert TL.next_phase_starts(5.0, 10.0) == []
+
+
+@pytest.mark.parametrize("t", [1e18, -1e300, 1e308, math.inf, math.nan, CLOCK_MAX * (1 + 1e-15)])
+def test_a_clock_beyond_its_range_is_refused_not_scanned(t):
+    """Beyond ~1e16 s adding a phase no longer moves the clock: the scan over phase starts would never end (and
+    grew a server by gigabytes). Every look-up refuses such a time at once."""
+    for call in (lambda: TL.spat(t, 60.0), lambda: TL.state_at(t), lambda: TL.green_windows(t, t + 60.0),
+                 lambda: TL.next_phase_starts(0.0, t)):
+        with pytest.raises(ValueError, match="outside the signal clock's range"):
+            call()
+
+
+@settings(max_examples=60, deadline=None)
+@given(t0=st.floats(-CLOCK_MAX, CLOCK_MAX - 200.0), horizon=st.floats(0.0, 200.0))
+def test_phase_starts_within_the_clock_are_complete(t0, horizon):
+    """At any time in range the scan ends by its bound and finds every phase start: the starts in (t0, t0 + h]
+    step through the plan's phases in order, each one phase length after the one before."""
+    changes = TL.next_phase_starts(t0, horizon)
+    assert len(changes) in (math.floor(horizon / 50.0) * 3 + k for k in range(4))
+    states = [s for _, s in changes]
+    assert all(b == {"green": "yellow", "yellow": "red", "red": "green"}[a] for a, b in zip(states, states[1:]))
+    durations = {"green": 20.0, "yellow": 3.0, "red": 27.0}
+    assert all(abs(t2 - t1 - durations[s1]) < 1e-6 for (t1, s1), (t2, _) in zip(changes, changes[1:]))
 
 
 def test_traffic_light_validation():
