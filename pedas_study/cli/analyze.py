@@ -10,9 +10,12 @@ def _read_csv(path_text: str, what: str):
 
     import pandas as pd
 
+    from study.common.input_size import check_size
+
     path = Path(path_text)
     if not path.exists():
         raise FileNotFoundError(f"{what} CSV not found: {path}")
+    check_size(path, f"{what} CSV")
     return pd.read_csv(path, dtype={"participant_id": str})
 
 
