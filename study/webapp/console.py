@@ -36,6 +36,7 @@ from flask import (
 from werkzeug.utils import secure_filename
 
 from study.common.errors import UserError
+from study.common.times import when
 from study.webapp.context import state, store
 from study.webapp.researcher import actor, researcher
 
@@ -150,7 +151,7 @@ def book():
     f = request.form
     return _act("console.today", lambda s: book_slot(s, f.get("participant_id", ""), f.get("at", ""),
                                                      simulator=f.get("simulator") or DEFAULT_SIMULATOR),
-                lambda r: f"{r['participant_id']}: {r['simulator']} booked {r['starts_at']:%Y-%m-%d %H:%M}-"
+                lambda r: f"{r['participant_id']}: {r['simulator']} booked {when(r['starts_at'])}-"
                           f"{r['ends_at']:%H:%M}",
                 date=f.get("at", "")[:10])
 
