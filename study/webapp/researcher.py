@@ -221,7 +221,8 @@ def entry(pid: str, entry_round: int):
                 error, answers = str(exc), raw
         else:
             if not sv.participant_exists(s, pid):
-                return message("Unknown participant", f"There is no participant {pid}.", 404)
+                shown = pid if pid.isprintable() else repr(pid)  # a CR/LF in the path stays on the one line
+                return message("Unknown participant", f"There is no participant {shown}.", 404)
             # blind double entry: each round shows only its own earlier values, never the other round's
             answers = {i: (a.text if a.text is not None else ("" if a.value is None else str(a.value)))
                        for i, a in sv.entry_answers(s, pid, entry_round, ins.name, occasion).items()}
