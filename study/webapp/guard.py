@@ -37,10 +37,10 @@ _REFUSALS = {"timeout": (408, "The request body did not arrive in time."),
              "length": (400, "The Content-Length header is not a length.")}
 
 
-def _plain(start_response, status: str, text: str, headers=()) -> list[bytes]:
+def _plain(start_response, status: str, text: str) -> list[bytes]:
     body = (text + "\n").encode()
     start_response(status, [("Content-Type", "text/plain; charset=utf-8"), ("Content-Length", str(len(body))),
-                            ("Connection", "close"), *headers])
+                            ("Connection", "close")])
     return [body]
 
 
@@ -94,7 +94,6 @@ class Guard:
             spool.close()
             raise
         return ClosingIterator(result, [spool.close])
-
 
     def _refused(self, environ, start_response, why: str):
         """The app answers the refusal (its own page or JSON), with no body left to read."""

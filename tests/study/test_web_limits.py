@@ -7,7 +7,6 @@ from __future__ import annotations
 import io
 import json
 import logging
-import re
 import socket
 import threading
 import urllib.parse
