@@ -19,6 +19,12 @@ A solution is improper (a "Heywood case", Dillon, Kumar & Mulani 1987; Kolenikov
   matrix of the residuals of the observed variables (theta) is not positive definite").
 
 Estimates are reported, not repaired: the warnings say which parameter is improper and the numbers stay as fitted.
+
+Before any of that, the data: a (nearly) singular sample matrix — two items correlating |r| >= .999, as an item
+entered twice, or an item a linear combination of others — is named in every fit (:func:`singular_sample`; lavaan
+warns "correlation between variables PU2 and PU1 is (nearly) 1.0" or finds no solution). semopy would replace such a
+covariance matrix by a nearest positive-definite one and say so only in a log line; that line becomes a warning too
+(:func:`analysis.survey.cfa.semopy_said`).
 """
 from __future__ import annotations
 
@@ -98,4 +104,43 @@ def improper(tag: str, *, std_loadings: pd.DataFrame, error_var: pd.Series, item
         if np.any(th[~np.eye(len(th), dtype=bool)] != 0) and np.min(np.linalg.eigvalsh(th)) <= 0:
             out.append(f"{tag}residual covariance matrix is not positive definite (smallest eigenvalue "
                        f"{np.min(np.linalg.eigvalsh(th)):.4g})")
+    return out
+
+
+NEAR_ONE = 0.999   # |r| of two items at or above which the sample matrix counts as (nearly) singular
+SINGULAR = 1e-8    # smallest eigenvalue of the item correlation matrix at or below which it is singular
+
+
+def singular_sample(tag: str, S: pd.DataFrame, what: str = "sample covariance") -> list[str]:
+    """Warnings for a (nearly) singular sample matrix `S` (items x items, a covariance or correlation matrix) before
+    any estimate is read from a fit to it: each pair of items correlating |r| >= NEAR_ONE is named (lavaan:
+    "correlation between variables PU2 and PU1 is (nearly) 1.0"), else a smallest eigenvalue of the correlation
+    matrix <= SINGULAR (an item a linear combination of others) is said. semopy replaces a matrix that is not
+    positive definite by a nearest positive-definite one without a word in its result; lavaan refuses to fit it or
+    warns. The estimates stay as fitted; the warning says they rest on redundant items.
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> from analysis.survey.admissibility import singular_sample
+    >>> S = pd.DataFrame([[1.0, 1.0, 0.3], [1.0, 1.0, 0.3], [0.3, 0.3, 1.0]], index=list("abc"), columns=list("abc"))
+    >>> singular_sample("CFA: ", S)
+    ['CFA: sample covariance matrix (nearly) singular: items a and b correlate 1.0000 (|r| >= 0.999); the estimates rest on redundant items (drop or merge one of them)']
+    """
+    m = S.to_numpy(float)
+    d = np.sqrt(np.clip(np.diag(m), 0.0, None))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = np.nan_to_num(m / np.outer(d, d))
+    items = list(S.index)
+    out = []
+    for i, j in zip(*np.triu_indices(len(items), 1)):
+        if abs(r[i, j]) >= NEAR_ONE:
+            out.append(f"{tag}{what} matrix (nearly) singular: items {items[i]} and {items[j]} correlate "
+                       f"{r[i, j]:.4f} (|r| >= {NEAR_ONE:g}); the estimates rest on redundant items (drop or merge "
+                       f"one of them)")
+    if not out and len(items) > 1:
+        smallest = float(np.min(np.linalg.eigvalsh(r)))
+        if smallest <= SINGULAR:
+            out.append(f"{tag}{what} matrix singular (smallest eigenvalue of the item correlations {smallest:.3g}): "
+                       f"an item is a linear combination of others; the estimates rest on redundant items")
     return out

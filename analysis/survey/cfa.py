@@ -12,19 +12,23 @@ and the implied covariance so that they follow lavaan's definitions (`fit_indice
 
 Standardized loadings are lavaan's ``std.all``: lambda * sqrt(psi_ff) / sqrt(sigma_ii) (implied variance).
 On Holzinger-Swineford this reproduces lavaan's published output (tests/analysis/test_cfa.py).
-Non-convergence and Heywood cases (negative or boundary variances, |std loading| >= 1, non-positive-definite
-latent covariance) become warnings, never silence.
+Non-convergence, Heywood cases (negative or boundary variances, |std loading| >= 1, non-positive-definite
+latent covariance), a (nearly) singular sample covariance matrix (two items correlating |r| >= .999, which semopy
+would silently replace by a nearest positive-definite matrix) and semopy's own log lines become warnings, never
+silence.
 """
 from __future__ import annotations
 
 import warnings as _warnings
+from contextlib import contextmanager
 from dataclasses import dataclass, field
+from typing import Iterator
 
 import numpy as np
 import pandas as pd
 from scipy import stats
 
-from analysis.survey.admissibility import improper
+from analysis.survey.admissibility import improper, singular_sample
 
 SOLVERS = (("SLSQP", {"ftol": 1e-12, "maxiter": 2000}), ("L-BFGS-B", {"ftol": 1e-14, "gtol": 1e-10, "maxiter": 20000}))
 
@@ -151,6 +155,28 @@ def srmr(S: np.ndarray, sigma: np.ndarray) -> float:
     return float(np.sqrt(np.mean(r[iu] ** 2)))
 
 
+@contextmanager
+def semopy_said(tag: str, out: list[str]) -> Iterator[None]:
+    """semopy's own log lines while the block runs (it logs on the root logger, e.g. "Sample covariance matrix is
+    not PD ... semopy now will run nearPD subroutines"), appended to `out` once each as ``<tag>semopy: <line>``
+    instead of being printed: a repair semopy makes is one of the fit's warnings."""
+    import logging
+
+    class Keep(logging.Handler):
+        def emit(self, record: logging.LogRecord) -> None:
+            line = f"{tag}semopy: {' '.join(record.getMessage().split())}"
+            if line not in out:
+                out.append(line)
+
+    root = logging.getLogger()
+    saved = root.handlers[:]
+    root.handlers = [Keep(logging.WARNING)]
+    try:
+        yield
+    finally:
+        root.handlers = saved
+
+
 def _fit_semopy(desc: str, data: pd.DataFrame):
     import semopy  # heavy import kept local
 
@@ -190,10 +216,13 @@ def fit_cfa(data: pd.DataFrame, constructs: dict[str, list[str]], *, label: str 
     n, p = x.shape
     if n <= p:
         raise ValueError(f"{tag}{n} complete rows for {p} items; the sample covariance matrix is singular")
-    warn: list[str] = []
-    model, res, converged, solver = _fit_semopy(model_description(constructs), x)
+    said: list[str] = []
+    with semopy_said(tag, said):
+        model, res, converged, solver = _fit_semopy(model_description(constructs), x)
+        se = _standard_errors(model) if model is not None else {}
     if model is None:
         raise ValueError(f"{tag}estimation failed ({solver})")
+    warn: list[str] = []
     if not converged:
         warn.append(f"{tag}did not converge ({solver}: {getattr(res, 'message', '')}); estimates are unreliable")
     obs = list(model.names_lambda[0])
@@ -203,7 +232,6 @@ def fit_cfa(data: pd.DataFrame, constructs: dict[str, list[str]], *, label: str 
     theta = np.asarray(model.mx_theta, float)
     sigma = np.asarray(model.calc_sigma()[0], float)
     S = np.asarray(model.mx_cov, float)
-    se = _standard_errors(model)
 
     rows = []
     for c, its in constructs.items():
@@ -226,7 +254,8 @@ def fit_cfa(data: pd.DataFrame, constructs: dict[str, list[str]], *, label: str 
     S_df = pd.DataFrame(S[np.ix_(oidx, oidx)], index=items, columns=items)
     sig_df = pd.DataFrame(sigma[np.ix_(oidx, oidx)], index=items, columns=items)
     fit = fit_indices(S, sigma, n, len(model.param_vals))
-    warn += heywood_cases(loadings, psi_df, S_df, tag)
+    # the data's own covariance: semopy's mx_cov is already its near-PD repair of a singular one
+    warn = singular_sample(tag, x.cov(ddof=0)) + said + warn + heywood_cases(loadings, psi_df, S_df, tag)
     if fit["df"] <= 0:
         warn.append(f"{tag}model has {fit['df']} degrees of freedom; fit indices are undefined")
     return CFAResult(constructs=dict(constructs), loadings=loadings, fit=fit, latent_corr=latent_corr, psi=psi_df,

@@ -39,7 +39,7 @@ import numpy as np
 import pandas as pd
 from scipy import optimize, stats
 
-from analysis.survey.admissibility import improper
+from analysis.survey.admissibility import improper, singular_sample
 
 STEPS = ("configural", "metric", "scalar")
 DELTA_CFI = -0.01       # Cheung & Rensvold 2002
@@ -244,19 +244,22 @@ def invariance(scored: pd.DataFrame, constructs: dict[str, list[str]], groups: p
     names = list(constructs)
     fac = np.array([names.index(c) for c, its in constructs.items() for _ in its])
     markers = {items.index(its[0]) for its in constructs.values()}
-    stats_g = []
+    stats_g, near = [], []
     for lv in levels:
         x = data.loc[data["_g"] == lv, items].to_numpy(float)
         S = np.cov(x, rowvar=False, bias=True)
         sign, ld = np.linalg.slogdet(S)
+        said = singular_sample(f"invariance by {group_var}, group {lv}: ", pd.DataFrame(S, index=items, columns=items))
         if sign <= 0:
-            raise ValueError(f"invariance by {group_var}: the item covariance matrix of group {lv} is singular")
+            why = f" ({said[0].split(': ', 1)[1]})" if said else ""
+            raise ValueError(f"invariance by {group_var}: the item covariance matrix of group {lv} is singular{why}")
+        near += said
         stats_g.append((S, x.mean(axis=0), len(x), ld))
     N = sum(s[2] for s in stats_g)
     G = len(stats_g)
     chi2_b = sum(ng * (np.sum(np.log(np.diag(S))) - ld) for S, _, ng, ld in stats_g)
     df_b = G * p * (p - 1) // 2
-    rows, warn = [], []
+    rows, warn = [], list(near)
     for step in STEPS:
         fval, L, ok, res = _fit_step(step, stats_g, p, k, fac, markers, N)
         n_par = L.n_par

@@ -46,7 +46,7 @@ import pandas as pd
 from scipy import optimize
 from scipy.special import ndtr, ndtri
 
-from analysis.survey.admissibility import improper
+from analysis.survey.admissibility import improper, singular_sample
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(20)
 TWO_PI = 2.0 * np.pi
@@ -263,7 +263,7 @@ def check_categories(data: pd.DataFrame, items: list[str], categories: dict | No
     >>> check_categories(rows, ["PU1", "PU2"], cats)
     Traceback (most recent call last):
     ...
-    ValueError: ordinal CFA: some categories of item PU1 are empty among the 5 complete rows (answers 1 2 3 4 5: frequencies [1 2 0 1 1]); pass collapse_empty (CLI --collapse-empty) to merge them
+    ValueError: ordinal CFA: some categories of item PU1 are empty among the 5 complete rows (answers 1 2 3 4 5: frequencies [1 2 0 1 1]); pass collapse_empty (CLI: --collapse-empty of `analyze extended` or `analyze survey --extended`) to merge them
     >>> check_categories(rows, ["PU1", "PU2"], cats, collapse_empty=True)
     ['ordinal CFA: item PU1: empty category 3 among the 5 complete rows collapsed (4 of 5 categories analysed)']
     """
@@ -280,7 +280,8 @@ def check_categories(data: pd.DataFrame, items: list[str], categories: dict | No
         if not collapse_empty:
             raise ValueError(f"ordinal CFA: some categories of item {it} are empty among the {len(x)} complete rows "
                              f"(answers {shown}: frequencies [{' '.join(map(str, freq))}]); pass collapse_empty "
-                             f"(CLI --collapse-empty) to merge them")
+                             f"(CLI: --collapse-empty of `analyze extended` or `analyze survey --extended`) to merge "
+                             f"them")
         empty = " ".join(f"{c:g}" for c in cats[freq == 0])
         word = "category" if (freq == 0).sum() == 1 else "categories"
         out.append(f"ordinal CFA: item {it}: empty {word} {empty} among the {len(x)} complete rows collapsed "
@@ -475,7 +476,8 @@ def fit_ordinal_cfa(data: pd.DataFrame, constructs: dict[str, list[str]], *, est
             for i, it in enumerate(items)]
     loadings = pd.DataFrame(rows)
     latent_corr = pd.DataFrame(phi, index=names, columns=names)
-    bad = improper(f"ordinal CFA ({estimator}): ", std_loadings=loadings[["item", "loading"]],
+    bad = singular_sample(f"ordinal CFA ({estimator}): ", poly.R.loc[items, items], "polychoric correlation")
+    bad += improper(f"ordinal CFA ({estimator}): ", std_loadings=loadings[["item", "loading"]],
                    error_var=loadings.set_index("item")["error_var"], item_var=pd.Series(1.0, index=items),
                    latent_cov=latent_corr)
     resid_corr = r_obs - sigma[iu]

@@ -23,9 +23,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from analysis.survey.admissibility import improper
+from analysis.survey.admissibility import improper, singular_sample
 from analysis.survey.bootstrap import bootstrap
-from analysis.survey.cfa import fit_indices, model_description
+from analysis.survey.cfa import fit_indices, model_description, semopy_said
 
 
 def structural_paths(model) -> dict[str, list[str]]:
@@ -139,8 +139,9 @@ def fit_sem(data: pd.DataFrame, measurement: dict[str, list[str]], paths: dict[s
     observed = items + [p for preds in paths.values() for p in preds if p not in measurement and p not in items]
     x = data[list(dict.fromkeys(observed))].dropna().astype(float)
     warn: list[str] = []
+    said: list[str] = []
     model = semopy.Model(desc)
-    with _warnings.catch_warnings():
+    with _warnings.catch_warnings(), semopy_said("SEM: ", said):
         _warnings.simplefilter("ignore")
         res = model.fit(x, obj="MLW", solver="SLSQP", options={"ftol": 1e-12, "maxiter": 5000})
         converged = bool(res.success) and bool(np.all(np.isfinite(res.x)))
@@ -175,6 +176,7 @@ def fit_sem(data: pd.DataFrame, measurement: dict[str, list[str]], paths: dict[s
     if min(np.linalg.eigvalsh(sigma)) <= 0:
         bad.append("SEM: the implied covariance matrix is not positive definite")
     bad += _admissibility(model, est, measurement, S)
+    bad = singular_sample("SEM: ", x.cov(ddof=0)) + said + bad
     return SEMResult(description=desc, paths=pd.DataFrame(rows), r2=pd.DataFrame(r2), fit=fit, converged=converged,
                      warnings=warn + bad, admissible=not bad)
 

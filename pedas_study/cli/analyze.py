@@ -10,9 +10,12 @@ def _read_csv(path_text: str, what: str):
 
     import pandas as pd
 
+    from study.common.input_size import check_size
+
     path = Path(path_text)
     if not path.exists():
         raise FileNotFoundError(f"{what} CSV not found: {path}")
+    check_size(path, f"{what} CSV")
     return pd.read_csv(path, dtype={"participant_id": str})
 
 
@@ -26,6 +29,8 @@ def _survey(args) -> int:
         raise ValueError("--bootstrap must be >= 0")
     if args.extended and args.available_case:
         raise ValueError("--extended builds on the listwise analysis; it does not go with --available-case")
+    if args.collapse_empty and not args.extended:
+        raise ValueError("--collapse-empty is for the ordinal CFA of --extended; pass it with --extended")
     t0 = time.perf_counter()
     model = None
     if args.model:
@@ -74,7 +79,7 @@ def _survey(args) -> int:
 
         # the same answers, model and final CFA: `analyze extended` without a group, minus one start-up and one fit
         ext = analyze_extended(responses, study, attributes=attrs, instrument=args.instrument, model=model,
-                               n_boot=args.bootstrap, seed=args.seed, survey=res)
+                               n_boot=args.bootstrap, seed=args.seed, survey=res, collapse_empty=args.collapse_empty)
     paths = res.write(args.out)
     print(f"survey analysis of {res.n} participants ({source}) -> {args.out}: {len(paths)} files")
     signs = res.settings.get("hypothesis_signs", {})
@@ -144,6 +149,12 @@ def _extended(args) -> int:
                            collapse_empty=args.collapse_empty)
     _write_extended(ext, args.out, source, args.bootstrap, t0)
     return 0
+
+
+def _collapse_option(p, what: str = "") -> None:
+    p.add_argument("--collapse-empty", action="store_true",
+                   help=f"merge an item's answer category that the complete rows do not use (refused by default, "
+                        f"as lavaan refuses it) for the ordinal CFA{what}; a warning names it")
 
 
 def _write_extended(ext, out, source: str, n_boot: int, t0: float) -> None:
@@ -218,6 +229,7 @@ def register(cli) -> None:
     p.add_argument("--loadings", choices=("cfa", "pca", "paf"), default="cfa",
                    help="loadings of Table 3 and CR/AVE: cfa (standardized CFA loadings, default), pca (first "
                         "principal component per construct, SPSS FACTOR's default) or paf (principal axis factoring)")
+    _collapse_option(p, " of --extended")
 
     p = g.command("drives", "the drive KPIs the study declares, per drive and by group; with a declared comparison the "
                   "effects of the treatment, reproduction bands and figures", _drives)
@@ -248,6 +260,4 @@ def register(cli) -> None:
     p.add_argument("--instrument", default=None, help="instrument name (default: the study's instrument)")
     p.add_argument("--workers", type=int, default=2, metavar="N",
                    help="processes (default 2: the polychoric correlations beside the bootstrap; 1 = one process)")
-    p.add_argument("--collapse-empty", action="store_true",
-                   help="merge an item's answer category that the complete rows do not use (refused by default, "
-                        "as lavaan refuses it) for the ordinal CFA; a warning names it")
+    _collapse_option(p)

@@ -64,7 +64,9 @@ def format_frame(df, fmt: str = "table") -> str:
         return "(none)"
     shown = df.astype(object).where(df.notna(), "-")
     for col in shown.columns:
-        shown[col] = shown[col].map(lambda x: f"{x:%Y-%m-%d %H:%M:%S}" if hasattr(x, "strftime") else
+        # the year padded by hand: C strftime prints year 1 as "1"
+        shown[col] = shown[col].map(lambda x: x.strftime(f"{getattr(x, 'year', 1900):04d}-%m-%d %H:%M:%S")
+                                    if hasattr(x, "strftime") else
                                     (f"{x:.1f}" if isinstance(x, float) else x))
     return shown.to_string(index=False)
 

@@ -21,6 +21,8 @@ import math
 from datetime import datetime
 from typing import Any, Sequence
 
+from study.common.times import when
+
 #: ujson's double precision in DataFrame.to_json (decimals after the point)
 JSON_DECIMALS = 10
 
@@ -51,7 +53,7 @@ def _shown(v: Any) -> Any:
     if _missing(v):
         return "-"
     if isinstance(v, datetime):
-        return f"{v:%Y-%m-%d %H:%M:%S}"
+        return when(v, seconds=True)
     if isinstance(v, float):
         return f"{v:.1f}"
     return v
@@ -97,8 +99,8 @@ def _csv_cell(v: Any, time_format: str) -> str:
         return ""
     if isinstance(v, datetime):
         if time_format == "ms":
-            return f"{v:%Y-%m-%d %H:%M:%S}.{v.microsecond // 1000:03d}"
-        return v.strftime(time_format)
+            return f"{when(v, seconds=True)}.{v.microsecond // 1000:03d}"
+        return v.strftime(time_format.replace("%Y", f"{v.year:04d}"))  # C strftime does not pad the year
     if isinstance(v, float):
         return repr(v)
     return str(v)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from pedas_study.cli.common import add_format_option, format_frame, open_store
+from study.common.times import when
 
 
 # ---------------------------------------------------------------------------------------------- protocol phases
@@ -85,7 +86,7 @@ def _schedule(args) -> None:
 
     with open_store(args) as st:
         row = book(st, args.id, args.at, simulator=args.simulator, buffer_minutes=args.buffer)
-    print(f"{args.id}: {row['simulator']} booked {row['starts_at']:%Y-%m-%d %H:%M}-{row['ends_at']:%H:%M} "
+    print(f"{args.id}: {row['simulator']} booked {when(row['starts_at'])}-{row['ends_at']:%H:%M} "
           f"(appointment {row['appointment_id']})")
 
 
@@ -94,7 +95,7 @@ def _reschedule(args) -> None:
 
     with open_store(args) as st:
         row = reschedule(st, args.id, args.at, simulator=args.simulator)
-    print(f"{args.id}: moved to {row['simulator']} {row['starts_at']:%Y-%m-%d %H:%M}-{row['ends_at']:%H:%M}")
+    print(f"{args.id}: moved to {row['simulator']} {when(row['starts_at'])}-{row['ends_at']:%H:%M}")
 
 
 def _close(status: str):

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterable, Sequence
 
 from study.common.errors import UserError
+from study.common.input_size import check_size
 
 if TYPE_CHECKING:  # pandas only for the DataFrame of read_rows: a bulk command reads its file without it
     import pandas as pd
@@ -86,10 +87,12 @@ def read_rows(path: str | Path) -> pd.DataFrame:
 
 
 def csv_text(path: Path, missing: str, reason_prefix: str = "") -> str:
-    """The text of the CSV file `path`: UTF-8 (a BOM is accepted) without NUL bytes. Refused (UserError, one line):
-    `missing` when `path` is not a file; else the file's name and the reason (after `reason_prefix`)."""
+    """The text of the CSV file `path`: UTF-8 (a BOM is accepted) without NUL bytes, at most
+    :data:`study.common.input_size.MAX_INPUT_BYTES`. Refused (UserError, one line): `missing` when `path` is not a
+    file; else the file's name and the reason (after `reason_prefix`)."""
     if not path.is_file():
         raise UserError(missing)
+    check_size(path)
     try:
         text = path.read_text(encoding="utf-8-sig")
     except UnicodeDecodeError as exc:

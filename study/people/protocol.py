@@ -23,6 +23,7 @@ from datetime import datetime, timezone
 from typing import TYPE_CHECKING, Any
 
 from study.common.errors import UserError, check_choice
+from study.common.times import when
 from study.folder.protocol_file import Protocol
 from study.people.orders import ensure_order, participant_protocol
 from study.store.audit_trail import not_in_future, utcnow
@@ -81,8 +82,8 @@ def _end_current(st, participant_id: str, ev: list[dict[str, Any]], outcome: str
         return None
     row = cur[-1]
     if at < row["started_at"]:
-        raise UserError(f"end time {at:%Y-%m-%d %H:%M:%S} is before the start of {row['phase']} "
-                        f"({row['started_at']:%Y-%m-%d %H:%M:%S})")
+        raise UserError(f"end time {when(at, seconds=True)} is before the start of {row['phase']} "
+                        f"({when(row['started_at'], seconds=True)})")
     values: dict[str, Any] = {"ended_at": at, "outcome": outcome}
     if note:
         old = row["note"] if isinstance(row["note"], str) else ""
@@ -115,7 +116,7 @@ def advance(st, participant_id: str, phase: str, note: str | None = None,
                             f"{done[-1] if done else 'the start'}, next is {expected}, not {phase}")
         prev = _end_current(st, participant_id, ev, "completed", when, None)
         if ev and when < max(e["started_at"] for e in ev):
-            raise UserError(f"start time {when:%Y-%m-%d %H:%M:%S} is before the previous phase started")
+            raise UserError(f"start time {when(when, seconds=True)} is before the previous phase started")
         st.insert("phase_events", {"participant_id": participant_id, "phase": phase, "seq": idx + 1,
                                    "started_at": when, "outcome": "in_progress", "note": note})
     return {"started": phase, "completed": prev}

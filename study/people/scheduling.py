@@ -19,6 +19,7 @@ from typing import Any
 import pandas as pd
 
 from study.common.errors import UserError
+from study.common.times import when
 from study.folder.protocol_file import planned_minutes
 from study.people.defaults import DEFAULT_BUFFER_MINUTES, DEFAULT_SIMULATOR
 from study.people.orders import ensure_order, exclusion_of, participant_row
@@ -56,7 +57,7 @@ def _slot_end(start: datetime, length: timedelta) -> datetime:
     try:
         return start + length
     except OverflowError:
-        raise UserError(f"a slot starting {start:%Y-%m-%d %H:%M} would end after 9999-12-31 (the latest date "
+        raise UserError(f"a slot starting {when(start)} would end after 9999-12-31 (the latest date "
                         "there is); book an earlier slot") from None
 
 
@@ -81,8 +82,8 @@ def _check_free(st, simulator: str, start: datetime, end: datetime, ignore: int 
                   [simulator, ACTIVE, end, start, ignore])
     if not clash.empty:
         c = clash.iloc[0]
-        raise UserError(f"{simulator} is booked {c['starts_at']:%Y-%m-%d %H:%M}-{c['ends_at']:%H:%M} "
-                        f"for {c['participant_id']}; the slot {start:%Y-%m-%d %H:%M}-{end:%H:%M} overlaps")
+        raise UserError(f"{simulator} is booked {when(c['starts_at'])}-{c['ends_at']:%H:%M} "
+                        f"for {c['participant_id']}; the slot {when(start)}-{end:%H:%M} overlaps")
 
 
 # ---------------------------------------------------------------------------------------------- appointments
@@ -96,7 +97,7 @@ def book(st, participant_id: str, at: str | datetime, simulator: str = DEFAULT_S
     """
     start = parse_datetime(at)
     if start < (now or datetime.now()):
-        raise UserError(f"{start:%Y-%m-%d %H:%M} is in the past; book a future slot")
+        raise UserError(f"{when(start)} is in the past; book a future slot")
     if not buffer_minutes >= 0:  # NaN too
         raise UserError(f"the buffer must be a number of minutes >= 0, not {buffer_minutes!r}")
     simulator = _simulator(simulator)
@@ -117,7 +118,7 @@ def book(st, participant_id: str, at: str | datetime, simulator: str = DEFAULT_S
         held = _active(st, participant_id)
         if not held.empty:
             raise UserError(f"{participant_id} already holds appointment {int(held.iloc[0]['appointment_id'])} "
-                            f"at {held.iloc[0]['starts_at']:%Y-%m-%d %H:%M}; reschedule or cancel it")
+                            f"at {when(held.iloc[0]['starts_at'])}; reschedule or cancel it")
         _check_free(st, simulator, start, end)
         ensure_order(st, participant_id)
         row = st.insert("appointments", {"participant_id": participant_id, "simulator": simulator,
@@ -139,7 +140,7 @@ def reschedule(st, participant_id: str, at: str | datetime, simulator: str | Non
     """Move the participant's booked slot (same length) to `at`, optionally to another simulator; audited."""
     start = parse_datetime(at)
     if start < (now or datetime.now()):
-        raise UserError(f"{start:%Y-%m-%d %H:%M} is in the past; reschedule to a future slot")
+        raise UserError(f"{when(start)} is in the past; reschedule to a future slot")
     with st.transaction():
         cur = _held(st, participant_id)
         sim = _simulator(simulator or cur["simulator"])

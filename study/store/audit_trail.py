@@ -15,6 +15,7 @@ from decimal import Decimal
 from typing import Any
 
 from study.common.errors import UserError
+from study.common.times import when
 
 ACTOR_ENV = "PEDAS_STUDY_ACTOR"
 
@@ -45,7 +46,7 @@ def not_in_future(at: datetime) -> datetime:
     """`at` (naive UTC) unless it is later than now + :data:`CLOCK_SKEW` -> UserError."""
     now = utcnow()
     if at > now + CLOCK_SKEW:
-        raise UserError(f"time {at:%Y-%m-%d %H:%M:%S} is in the future (now {now:%Y-%m-%d %H:%M:%S} UTC; at most "
+        raise UserError(f"time {when(at, seconds=True)} is in the future (now {when(now, seconds=True)} UTC; at most "
                         f"{CLOCK_SKEW.total_seconds() / 60:g} min ahead is accepted as clock difference)")
     return at
 

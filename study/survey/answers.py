@@ -35,6 +35,7 @@ from typing import Any, Iterator, Mapping
 import pandas as pd
 
 from study.common.errors import UserError, check_name
+from study.common.times import when
 from study.folder.instrument import Answer, Instrument
 from study.store import audit_trail
 from study.store.audit_trail import utcnow
@@ -322,7 +323,7 @@ def issue_link(st, participant_id: str, instrument: str | None = None, occasion:
     sub = submission(st, participant_id, 1, instrument, occasion)
     if sub is not None:
         raise UserError(f"{participant_id} already has survey answers{_at(st, occasion)} ({sub['source']}, "
-                        f"{sub['submitted_at']:%Y-%m-%d %H:%M} UTC); no new link issued")
+                        f"{when(sub['submitted_at'])} UTC); no new link issued")
     token = secrets.token_urlsafe(32)
     now = utcnow()
     with st.transaction():
@@ -548,7 +549,7 @@ def save_entry(st, participant_id: str, entry_round: int, answers: Mapping[str, 
         raise UserError(f"{participant_id} already has double-entry answers{at}; a single entry cannot replace them")
     if this is not None and not replace:
         raise UserError(f"{participant_id} already has entry round {entry_round}{at} "
-                        f"(by {this['submitted_by']}, {this['submitted_at']:%Y-%m-%d %H:%M} UTC)")
+                        f"(by {this['submitted_by']}, {when(this['submitted_at'])} UTC)")
     now = utcnow()
     with st.transaction():
         if not double_entry:
@@ -611,8 +612,11 @@ def resolve(st, participant_id: str, item_id: str, raw: Any, note: str | None = 
     """Record the final value of a double-entry discrepancy of one occasion (audited); '' / None = missing on the
     form.
 
-    Only items listed by :func:`discrepancies` can be resolved; resolving again replaces the value.
+    Only items listed by :func:`discrepancies` can be resolved; resolving again replaces the value. An unknown
+    participant is said as such (not as "no discrepancy").
     """
+    if not participant_exists(st, participant_id):
+        raise UserError(f"unknown participant {participant_id}")
     ins, occasion = target(st, instrument, occasion)
     instrument = ins.name
     parsed = parse_answers(ins, {item_id: raw}, response_items(ins))[item_id]

@@ -25,6 +25,7 @@ from werkzeug.exceptions import HTTPException
 from study.common.errors import UserError
 from study.webapp import console, participant, researcher
 from study.webapp.context import install, message, new_state
+from study.webapp.guard import DepthLimitedJSON, Guard, refuse
 from study.webapp.server import SurveyServer, redact
 from study.webapp.signin import SignIn, SignInSettings
 from study.webapp.widgets import check_renderable, widget
@@ -43,6 +44,17 @@ class _App(Flask):
 
         text = "".join(traceback.format_exception(*exc_info)) if exc_info[0] else ""
         self.logger.error(redact(f"Exception on {request.path} [{request.method}]\n{text}".rstrip()))
+
+
+def _body_limit(app: Flask):
+    """The largest body (bytes) a request to a path may send: a drive-log upload's, else the app's limit."""
+    def limit(path: str) -> int:
+        try:
+            endpoint = app.url_map.bind("localhost").match(path, method="POST")[0]
+        except Exception:  # no route (404/405/redirect): the general limit
+            endpoint = None
+        return console.DRIVE_UPLOAD_MAX if endpoint == "console.upload_drive" else app.config["MAX_CONTENT_LENGTH"]
+    return limit
 
 
 def _one_line(text: str) -> str:
@@ -102,12 +114,15 @@ def create_app(st, researcher_password: str, instrument: str | None = None,
     app = _App(__name__, template_folder=str(HERE / "templates"), static_folder=str(HERE / "static"))
     app.config.update(SECRET_KEY=secret_key or secrets.token_hex(32), SESSION_COOKIE_SAMESITE="Strict",
                       SESSION_COOKIE_HTTPONLY=True, MAX_CONTENT_LENGTH=256 * 1024)
+    app.json = DepthLimitedJSON(app)
     app.extensions["survey"] = new_state(st, ins, study)
     app.register_error_handler(HTTPException, http_error)
     app.register_error_handler(UserError, user_error)
+    app.before_request(refuse)
     install(app)
     app.extensions["signin"] = SignIn(researcher_password, signin)
     app.session_interface = _SessionInterface()
+    app.wsgi_app = Guard(app.wsgi_app, _body_limit(app))  # behind ProxyFix: the host it reports is checked too
     hops = app.extensions["signin"].settings.trust_proxy
     if hops:  # the client address and scheme as the TLS proxy in front reports them (X-Forwarded-For/-Proto)
         from werkzeug.middleware.proxy_fix import ProxyFix

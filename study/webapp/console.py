@@ -36,11 +36,13 @@ from flask import (
 from werkzeug.utils import secure_filename
 
 from study.common.errors import UserError
+from study.common.times import when
 from study.webapp.context import state, store
 from study.webapp.researcher import actor, researcher
 
 bp = Blueprint("console", __name__, url_prefix="/r")
 DRIVE_UPLOAD_MAX = 512 * 1024 * 1024  # bytes of one uploaded drive log (a 2 h drive at 100 Hz is ~100 MB of CSV)
+UPLOAD_NAME_MAX = 100  # characters of an uploaded file's name as saved and stored (a file system allows 255 bytes)
 FLASH_MAX = 300    # characters of a flashed message: it travels in the session cookie (browsers keep <= 4 kB)
 REFILL_MAX = 200   # characters of a refused form's field shown again; a longer one comes back empty
 _PID = re.compile(r"[A-Za-z0-9_.-]{1,64}")  # a participant id a redirect may carry (the store allows 1-64 chars)
@@ -51,6 +53,18 @@ def large_uploads():
     # only the drive-log upload takes large bodies; set before the sign-in check reads the form (and its CSRF token)
     if request.endpoint == "console.upload_drive":
         request.max_content_length = DRIVE_UPLOAD_MAX
+
+
+def upload_name(filename: str) -> str:
+    """An uploaded file's name as it is saved (in a fresh temporary directory) and stored with the drive: only
+    ASCII letters, digits, ``._-`` (werkzeug's secure_filename: no directory part), at most UPLOAD_NAME_MAX
+    characters keeping the extension (which gives the format); "" when nothing is left."""
+    name = secure_filename(filename)
+    if len(name) > UPLOAD_NAME_MAX:
+        stem, dot, ext = name.rpartition(".")
+        ext = dot + ext if stem and len(ext) <= 16 else ""
+        name = name[:UPLOAD_NAME_MAX - len(ext)] + ext
+    return name
 
 
 def _records(df) -> list[dict]:
@@ -137,7 +151,7 @@ def book():
     f = request.form
     return _act("console.today", lambda s: book_slot(s, f.get("participant_id", ""), f.get("at", ""),
                                                      simulator=f.get("simulator") or DEFAULT_SIMULATOR),
-                lambda r: f"{r['participant_id']}: {r['simulator']} booked {r['starts_at']:%Y-%m-%d %H:%M}-"
+                lambda r: f"{r['participant_id']}: {r['simulator']} booked {when(r['starts_at'])}-"
                           f"{r['ends_at']:%H:%M}",
                 date=f.get("at", "")[:10])
 
@@ -320,12 +334,12 @@ def upload_drive(pid: str):
 
     f = request.form
     upload = request.files.get("file")
-    name = secure_filename(upload.filename or "") if upload else ""
+    name = upload_name(upload.filename or "") if upload else ""
     if not name:
         return _done("console.participant", error="choose a drive-log file to upload", pid=pid)
     steps: list[str] = []
     with tempfile.TemporaryDirectory(prefix="pedas-upload-") as tmp:
-        path = Path(tmp) / name  # the file's own name: it sets the format and is stored with the drive
+        path = Path(tmp) / name  # the file's name, made safe and short: it sets the format, is stored with the drive
         upload.save(path)
         try:
             with store(actor()) as s:

@@ -97,15 +97,15 @@ def login():
     name = request.form.get("name", "").strip()
     si = signin()
     keys = si.keys(name, request.remote_addr)
-    wait = si.throttle.locked_for(keys)
-    if wait > 0:  # refused before the password is even checked: guessing gains nothing while locked
+    # counted before the password is checked (parallel guesses cannot overtake the count); refused while locked
+    wait = si.throttle.attempt(keys)
+    if wait > 0:
         return _login_form(f"Too many failed sign-ins. Please wait {math.ceil(wait)} s and try again.", 429, wait)
     if not si.check(request.form.get("password", "")):
-        si.throttle.failed(keys)
         return _login_form("Wrong password.", 401)
+    si.throttle.succeeded(keys)
     if not name:
         return _login_form("Please enter your name.", 401)
-    si.throttle.succeeded(keys)
     target = safe_next(request.args.get("next")) or url_for("console.today")  # decided before a session exists
     si.sessions.end(session.get("sid"))
     session.clear()
@@ -131,16 +131,16 @@ def password():
         f = request.form
         si = signin()
         keys = si.keys(actor(), request.remote_addr)
-        wait = si.throttle.locked_for(keys)
-        if wait > 0:  # refused before the current password is checked, as sign-in is
+        wait = si.throttle.attempt(keys)  # counted before the current password is checked, as sign-in is
+        if wait > 0:
             status, error = 429, f"Too many wrong passwords. Please wait {math.ceil(wait)} s and try again."
         else:
             try:
                 si.change_password(f.get("current", ""), f.get("new", ""), f.get("confirm", ""))
             except WrongPassword as exc:
-                si.throttle.failed(keys)
                 error = str(exc)
-            except UserError as exc:
+            except UserError as exc:  # the current password was right
+                si.throttle.succeeded(keys)
                 error = str(exc)
             else:
                 si.throttle.succeeded(keys)
@@ -221,7 +221,8 @@ def entry(pid: str, entry_round: int):
                 error, answers = str(exc), raw
         else:
             if not sv.participant_exists(s, pid):
-                return message("Unknown participant", f"There is no participant {pid}.", 404)
+                shown = pid if pid.isprintable() else repr(pid)  # a CR/LF in the path stays on the one line
+                return message("Unknown participant", f"There is no participant {shown}.", 404)
             # blind double entry: each round shows only its own earlier values, never the other round's
             answers = {i: (a.text if a.text is not None else ("" if a.value is None else str(a.value)))
                        for i, a in sv.entry_answers(s, pid, entry_round, ins.name, occasion).items()}

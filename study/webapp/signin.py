@@ -57,6 +57,7 @@ class SignInSettings:
 
 # ---------------------------------------------------------------------------------------------- passwords
 _SCRYPT = {"n": 2 ** 14, "r": 8, "p": 1}  # 16 MiB and ~0.1 s per check: slows guessing
+CHECKS_AT_ONCE = 2  # password checks running in parallel (a burst of sign-ins queues: memory stays flat)
 
 
 def hash_password(password: str, salt: bytes | None = None) -> str:
@@ -106,22 +107,40 @@ class Throttle:
         """Seconds until every one of `keys` may try again (0 = may try now)."""
         now = self.clock()
         with self._lock:
-            return max([0.0] + [self._keys[key].locked_until - now for key in keys if key in self._keys])
+            return self._wait(keys, now)
+
+    def _wait(self, keys: list[str], now: float) -> float:
+        return max([0.0] + [self._keys[key].locked_until - now for key in keys if key in self._keys])
+
+    def attempt(self, keys: list[str]) -> float:
+        """Before a password is checked: the seconds to wait when a key is locked (nothing counted), else 0 with
+        the attempt already counted as a failure of every key (:meth:`succeeded` forgets it). Checked and counted
+        under one lock, so parallel guesses cannot all pass the check before any is counted: at most the limit's
+        number of passwords is ever checked per key and lockout."""
+        now = self.clock()
+        with self._lock:
+            wait = self._wait(keys, now)
+            if wait <= 0:
+                self._count(keys, now)
+            return wait
 
     def failed(self, keys: list[str]) -> None:
         """Count one failure for each key; a key reaching its limit is locked (back-off doubles per lockout)."""
-        s, now = self.settings, self.clock()
         with self._lock:
-            for key in keys:
-                k = self._get(key, now)
-                k.failures += 1
-                k.last_failure = now
-                if k.failures >= self._limit(key):
-                    k.locked_until = now + min(s.lockout_s * 2 ** k.lockouts, s.max_lockout_s)
-                    k.lockouts += 1
-                    k.failures = 0
-            if len(self._keys) > MAX_KEYS:  # many names tried: forget the stale ones (memory stays bounded)
-                self._keys = {key: k for key, k in self._keys.items() if not self._stale(k, now)}
+            self._count(keys, self.clock())
+
+    def _count(self, keys: list[str], now: float) -> None:
+        s = self.settings
+        for key in keys:
+            k = self._get(key, now)
+            k.failures += 1
+            k.last_failure = now
+            if k.failures >= self._limit(key):
+                k.locked_until = now + min(s.lockout_s * 2 ** k.lockouts, s.max_lockout_s)
+                k.lockouts += 1
+                k.failures = 0
+        if len(self._keys) > MAX_KEYS:  # many names tried: forget the stale ones (memory stays bounded)
+            self._keys = {key: k for key, k in self._keys.items() if not self._stale(k, now)}
 
     def succeeded(self, keys: list[str]) -> None:
         with self._lock:
@@ -192,6 +211,7 @@ class SignIn:
         self.settings = settings or SignInSettings()
         self._hash = hash_password(password)
         self._lock = threading.Lock()
+        self._checks = threading.BoundedSemaphore(CHECKS_AT_ONCE)
         self.throttle = Throttle(self.settings, clock)
         self.sessions = Sessions(self.settings.session_idle_s, clock)
 
@@ -202,7 +222,8 @@ class SignIn:
     def check(self, password: str) -> bool:
         with self._lock:
             stored = self._hash
-        return check_password(password, stored)
+        with self._checks:
+            return check_password(password, stored)
 
     def change_password(self, current: str, new: str, confirm: str) -> None:
         """Set a new password and end every session; UserError (nothing changed) when `current` is wrong

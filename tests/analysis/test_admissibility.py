@@ -107,8 +107,8 @@ def test_ordinal_cfa_refuses_an_empty_category_as_lavaan(study, lavaan):
     with pytest.raises(ValueError) as e:
         O.fit_ordinal_cfa(scored, meas, estimator="ULS", categories=cats)
     assert str(e.value) == ("ordinal CFA: some categories of item PU1 are empty among the 32 complete rows (answers "
-                            "1 2 3 4 5: frequencies [0 8 12 8 4]); pass collapse_empty (CLI --collapse-empty) to "
-                            "merge them")
+                            "1 2 3 4 5: frequencies [0 8 12 8 4]); pass collapse_empty (CLI: --collapse-empty of "
+                            "`analyze extended` or `analyze survey --extended`) to merge them")
     for lav in ("ULSMV", "WLSMV"):
         assert ("some categories of variable `PU1' are empty" in
                 _ref(lavaan, "empty_category", f"ordinal_message_{lav}")["text"].iloc[0])
@@ -188,3 +188,49 @@ def test_lavaan_reference_reruns(tmp_path):
     assert list(new["quantity"]) == list(old["quantity"])
     nv, ov = pd.to_numeric(new["value"], errors="coerce"), pd.to_numeric(old["value"], errors="coerce")
     np.testing.assert_allclose(nv.to_numpy(), ov.to_numpy(), rtol=1e-8, atol=1e-10)
+
+
+# ---------------------------------------------------------------------------------------------- singular samples
+def _duplicated(study, tweak: bool):
+    """The R reference survey (N = 40) with PU2 a copy of PU1; `tweak`: 20 copies of it with one PU2 answer one step
+    higher, so that r(PU1, PU2) = .9991 (near-singular, not singular)."""
+    raw = pd.read_csv(REPO / "tests" / "data" / "r_reference" / "survey.csv", dtype={"participant_id": str})
+    if tweak:
+        raw = pd.concat([raw] * 20, ignore_index=True)
+        raw["participant_id"] = [f"P{i + 1:03d}" for i in range(len(raw))]
+    raw["PU2"] = raw["PU1"]
+    if tweak:
+        raw.loc[raw.index[raw["PU1"] < 5][0], "PU2"] += 1
+    return score_responses(raw, study.instrument()).scored, {c: list(v) for c, v in study.model.measurement.items()}
+
+
+@pytest.mark.parametrize("tweak, r", [(False, "1.0000"), (True, "0.9991")])
+def test_a_duplicated_item_is_named_in_every_fit_and_semopy_prints_nothing(study, capfd, tweak, r):
+    """lavaan 0.6-14 on the same data (WLSMV): "correlation between variables PU2 and PU1 is (nearly) 1.0"; ML on
+    the exact copy: no solution found. Here every fit names the pair; semopy's nearPD notice is a warning, not
+    stderr."""
+    from analysis.survey.cfa import fit_cfa
+
+    scored, meas = _duplicated(study, tweak)
+    named = f"(nearly) singular: items PU1 and PU2 correlate {r} (|r| >= 0.999)"
+    ml = fit_cfa(scored, meas, label="final")
+    assert f"CFA final: sample covariance matrix {named}" in ml.warnings[0]
+    assert any("semopy: Sample covariance matrix is not PD" in w for w in ml.warnings) != tweak
+    for est in ("ULS", "DWLS"):
+        fit = O.fit_ordinal_cfa(scored, meas, estimator=est)
+        assert f"ordinal CFA ({est}): polychoric correlation matrix (nearly) singular: items PU1 and PU2" \
+               in fit.warnings[0] and not fit.admissible
+    sem = fit_sem(scored, meas, structural_paths(study.model))
+    assert sem.warnings[0].startswith(f"SEM: sample covariance matrix {named}") and not sem.admissible
+    assert capfd.readouterr().err == ""
+
+
+def test_a_linear_combination_is_named_singular():
+    from analysis.survey.admissibility import singular_sample
+
+    rng = np.random.default_rng(3)
+    x = pd.DataFrame(rng.normal(size=(50, 3)), columns=["a", "b", "c"])
+    x["d"] = x["a"] + x["b"] - x["c"]
+    (w,) = singular_sample("CFA: ", x.cov(ddof=0))
+    assert w.startswith("CFA: sample covariance matrix singular (smallest eigenvalue of the item correlations")
+    assert singular_sample("CFA: ", x[["a", "b", "c"]].cov()) == []

@@ -2,8 +2,9 @@
 
 Every route of the app's URL map, signed in and not, gets requests drawn by hypothesis: any method, path
 parameters (valid, unknown and garbage tokens and participant ids), query strings, urlencoded forms with the
-app's own field names and random ones, JSON of any shape, multipart uploads, raw bodies under any content type,
-odd headers. The properties:
+app's own field names and random ones, JSON of any shape and JSON nested thousands deep, multipart uploads (file
+names of 300 bytes and more), raw bodies under any content type, odd headers, Host headers that name no host, and
+paths percent-encoded in other spellings. The properties:
 
 * no answer is 5xx;
 * a refusal (4xx, or a redirect carrying an error message) leaves the store exactly as it was (row counts of every
@@ -52,6 +53,8 @@ nasty = st.sampled_from(["", " ", "é", "\r\n", "\x00", "%0d%0a", "../../etc", "
                          "-1", "3", "P001", "P002", "P999", "sim1", "S" * 41, "x" * 5000, PASSWORD, "submit",
                          "attended", "no_show", "all", "csv", "sav", "baseline", "familiarisation", "{}", "[]"])
 value = st.one_of(nasty, text)
+BAD_HOSTS = ["a..b", "x" * 64 + ".example", "é.example", "", " ", "[::1", "-a.example", "a_b.example",
+             "127.0.0.1:99999999", "localhost:", "xn--.example", "a" * 300, "ex ample.org"]
 ids = st.one_of(st.sampled_from(["P001", "P002", "P999", "", " ", "P001/..", "é", "\r\n", "x" * 300]), text)
 
 
@@ -98,8 +101,10 @@ class Client:
             who = self.signin.sessions.get(self.sid)
         return "session=" + self.serializer.dumps({"sid": self.sid, "login_csrf": "login-token"}), who.csrf
 
-    def send(self, method: str, target: str, headers: list[tuple[str, str]], body: bytes) -> tuple[int, dict, bytes]:
-        head = [f"{method} {target} HTTP/1.1", f"Host: {self.server.host}:{self.server.port}", "Connection: close",
+    def send(self, method: str, target: str, headers: list[tuple[str, str]], body: bytes,
+             host: str | None = None) -> tuple[int, dict, bytes]:
+        host = f"{self.server.host}:{self.server.port}" if host is None else host
+        head = [f"{method} {target} HTTP/1.1", f"Host: {host}", "Connection: close",
                 f"Content-Length: {len(body)}"] + [f"{k}: {v}" for k, v in headers]
         raw = ("\r\n".join(head) + "\r\n\r\n").encode("utf-8") + body
         with socket.create_connection((self.server.host, self.server.port), timeout=60) as s:
@@ -161,6 +166,12 @@ def requests(draw, route, links):
     path = rule
     for a, v in values.items():
         path = re.sub(rf"<(?:[a-z]+:)?{a}>", urllib.parse.quote(v, safe=""), path)
+    spelling = draw(st.integers(0, 9))  # mostly as is; else the same path percent-encoded another way
+    if spelling == 8:    # every character of the path percent-encoded (the slashes kept)
+        path = "/".join("".join(c if c == "%" else f"%{ord(c):02X}" for c in seg) if "%" not in seg
+                        else seg for seg in path.split("/"))
+    elif spelling == 9:  # the slashes after the first percent-encoded, or doubled
+        path = "/" + path[1:].replace("/", draw(st.sampled_from(["%2F", "%2f", "//"])))
     allowed = sorted(methods - {"OPTIONS", "HEAD"})
     method = draw(st.sampled_from(allowed)) if draw(st.integers(0, 9)) < 8 else draw(st.sampled_from(METHODS))
     query = draw(st.dictionaries(st.one_of(st.sampled_from(["next", "date", "saved", "_method"]), text), value,
@@ -168,7 +179,7 @@ def requests(draw, route, links):
     form = {}  # the app's field names with mostly plausible values, so that requests get past the first check
     for k in draw(st.lists(st.one_of(st.sampled_from(FIELDS), text), max_size=8, unique=True)):
         form[k] = GOOD[k] if k in GOOD and not draw(st.booleans()) else draw(value)
-    kind = draw(st.sampled_from(["none", "form", "form", "form", "json", "multipart", "raw"]))
+    kind = draw(st.sampled_from(["none", "form", "form", "form", "json", "multipart", "raw", "deep"]))
     headers: list[tuple[str, str]] = []
     body = b""
     if kind == "form":
@@ -181,11 +192,17 @@ def requests(draw, route, links):
                                 max_leaves=6))
         body = json.dumps(doc).encode()
         headers.append(("Content-Type", "application/json"))
+    elif kind == "deep":  # JSON nested past any parser's recursion limit
+        depth = draw(st.sampled_from([33, 500, 1000, 5000, 20000]))
+        opener = draw(st.sampled_from(["[", '{"item": ', '{"value": [']))
+        body = (opener * depth + "1" + {"[": "]", '{"item": ': "}", '{"value": [': "]}"}[opener] * depth).encode()
+        headers.append(("Content-Type", "application/json"))
     elif kind == "multipart":
         b = "fuzzboundary"
         parts = [f'--{b}\r\nContent-Disposition: form-data; name="{k}"\r\n\r\n{v}\r\n' for k, v in form.items()
                  if '"' not in k and "\r" not in k and "\n" not in k]
-        name = draw(st.sampled_from(["log.csv", "log.parquet", "", "../x.csv", "é.csv", "log"]))
+        name = draw(st.sampled_from(["log.csv", "log.parquet", "", "../x.csv", "é.csv", "log", "a" * 300 + ".csv",
+                                     "é" * 200 + ".csv", "x." + "c" * 300, "/" * 300]))
         content = draw(st.sampled_from(["t_s,v_mps\n0,1\n", "", "\x00\x01", "a,b\n1"]))
         parts.append(f'--{b}\r\nContent-Disposition: form-data; name="file"; filename="{name}"\r\n'
                      f"Content-Type: text/csv\r\n\r\n{content}\r\n--{b}--\r\n")
@@ -201,7 +218,8 @@ def requests(draw, route, links):
                                               st.text(st.characters(min_codepoint=32, max_codepoint=126),
                                                       max_size=20))), max_size=2))
     target = path + ("?" + urllib.parse.urlencode(query) if query else "")
-    return {"method": method, "target": target, "headers": headers + extra, "body": body,
+    host = None if draw(st.integers(0, 9)) < 9 else draw(st.sampled_from(BAD_HOSTS))
+    return {"method": method, "target": target, "headers": headers + extra, "body": body, "host": host,
             "signed_in": draw(st.integers(0, 4)) < 4, "good_csrf": draw(st.integers(0, 9)) < 9,
             "route": (rule, tuple(sorted(methods)))}
 
@@ -220,7 +238,7 @@ def test_no_request_is_answered_5xx_and_refusals_change_nothing(served):
             body += b"&csrf=" + urllib.parse.quote(csrf).encode()  # most forms get past the CSRF check
         before = fingerprint(store)
         status, heads, payload = client.send(req["method"], req["target"], [("Cookie", cookie), *req["headers"]],
-                                             body)
+                                             body, req["host"])
         seen[status] += 1
         by_route[req["route"]] += 1
         assert status < 500, f"{req['method']} {req['target']!r}: {status}\n{payload[:2000]!r}"
