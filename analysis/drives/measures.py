@@ -14,6 +14,7 @@ set of its samples; a statistic with no sample to work on is NULL (NaN), never 0
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import numpy as np
 import pandas as pd
@@ -181,56 +182,105 @@ def brake_applications(d, sel, o):
     return float(rising[sel].sum())
 
 
-def _resampled(t: np.ndarray, x: np.ndarray, step: float) -> np.ndarray:
-    ok = np.isfinite(t) & np.isfinite(x)
-    t, x = t[ok], x[ok]
-    if len(t) < 2:
-        return np.empty(0)
-    return np.interp(np.arange(t[0], t[-1] + 1e-9, step), t, x)
+@lru_cache(maxsize=64)
+def _butter(cutoff_hz: float, fs: float) -> tuple[np.ndarray, np.ndarray]:
+    from scipy.signal import butter
+
+    return butter(2, cutoff_hz, fs=fs)
 
 
 def _lowpass(x: np.ndarray, cutoff_hz: float, fs: float) -> np.ndarray | None:
-    """2nd-order Butterworth low-pass, forward and backward (no phase lag); None when `x` is too short."""
-    from scipy.signal import butter, sosfiltfilt
+    """2nd-order Butterworth low-pass, forward and backward (no phase lag); None when `x` is too short. (Second
+    order is well conditioned as a transfer function, and filtfilt on it is faster than on second-order sections.)"""
+    from scipy.signal import filtfilt
 
-    sos = butter(2, cutoff_hz, fs=fs, output="sos")
-    if len(x) <= 3 * (2 * len(sos) + 1):
+    b, a = _butter(float(cutoff_hz), round(float(fs), 6))
+    if len(x) <= 3 * max(len(a), len(b)):
         return None
-    return sosfiltfilt(sos, x)
+    return filtfilt(b, a, x)
 
 
-def reversals(y: np.ndarray, gap: float) -> int:
-    """Number of steering reversals of at least `gap` in the filtered signal `y` (Markkula & Engstrom 2006): the
-    stationary points (where the first difference changes sign or is 0; the window's ends are none), then upward reversals counted greedily
-    (from the lowest point since the last reversal to a point at least `gap` above it) plus downward ones the same
-    way on -y."""
+def reversal_indices(y: np.ndarray, gap: float) -> np.ndarray:
+    """Indices of `y` at which a steering reversal of at least `gap` completes (Markkula & Engstrom 2006): the
+    stationary points of the filtered signal `y` (where its first difference changes sign or is 0; the ends are
+    none), then upward reversals counted greedily (from the lowest point since the last reversal to a point at least
+    `gap` above it) and downward ones the same way on -y. Sorted."""
     dy = np.diff(y)
     sign = np.sign(dy)
     idx = np.flatnonzero((sign[1:] != sign[:-1]) | (sign[1:] == 0)) + 1
     pts = y[idx]
-    if len(pts) < 2:
-        return 0
-    n = 0
+    hits = []
     for p in (pts.tolist(), (-pts).tolist()):
+        if not p:
+            continue
         k = p[0]
-        for v in p[1:]:
+        for j, v in enumerate(p):
             if v - k >= gap:
-                n += 1
+                hits.append(j)
                 k = v
             elif v < k:
                 k = v
-    return n
+    return np.sort(idx[np.asarray(hits, dtype=np.int64)])
+
+
+def reversals(y: np.ndarray, gap: float) -> int:
+    """Number of steering reversals of at least `gap` in the filtered signal `y` (:func:`reversal_indices`)."""
+    return len(reversal_indices(y, gap))
+
+
+def _cached(d, key, make):
+    """A drive-level derived signal, made once per drive and shared by its windows."""
+    cache = d.setdefault("_cache", {})
+    if key not in cache:
+        cache[key] = make()
+    return cache[key]
+
+
+def _grid(d, channel: str, step: float, cutoff_hz: float | None = None, before: bool = False):
+    """(signal of `channel` resampled every `step` s over the whole drive, the drive's sample at or before each
+    resampled point); with ``cutoff_hz`` low-pass filtered after (``before``: before) resampling; None when the
+    drive is too short."""
+    t, x = d["t"], d[channel]
+    ok = np.isfinite(t) & np.isfinite(x)
+    t, x = t[ok], x[ok]
+    if len(t) < 2 or t[-1] <= t[0]:
+        return None
+    if before and cutoff_hz:
+        fs = (len(t) - 1) / (t[-1] - t[0])
+        if fs > 2 * cutoff_hz:
+            x = _lowpass(x, cutoff_hz, fs)
+            if x is None:
+                return None
+    tt = np.arange(t[0], t[-1] + 1e-9, step)
+    y = np.interp(tt, t, x)
+    if cutoff_hz and not before:
+        y = _lowpass(y, cutoff_hz, 1.0 / step)
+        if y is None:
+            return None
+    # the drive's sample at or before each resampled point (interpolating the index is a searchsorted for a
+    # monotonic time, at a third of its cost)
+    tall = d["t"]
+    src = np.floor(np.interp(tt, tall, np.arange(len(tall), dtype=float)) + 1e-9).astype(np.int64)
+    return y, src
 
 
 def steering_reversal_rate(d, sel, o):
-    t = d["t"][sel]
+    """Reversals per minute. The drive's signal is resampled, filtered and its reversals found once; a window (a
+    segment, a region) counts the reversals that complete in it, per minute of it (no filter transients and no
+    fresh start of the count at a window's edges)."""
     fs = o["resample_hz"]
-    x = _resampled(t, d["steering_angle"][sel], 1.0 / fs)
-    y = _lowpass(x, o["cutoff_hz"], fs) if len(x) else None
-    if y is None:
+
+    def found():
+        g = _grid(d, "steering_angle", 1.0 / fs, o["cutoff_hz"])
+        return None if g is None else (reversal_indices(g[0], o["gap_deg"]), g[1])
+
+    r = _cached(d, ("srr", fs, o["cutoff_hz"], o["gap_deg"]), found)
+    if r is None:
         return math.nan
-    minutes = (len(x) - 1) / fs / 60.0
-    return reversals(y, o["gap_deg"]) / minutes
+    hits, src = r
+    m = _mask(sel, len(d["t"]))[src]
+    n = np.count_nonzero(m)
+    return np.count_nonzero(m[hits]) / (n / fs / 60.0) if n >= 2 else math.nan
 
 
 ENTROPY_STEP_S = 0.15      # Nakayama et al. (1999): the steering angle every 150 ms
@@ -255,22 +305,19 @@ def entropy_of(errors: np.ndarray, alpha: float) -> float:
 
 
 def steering_entropy(d, sel, o):
-    t, x = d["t"][sel], d["steering_angle"][sel]
-    if o["method"] == "boer2005":
-        ok = np.isfinite(t) & np.isfinite(x)
-        t, x = t[ok], x[ok]
-        if len(t) < 2:
-            return math.nan
-        fs = (len(t) - 1) / (t[-1] - t[0]) if t[-1] > t[0] else 0.0
-        cutoff = 0.5 / ENTROPY_STEP_S
-        if fs > 2 * cutoff:
-            x = _lowpass(x, cutoff, fs)
-            if x is None:
-                return math.nan
-    theta = _resampled(t, x, ENTROPY_STEP_S)
-    if len(theta) < 4:
+    """Entropy of the window's prediction errors; the drive's signal is resampled (after the 2005 method's
+    anti-alias filter) and its errors are computed once."""
+    def errors():
+        cutoff = 0.5 / ENTROPY_STEP_S if o["method"] == "boer2005" else None
+        g = _grid(d, "steering_angle", ENTROPY_STEP_S, cutoff, before=True)
+        return None if g is None or len(g[0]) < 4 else (prediction_errors(g[0]), g[1][3:])
+
+    e = _cached(d, ("entropy", o["method"]), errors)
+    if e is None:
         return math.nan
-    err = prediction_errors(theta)
+    err = e[0][_mask(sel, len(d["t"]))[e[1]]]
+    if not len(err):
+        return math.nan
     alpha = o["alpha_deg"] or float(np.percentile(np.abs(err), 90))
     return entropy_of(err, alpha)
 
@@ -376,33 +423,48 @@ def iter_drives(con, src: str, columns: list[str], ordered: bool = False):
         yield int(tail["drive_id"][0]), tail, labels
 
 
-def measure_kpis(con, src: str, kpis, regions=(), ordered: bool = False) -> tuple[pd.DataFrame, pd.DataFrame]:
+def _one_drive(drive_id, cols, labels, kpis, regions, segment_kpis) -> tuple[list, list]:
+    """(rows per segment and overall, rows per region) of one drive."""
+    d = drive_arrays({c: v for c, v in cols.items() if c not in ("drive_id", "seg_code")})
+    codes = cols["seg_code"]
+    d["segment"] = labels[codes]
+    keys, windows = [], []
+    if segment_kpis:
+        for code in pd.unique(codes):
+            if code:
+                keys.append(labels[code])
+                windows.append(codes == code)
+    keys.append("overall")
+    windows.append(slice(None))
+    seg = [(drive_id, key, *vals) for key, vals in zip(keys, drive_values(d, kpis, windows))]
+    reg = []
+    if regions:
+        sels = [region_selection(d, r) for r in regions]
+        reg = [(drive_id, r.name, *vals) for r, vals in zip(regions, drive_values(d, kpis, sels))]
+    return seg, reg
+
+
+def measure_kpis(con, src: str, kpis, regions=(), ordered: bool = False, workers: int = 1
+                 ) -> tuple[pd.DataFrame, pd.DataFrame]:
     """(values per drive and segment: drive_id, segment (a route segment or ``overall``), one column per measure KPI
     (:class:`study.folder.kpi_spec.MeasureKpi`; segment rows only for those ``per_segment``); values per drive and
     region: drive_id, region, one column per measure KPI, NaN where the drive does not reach the region).
-    ``ordered``: `src` scans in drive order (:func:`analysis.drives.kpis.in_drive_order`), so it is not sorted."""
+    ``ordered``: `src` scans in drive order (:func:`analysis.drives.kpis.in_drive_order`), so it is not sorted.
+    ``workers`` > 1: drives are computed on that many threads while the next ones stream in (numpy and scipy
+    release the interpreter lock in their loops); the rows come in drive order either way."""
+    from concurrent.futures import ThreadPoolExecutor
+
     kpis = list(kpis)
     names = [k.name for k in kpis]
     segment_kpis = any(k.per_segment for k in kpis)
     seg_rows, reg_rows = [], []
-    for drive_id, cols, labels in iter_drives(con, src, _columns(kpis, regions), ordered):
-        d = drive_arrays({c: v for c, v in cols.items() if c not in ("drive_id", "seg_code")})
-        codes = cols["seg_code"]
-        d["segment"] = labels[codes]
-        keys, windows = [], []
-        if segment_kpis:
-            for code in pd.unique(codes):
-                if code:
-                    keys.append(labels[code])
-                    windows.append(codes == code)
-        keys.append("overall")
-        windows.append(slice(None))
-        for key, vals in zip(keys, drive_values(d, kpis, windows)):
-            seg_rows.append((drive_id, key, *vals))
-        if regions:
-            sels = [region_selection(d, r) for r in regions]
-            for r, vals in zip(regions, drive_values(d, kpis, sels)):
-                reg_rows.append((drive_id, r.name, *vals))
+    drives = iter_drives(con, src, _columns(kpis, regions), ordered)
+    with ThreadPoolExecutor(max(1, workers)) as pool:
+        done = pool.map(lambda x: _one_drive(*x, kpis, regions, segment_kpis), drives) if workers > 1 \
+            else (_one_drive(*x, kpis, regions, segment_kpis) for x in drives)
+        for seg, reg in done:
+            seg_rows += seg
+            reg_rows += reg
     seg = pd.DataFrame(seg_rows, columns=["drive_id", "segment", *names])
     reg = pd.DataFrame(reg_rows, columns=["drive_id", "region", *names])
     return seg.astype({n: "float64" for n in names}), reg.astype({n: "float64" for n in names})
