@@ -134,6 +134,14 @@ def ttc(d, sel, o):
     return float(d["dt"][sel][ok & (x < o["threshold_s"])].sum())
 
 
+def _cached(d, key, make):
+    """A drive-level derived signal, made once per drive and shared by its windows."""
+    cache = d.setdefault("_cache", {})
+    if key not in cache:
+        cache[key] = make()
+    return cache[key]
+
+
 def _onsets(flag: np.ndarray) -> np.ndarray:
     """Indices of the rising edges of a 0/1 channel (NaN = 0); the drive's first sample is none (its onset was not
     logged)."""
@@ -141,13 +149,15 @@ def _onsets(flag: np.ndarray) -> np.ndarray:
     return np.flatnonzero(on[1:] & ~on[:-1]) + 1
 
 
-def _reaction(d, sel, o, responded: np.ndarray):
-    """Time from each event onset in the window to the first sample at or after it where `responded` holds."""
-    onsets = _onsets(d[o["event"]])
+def _reaction(d, sel, o, channel: str, below: bool):
+    """Time from each event onset in the window to the first sample at or after it where `channel` is at or above
+    (``below``: at or below) the threshold; the drive's onsets and responses are found once."""
+    onsets = _cached(d, ("onsets", o["event"]), lambda: _onsets(d[o["event"]]))
     onsets = onsets[_mask(sel, len(d["t"]))[onsets]]
     if not len(onsets):
         return math.nan
-    hits = np.flatnonzero(responded)
+    x, thr = d[channel], o["threshold_pct"]
+    hits = _cached(d, ("responses", channel, thr, below), lambda: np.flatnonzero(x <= thr if below else x >= thr))
     k = np.searchsorted(hits, onsets)
     t = d["t"]
     rt = np.full(len(onsets), np.nan)
@@ -168,11 +178,11 @@ def _mask(sel, n: int) -> np.ndarray:
 
 
 def brake_reaction_time(d, sel, o):
-    return _reaction(d, sel, o, d["brake_pedal"] >= o["threshold_pct"])
+    return _reaction(d, sel, o, "brake_pedal", below=False)
 
 
 def accelerator_release_time(d, sel, o):
-    return _reaction(d, sel, o, d["accel_pedal"] <= o["threshold_pct"])
+    return _reaction(d, sel, o, "accel_pedal", below=True)
 
 
 def brake_applications(d, sel, o):
@@ -226,14 +236,6 @@ def reversal_indices(y: np.ndarray, gap: float) -> np.ndarray:
 def reversals(y: np.ndarray, gap: float) -> int:
     """Number of steering reversals of at least `gap` in the filtered signal `y` (:func:`reversal_indices`)."""
     return len(reversal_indices(y, gap))
-
-
-def _cached(d, key, make):
-    """A drive-level derived signal, made once per drive and shared by its windows."""
-    cache = d.setdefault("_cache", {})
-    if key not in cache:
-        cache[key] = make()
-    return cache[key]
 
 
 def _grid(d, channel: str, step: float, cutoff_hz: float | None = None, before: bool = False):
