@@ -69,6 +69,19 @@ def test_speed_exceedance_time_distance_and_share():
     assert value("speed_exceedance", d, statistic="distance_m") == pytest.approx(15.0 * 59.99, abs=1e-6)
 
 
+def test_speed_mean_sd_and_jerk_worked_examples():
+    # speeds 10, 12, 14, 16 m/s: mean 13, SD sqrt(20 / 3) = 2.582; accelerations 0, 1, 1, -1, 0 at 1 s steps: jerks
+    # 1, 0, -2, 1 m/s^3, max |j| = 2, RMS sqrt(6 / 4) = 1.2247
+    t = np.arange(4.0)
+    d = drive_arrays({"t": t, "s": t, "v": np.array([10, 12, 14, 16.0]), "a": np.zeros(4), "speed_limit": t})
+    assert value("speed_mean", d) == 13.0
+    assert value("speed_sd", d) == pytest.approx(math.sqrt(20 / 3), abs=1e-12)
+    t = np.arange(5.0)
+    d = drive_arrays({"t": t, "s": t, "v": t, "a": np.array([0, 1, 1, -1, 0.0]), "speed_limit": t})
+    assert value("jerk", d, statistic="max_abs") == 2.0
+    assert value("jerk", d, statistic="rms") == pytest.approx(math.sqrt(6 / 4), abs=1e-12)
+
+
 # ------------------------------------------------------------------------------------------- ground truth
 @pytest.mark.parametrize("freq", [0.1, 0.25, 0.5, 1.0])
 def test_srr_of_a_sine_counts_one_reversal_between_consecutive_extrema(freq):

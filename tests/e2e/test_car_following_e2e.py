@@ -44,6 +44,7 @@ def test_a_broken_measure_declaration_is_refused_with_file_line_and_reason(tmp_p
     assert lines[4] == "pedas-study: error: 4 problem(s) in study folder car_following" and len(lines) == 5
 
 
+@pytest.mark.browser
 @needs_chromium
 def test_car_following_study_end_to_end(tmp_path, capsys, browser):
     db = tmp_path / "cf.duckdb"
