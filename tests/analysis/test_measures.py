@@ -260,3 +260,22 @@ def test_every_measure_has_a_methods_sentence_with_its_defaults():
         opts = {o.name: "tor" for o in m.options if o.kind == "channel"}
         text = m.sentence(opts)
         assert text.startswith(m.title) and m.source in text and "{" not in text, name
+
+
+def test_measures_are_kpis_for_within_and_comparison(tmp_path, capsys):
+    import shutil
+
+    from pedas_study.cli import main
+    from tests.conftest import REPO
+
+    folder = tmp_path / "cf"
+    shutil.copytree(REPO / "studies" / "car_following", folder)
+    with open(folder / "study.toml", "a", encoding="utf-8") as f:
+        f.write('\n[within]\nconditions = ["no_warning", "fcw"]\nkpis = ["brt", "srr"]\n')
+    with open(folder / "kpis.toml", "a", encoding="utf-8") as f:
+        f.write('\n[comparison]\ncontrol = "no_warning"\ntreatment = "fcw"\n'
+                '[comparison.columns]\nbrt = "brt"\n[comparison.reductions]\nbrt_reduction = "brt"\n')
+    assert main(["study", "check", str(folder)]) == 0, capsys.readouterr().err
+    (folder / "study.toml").write_text((folder / "study.toml").read_text().replace('"brt", "srr"', '"brt", "nope"'))
+    code = main(["study", "check", str(folder)])
+    assert code == 2 and "within.kpis" in capsys.readouterr().out
