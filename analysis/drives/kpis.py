@@ -450,8 +450,8 @@ def store_kpis_with_sources(st, drive_ids=None, params: KpiParams | None = None,
     if missing_channels:
         from study.common.errors import UserError
 
-        raise UserError(f"the study's KPIs and measures read channel(s) {', '.join(missing_channels)}, which no drive in the "
-                        f"store has; import drive logs that map them (docs/drive_logs.md)")
+        raise UserError(f"the study's KPIs and measures read channel(s) {', '.join(missing_channels)}, which no drive "
+                        f"in the store has; import drive logs that map them (docs/drive_logs.md)")
     extra = [c for c in extra if c not in KPI_COLUMNS]           # the others are carried anyway
     carried = "".join(f", {c}" for c in extra if c != "grade")
     con.execute(f"""CREATE OR REPLACE TEMP VIEW kpi_src_raw AS

@@ -307,9 +307,10 @@ def parse(text: str, problems: KpiSpecProblems | None = None, attributes: dict[s
         if c in SAMPLE_COLUMNS:
             probs.add(line_of(text, "channels"), "channels", f"{c!r} is a standard drive-log column, not an extra channel")
         elif mapped is not None and c not in mapped[1]:
+            extras = ", ".join(sorted(set(mapped[1]) - set(SAMPLE_COLUMNS)))
             # a channel the SQL KPIs read must come from the study's simulator logs
             probs.add(line_of(text, "channels"), "channels", f"{c!r} is not an extra channel of the log mapping "
-                                                           f"{mapped[0]} ({', '.join(sorted(set(mapped[1]) - set(SAMPLE_COLUMNS))) or 'none'})")
+                                                           f"{mapped[0]} ({extras or 'none'})")
 
     group_by = data.get("group_by", ["condition"])
     if not isinstance(group_by, list) or not all(isinstance(g, str) for g in group_by):
