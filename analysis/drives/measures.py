@@ -446,27 +446,20 @@ def _one_drive(drive_id, cols, labels, kpis, regions, segment_kpis) -> tuple[lis
     return seg, reg
 
 
-def measure_kpis(con, src: str, kpis, regions=(), ordered: bool = False, workers: int = 1
-                 ) -> tuple[pd.DataFrame, pd.DataFrame]:
+def measure_kpis(con, src: str, kpis, regions=(), ordered: bool = False) -> tuple[pd.DataFrame, pd.DataFrame]:
     """(values per drive and segment: drive_id, segment (a route segment or ``overall``), one column per measure KPI
     (:class:`study.folder.kpi_spec.MeasureKpi`; segment rows only for those ``per_segment``); values per drive and
     region: drive_id, region, one column per measure KPI, NaN where the drive does not reach the region).
     ``ordered``: `src` scans in drive order (:func:`analysis.drives.kpis.in_drive_order`), so it is not sorted.
-    ``workers`` > 1: drives are computed on that many threads while the next ones stream in (numpy and scipy
-    release the interpreter lock in their loops); the rows come in drive order either way."""
-    from concurrent.futures import ThreadPoolExecutor
-
+    (Threads over drives do not pay: the per-window work is short numpy calls that hold the interpreter lock.)"""
     kpis = list(kpis)
     names = [k.name for k in kpis]
     segment_kpis = any(k.per_segment for k in kpis)
     seg_rows, reg_rows = [], []
-    drives = iter_drives(con, src, _columns(kpis, regions), ordered)
-    with ThreadPoolExecutor(max(1, workers)) as pool:
-        done = pool.map(lambda x: _one_drive(*x, kpis, regions, segment_kpis), drives) if workers > 1 \
-            else (_one_drive(*x, kpis, regions, segment_kpis) for x in drives)
-        for seg, reg in done:
-            seg_rows += seg
-            reg_rows += reg
+    for drive in iter_drives(con, src, _columns(kpis, regions), ordered):
+        seg, reg = _one_drive(*drive, kpis, regions, segment_kpis)
+        seg_rows += seg
+        reg_rows += reg
     seg = pd.DataFrame(seg_rows, columns=["drive_id", "segment", *names])
     reg = pd.DataFrame(reg_rows, columns=["drive_id", "region", *names])
     return seg.astype({n: "float64" for n in names}), reg.astype({n: "float64" for n in names})
