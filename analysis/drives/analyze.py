@@ -11,6 +11,7 @@ import pandas as pd
 from analysis.drives.band_diagnostics import band_diagnostics, diagnostics_markdown
 from analysis.drives.figures import write_figures
 from analysis.drives.kpis import energy_note
+from analysis.drives.measure_tables import write_measure_tables
 from analysis.drives.savings import ObjectiveResult, objective_results, reproduction_bands, study_published
 from analysis.drives.tables import (_summary_cells, _texts, bands_markdown, kpi_markdown, kpi_summary_table,
                                     style_cells, style_table, write_tables)
@@ -42,6 +43,9 @@ class DrivesReport:
             lines.append(kpi_markdown(h, rows, f"{title}, mean (median) %").rstrip())
         if self.bands is not None:
             lines.append(bands_markdown(self.bands).rstrip())
+        regions = self.out / "region_summary.md"
+        if regions in self.files:
+            lines.append(regions.read_text(encoding="utf-8").rstrip())
         note = energy_note(r.energy_sources)
         if note:
             lines.append(note)
@@ -79,6 +83,8 @@ def analyze_drives(st, out_dir: str | Path, participant: str | None = None, para
     if participant is None and comparison is not None:
         participant = comparison.participant
     files = write_tables(result, out)
+    measure_files = write_measure_tables(st, result, out)
+    files += measure_files
     bands = diag = None
     if comparison is not None and comparison.bands:
         bands = reproduction_bands(result.summary, study_published(st))
@@ -102,6 +108,7 @@ def analyze_drives(st, out_dir: str | Path, participant: str | None = None, para
               f"{', '.join(result.incomplete) or 'none'}.", "", (out / "style_table.md").read_text(encoding="utf-8")]
         if bands is not None:
             md += [bands_markdown(bands), diagnostics_markdown(diag)]
+    md += [p.read_text(encoding="utf-8") for p in measure_files if p.suffix == ".md"]
     note = energy_note(result.energy_sources)
     if note:
         md += [note[0].upper() + note[1:] + ".", ""]

@@ -44,7 +44,7 @@ import numpy as np
 import pandas as pd
 
 from study.folder.kpi_fields import KPI_COLUMNS, KPI_FIELDS, SAMPLE_COLUMNS, KpiParams  # noqa: F401
-from study.folder.kpi_spec import EventKpi, study_spec
+from study.folder.kpi_spec import EventKpi, MeasureKpi, study_spec
 from analysis.drives.user_kpis import event_kpis, is_aggregate, place, query_kpis
 from pedas.vocabulary import SEGMENTS as ROUTE_SEGMENTS
 
@@ -323,7 +323,13 @@ def kpis_from_relation(con, src: str, params: KpiParams | None = None, mode: str
             parts = list(pool.map(run, chunks))
     out = pd.concat(parts, ignore_index=True)
     events = [k for k in user if isinstance(k, EventKpi)]
-    queries = [k for k in user if not is_aggregate(k) and not isinstance(k, EventKpi)]
+    measures = [k for k in user if isinstance(k, MeasureKpi)]
+    queries = [k for k in user if not is_aggregate(k) and not isinstance(k, (EventKpi, MeasureKpi))]
+    if measures:
+        from analysis.drives.measures import measure_kpis
+
+        ordered = in_drive_order(con, src)
+        out = place(out, measure_kpis(con, src, measures, ordered=ordered)[0], measures)
     if events:
         out = place(out, event_kpis(con, src, events), events)
     if queries:
@@ -436,14 +442,16 @@ def store_kpis_with_sources(st, drive_ids=None, params: KpiParams | None = None,
     if all(is_aggregate(k) for k in user):
         extra = sql_columns(spec.sql, have)
     else:   # a query or event KPI reads `samples` as the study declares it: every column and declared channel
-        extra = [c for c in have if c in spec.channels or (c in SAMPLE_COLUMNS and c not in ("drive_id", "idx"))]
+        extra = [c for c in have if c in spec.channels or c in spec.measure_channels
+                 or (c in SAMPLE_COLUMNS and c not in ("drive_id", "idx"))]
     missing_channels = sorted({c for c in spec.channels if c not in have}
-                              & {w for k in user for w in _words(_kpi_text(k))})
+                              & {w for k in user for w in _words(_kpi_text(k))}
+                              | {c for c in spec.measure_channels if c not in have})
     if missing_channels:
         from study.common.errors import UserError
 
-        raise UserError(f"the study's SQL KPIs read channel(s) {', '.join(missing_channels)}, which no drive in the "
-                        f"store has; import drive logs that map them (docs/drive_logs.md)")
+        raise UserError(f"the study's KPIs and measures read channel(s) {', '.join(missing_channels)}, which no drive "
+                        f"in the store has; import drive logs that map them (docs/drive_logs.md)")
     extra = [c for c in extra if c not in KPI_COLUMNS]           # the others are carried anyway
     carried = "".join(f", {c}" for c in extra if c != "grade")
     con.execute(f"""CREATE OR REPLACE TEMP VIEW kpi_src_raw AS
@@ -483,6 +491,8 @@ def store_kpis_with_sources(st, drive_ids=None, params: KpiParams | None = None,
 
 def _kpi_text(kpi) -> str:
     """The SQL a user KPI runs (its conditions for an event KPI)."""
+    if isinstance(kpi, MeasureKpi):
+        return " ".join(kpi.channels)
     return f"{kpi.start} {kpi.end}" if isinstance(kpi, EventKpi) else kpi.sql
 
 

@@ -506,6 +506,7 @@ def _methods_section(out: Path, st, study, ran: tuple[str, ...]) -> list[str]:
             parts.append(f"<p><strong>Hypotheses</strong> at α = {esc(study.alpha)}:</p><ul>{hyps}</ul>")
     src = st.df("SELECT source, count(*) AS n FROM drives GROUP BY source ORDER BY source")
     if not src.empty:
+        parts += _measures_methods(study)
         what = ", ".join(f"{int(r.n)} {esc(r.source)}" for r in src.itertuples())
         kpis = study.paths.get("kpis")
         parts.append(f"<p><strong>Drives.</strong> {what} drive(s) in the store; KPIs computed in DuckDB from the "
@@ -513,6 +514,16 @@ def _methods_section(out: Path, st, study, ran: tuple[str, ...]) -> list[str]:
                      + ("; simulated drives by virtual participants in SUMO traffic (libsumo)"
                         if "simulation" in set(src["source"]) else "") + ".</p>")
     return parts
+
+
+def _measures_methods(study) -> list[str]:
+    """The methods sentences of the study's shipped standard driving measures (SAE J2944 reporting), if any."""
+    from analysis.drives.measure_tables import methods_sentences
+    from study.folder.kpi_spec import study_spec
+
+    sentences = methods_sentences(study_spec(study))
+    return [f"<p><strong>Drive measures.</strong></p><ul>{''.join(f'<li>{esc(x)}</li>' for x in sentences)}</ul>"] \
+        if sentences else []
 
 
 def _hypotheses_verdicts(out: Path, study) -> str:

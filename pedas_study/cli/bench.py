@@ -227,6 +227,18 @@ def _kpi(args) -> int:
     return 0
 
 
+def _measures(args) -> int:
+    import json
+
+    from pedas_study.bench.measures import run_bench
+
+    if args.repeat < 1 or args.rows < 2:
+        raise ValueError("--repeat must be at least 1 and --rows at least 2")
+    res = run_bench(rows=args.rows, repeat=args.repeat, seed=args.seed, threads=args.threads)
+    print(json.dumps(res.as_dict(), indent=2) if args.json else res.text())
+    return 0
+
+
 def register(cli) -> None:
     """Declare the `bench` group."""
     from pedas.vocabulary import CONDITIONS, STYLES
@@ -308,5 +320,13 @@ def register(cli) -> None:
     p.add_argument("--repeat", type=int, default=3, metavar="N", help="timed repetitions, median reported (default 3)")
     p.add_argument("--seed", type=int, default=1, help="seed of the synthetic table (default 1)")
     p.add_argument("--memory-limit", default="6GB", help="DuckDB memory_limit (default 6GB)")
+    p.add_argument("--threads", type=int, default=None, help="DuckDB threads (default: all cores)")
+    p.add_argument("--json", action="store_true", help="print JSON")
+
+    p = g.command("measures", "the shipped standard driving measures vs the built-in KPIs' pass on the KPI bench's "
+                  "synthetic table (medians and ratio)", _measures)
+    p.add_argument("--rows", type=int, default=10_000_000, metavar="N", help="samples (default 10000000)")
+    p.add_argument("--repeat", type=int, default=3, metavar="N", help="timed repetitions, median reported (default 3)")
+    p.add_argument("--seed", type=int, default=1, help="seed of the synthetic table (default 1)")
     p.add_argument("--threads", type=int, default=None, help="DuckDB threads (default: all cores)")
     p.add_argument("--json", action="store_true", help="print JSON")

@@ -10,6 +10,10 @@
                   or {query = "SELECT ... FROM samples ...", per_segment, unit, label}: a full read-only query
     [events]      name = {from = "condition", to = "condition", statistic = "first" | "mean" | "max" | "count",
                   per_segment, unit, label}: the time from a rising edge of `from` to the next sample where `to` holds
+    [measures]    name = {measure = "steering_reversal_rate", gap_deg = 2.0, per_segment, label}: a shipped
+                  standard measure (study.folder.measure_library, docs/measures.md) with its options
+    [regions]     name = {s_from, s_to} | {t_from, t_to} | {segment = "..."} | {event = "channel", before_s,
+                  after_s}: regions of interest, each measure computed in each
     [comparison]  control, treatment (conditions), bands; [comparison.columns] / .reductions / .pooled
 
 :func:`parse` turns the text into a :class:`KpiSpec` and reports every problem with file, line and field; the check
@@ -20,6 +24,7 @@ same declaration the drive import uses); without one such a drive's energy is un
 """
 from __future__ import annotations
 
+import math
 import re
 import tomllib
 from dataclasses import dataclass, field, replace
@@ -46,7 +51,8 @@ TOLERANCES = ("none", "absolute", "relative", "german")
 ENERGY_MODELS = {"nissan_leaf": "modelled (Nissan Leaf parameters)", "none": None}
 _NAME = re.compile(r"^[a-z][a-z0-9_]*$")
 _RESERVED = {"participant_id", "condition", "drive_id", "segment", "n_intervals", "overall", "all"}
-_KEYS = {"builtins", "group_by", "channels", "violations", "stops", "red_stops", "sql", "events", "comparison"}
+_KEYS = {"builtins", "group_by", "channels", "violations", "stops", "red_stops", "sql", "events", "measures", "regions",
+         "comparison"}
 #: how an event KPI sums up several events of one drive (or segment); docs/kpis.md says why "first" is the default
 STATISTICS = ("first", "mean", "max", "count")
 
@@ -102,6 +108,69 @@ class EventKpi:
 
 
 @dataclass(frozen=True)
+class MeasureKpi:
+    """A shipped standard measure (:data:`study.folder.measure_library.MEASURES`) with the study's options (defaults
+    filled in, as sorted (key, value) pairs), computed per drive (and per segment when ``per_segment``) and per
+    region of interest by :mod:`analysis.drives.measures`."""
+
+    name: str
+    measure: str
+    options: tuple[tuple[str, Any], ...] = ()
+    per_segment: bool = False
+    unit: str = ""
+    label: str = ""
+
+    @property
+    def heading(self) -> str:
+        return _heading(self.name, self.label, self.unit)
+
+    @property
+    def opts(self) -> dict[str, Any]:
+        return dict(self.options)
+
+    @property
+    def channels(self) -> tuple[str, ...]:
+        from study.folder.measure_library import MEASURES
+
+        return MEASURES[self.measure].channels_of(self.opts)
+
+    def sentence(self) -> str:
+        """The methods sentence of this measure with its options (J2944's reporting requirement)."""
+        from study.folder.measure_library import MEASURES
+
+        return MEASURES[self.measure].sentence(self.opts, self.label)
+
+
+#: kinds of region of interest -> their keys (the first are required)
+REGION_KINDS = {"position": (("s_from", "s_to"), ()), "time": (("t_from", "t_to"), ()),
+                "segment": (("segment",), ()), "event": (("event",), ("before_s", "after_s"))}
+
+
+@dataclass(frozen=True)
+class Region:
+    """A region of interest of every drive: samples with ``s_from <= s < s_to`` (m, ``position``), with
+    ``t_from <= t - t0 < t_to`` (s from the drive's first sample, ``time``), of route ``segment``, or from
+    ``before_s`` before to ``after_s`` after the first rising edge of channel ``event`` (``event``). A drive with
+    fewer than two samples in it (it does not reach the region, or has no event) has no value there (NULL)."""
+
+    name: str
+    kind: str
+    lo: float = 0.0
+    hi: float = 0.0
+    segment: str = ""
+    event: str = ""
+
+    def text(self) -> str:
+        if self.kind == "position":
+            return f"route position {self.lo:g} m to {self.hi:g} m"
+        if self.kind == "time":
+            return f"{self.lo:g} s to {self.hi:g} s after the start of the drive"
+        if self.kind == "segment":
+            return f"route segment {self.segment}"
+        return f"{self.lo:g} s before to {self.hi:g} s after the first onset of {self.event}"
+
+
+@dataclass(frozen=True)
 class Comparison:
     """Paired drives of each participant: ``control`` vs ``treatment`` condition.
 
@@ -146,11 +215,19 @@ class KpiSpec:
     comparison: Comparison | None = None
     attributes: tuple[str, ...] = field(default=())   # group_by without "condition"
     events: tuple[EventKpi, ...] = ()
+    measures: tuple[MeasureKpi, ...] = ()
+    regions: tuple[Region, ...] = ()
 
     @property
     def user_kpis(self) -> tuple:
-        """The study's own KPIs in output order: the [sql] ones, then the [events] ones."""
-        return (*self.sql, *self.events)
+        """The study's own KPIs in output order: the [sql] ones, then the [events] ones, then the [measures]."""
+        return (*self.sql, *self.events, *self.measures)
+
+    @property
+    def measure_channels(self) -> tuple[str, ...]:
+        """The channels the declared measures and regions read."""
+        chans = [c for m in self.measures for c in m.channels] + [r.event for r in self.regions if r.event]
+        return tuple(dict.fromkeys(chans))
 
     @property
     def columns(self) -> tuple[str, ...]:
@@ -230,9 +307,10 @@ def parse(text: str, problems: KpiSpecProblems | None = None, attributes: dict[s
         if c in SAMPLE_COLUMNS:
             probs.add(line_of(text, "channels"), "channels", f"{c!r} is a standard drive-log column, not an extra channel")
         elif mapped is not None and c not in mapped[1]:
+            extras = ", ".join(sorted(set(mapped[1]) - set(SAMPLE_COLUMNS)))
             # a channel the SQL KPIs read must come from the study's simulator logs
             probs.add(line_of(text, "channels"), "channels", f"{c!r} is not an extra channel of the log mapping "
-                                                           f"{mapped[0]} ({', '.join(sorted(mapped[1])) or 'none'})")
+                                                           f"{mapped[0]} ({extras or 'none'})")
 
     group_by = data.get("group_by", ["condition"])
     if not isinstance(group_by, list) or not all(isinstance(g, str) for g in group_by):
@@ -281,13 +359,17 @@ def parse(text: str, problems: KpiSpecProblems | None = None, attributes: dict[s
     sql_kpis = _sql_kpis(_table(data, "sql", text, probs), text, probs, tuple(channels))
     event_kpis = _event_kpis(_table(data, "events", text, probs), text, probs, tuple(channels),
                              {k.name for k in sql_kpis})
+    measures = _measures(_table(data, "measures", text, probs), text, probs, mapped,
+                         {k.name for k in (*sql_kpis, *event_kpis)})
+    regions = _regions(_table(data, "regions", text, probs), text, probs, mapped)
     comparison = _comparison(_table(data, "comparison", text, probs), text, probs, conditions,
-                             tuple(b for b in builtins if b in BUILTINS), [*sql_kpis, *event_kpis])
+                             tuple(b for b in builtins if b in BUILTINS), [*sql_kpis, *event_kpis, *measures])
     if len(probs) > n0:
         return None
     return KpiSpec(builtins=tuple(b for b in BUILTINS if b in builtins), group_by=tuple(group_by),
                    channels=tuple(channels), sql=tuple(sql_kpis), comparison=comparison,
-                   attributes=tuple(g for g in group_by if g != "condition"), events=tuple(event_kpis), **spec)
+                   attributes=tuple(g for g in group_by if g != "condition"), events=tuple(event_kpis),
+                   measures=tuple(measures), regions=tuple(regions), **spec)
 
 
 def _table(data: dict, key: str, text: str, probs: KpiSpecProblems) -> dict:
@@ -400,6 +482,93 @@ def _event_kpis(tbl: dict, text: str, probs: KpiSpecProblems, channels: tuple[st
             unit = raw.get("unit", "" if statistic == "count" else "s")
             out.append(EventKpi(name, raw["from"].strip(), raw["to"].strip(), statistic,
                                 bool(raw.get("per_segment", False)), str(unit), str(raw.get("label", name))))
+    return out
+
+
+def _missing_channel(channel: str, mapped: tuple[str, set] | None) -> str | None:
+    """A reason when the log mapping (``mapped``: its file, its channel names) does not supply ``channel``."""
+    from study.folder.measure_library import ALWAYS_PRESENT
+
+    if mapped is None or channel in ALWAYS_PRESENT or channel in mapped[1]:
+        return None
+    return f"needs channel {channel!r}, which the log mapping {mapped[0]} does not map"
+
+
+def _measures(tbl: dict, text: str, probs: KpiSpecProblems, mapped, taken: set[str]) -> list[MeasureKpi]:
+    from study.folder.measure_library import MEASURES, resolve
+
+    out = []
+    for name, raw in tbl.items():
+        line = _entry_line(text, "measures", name)
+        fld = f"measures.{name}"
+        if not isinstance(raw, dict) or not isinstance(raw.get("measure"), str):
+            probs.add(line, fld, 'must be a table naming a shipped measure, e.g. {measure = "sdlp"}')
+            continue
+        measure = MEASURES.get(raw["measure"])
+        if measure is None:
+            probs.add(_entry_line(text, "measures", name, "measure") or line, f"{fld}.measure",
+                      f"{raw['measure']!r} is not a shipped measure ({', '.join(sorted(MEASURES))})")
+            continue
+        common = {k: v for k, v in raw.items() if k in ("per_segment", "label")}
+        if not _common(common, name, line, fld, probs, ("per_segment", "label"), taken):
+            continue
+        opts, problems = resolve(measure, {k: v for k, v in raw.items() if k not in ("measure", "per_segment",
+                                                                                   "label")})
+        for key, reason in problems:
+            probs.add(_entry_line(text, "measures", name, key) or line, f"{fld}.{key}", reason)
+        missing = [r for r in (_missing_channel(c, mapped) for c in measure.channels_of(opts)) if r]
+        for reason in missing[:1]:
+            probs.add(line, fld, reason)
+        if problems or missing:
+            continue
+        taken.add(name)
+        out.append(MeasureKpi(name, measure.name, tuple(sorted(opts.items())), bool(raw.get("per_segment", False)),
+                              measure.unit_of(opts), str(raw.get("label", measure.title))))
+    return out
+
+
+def _regions(tbl: dict, text: str, probs: KpiSpecProblems, mapped) -> list[Region]:
+    out = []
+    for name, raw in tbl.items():
+        line = _entry_line(text, "regions", name)
+        fld = f"regions.{name}"
+        kinds = [k for k, (req, _) in REGION_KINDS.items() if isinstance(raw, dict) and req[0] in raw]
+        if not _NAME.match(name) or len(kinds) != 1:
+            probs.add(line, fld, "a region is a name (lower-case letters, digits, _) = one of {s_from, s_to}, "
+                                 "{t_from, t_to}, {segment = \"...\"} or {event = \"channel\", before_s, after_s}")
+            continue
+        kind = kinds[0]
+        req, opt = REGION_KINDS[kind]
+        bad = set(raw) - set(req) - set(opt)
+        if bad:
+            probs.add(line, fld, f"unknown key(s) {', '.join(sorted(bad))} for a {kind} region "
+                                 f"(keys: {', '.join(req + opt)})")
+            continue
+        if kind == "segment":
+            if not isinstance(raw["segment"], str) or not raw["segment"]:
+                probs.add(line, f"{fld}.segment", "must name a route segment")
+                continue
+            out.append(Region(name, kind, segment=raw["segment"]))
+            continue
+        if kind == "event":
+            reason = "must name a 0/1 channel" if not isinstance(raw["event"], str) or not _NAME.match(raw["event"]) \
+                else _missing_channel(raw["event"], mapped)
+            nums = [raw.get("before_s", 0.0), raw.get("after_s", 10.0)]
+        else:
+            missing = [k for k in req if k not in raw]
+            reason = f"needs {' and '.join(missing)}" if missing else None
+            nums = [raw.get(k, 0.0) for k in req]
+        if reason is None and not all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+                                      for x in nums):
+            reason = "its bounds must be numbers"
+        elif reason is None and kind != "event" and nums[1] <= nums[0]:
+            reason = f"{req[1]} must be above {req[0]}"
+        elif reason is None and kind == "event" and (nums[0] < 0 or nums[1] <= 0):
+            reason = "before_s must be >= 0 and after_s > 0"
+        if reason:
+            probs.add(line, fld, reason)
+            continue
+        out.append(Region(name, kind, float(nums[0]), float(nums[1]), event=raw.get("event", "")))
     return out
 
 
@@ -538,7 +707,7 @@ def _check_study(study, problems) -> None:
 
         mapping, _ = parse_mapping(study.files[mapping_rel], mapping_rel)  # its own check reports its problems
         if mapping is not None:
-            mapped = (mapping_rel, {c.name for c in mapping.extras})
+            mapped = (mapping_rel, {c.name for c in mapping.channels})
     parse(study.files[rel], probs, {a.name: a for a in study.attributes}, study.condition_names, mapped)
     for line, fld, message in probs:
         problems.add(rel, line, fld, message)
