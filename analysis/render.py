@@ -1,4 +1,4 @@
-"""Rendering shared by every analysis output: tables as Markdown / LaTeX booktabs, figures as PNG + PDF.
+"""Rendering shared by every analysis output: tables as Markdown / LaTeX booktabs, figures as PNG + SVG + PDF.
 
 One Markdown table writer (:func:`markdown_table`), one booktabs writer (:func:`latex_table`), one LaTeX escape
 (:func:`tex_escape`) and one cell formatter (:func:`fmt_cell`). Table modules build header and string cells in
@@ -16,9 +16,15 @@ from typing import Sequence
 import numpy as np
 import pandas as pd
 
-# PDF metadata without a creation date keeps an unchanged figure byte-identical between runs
+# metadata without a creation date or tool version keeps an unchanged figure byte-identical between runs
 PDF_METADATA = {"Creator": "pedas-study", "Producer": None, "CreationDate": None}
 PNG_METADATA = {"Software": None}
+SVG_METADATA = {"Creator": "pedas-study", "Date": None}
+#: the formats every figure is written in: PNG for screens, SVG and PDF (vector) for a manuscript
+FIGURE_FORMATS = ("png", "svg", "pdf")
+# read when a figure is saved: TrueType (Type 42) fonts embedded in the PDF, as journals require (the default Type 3
+# fonts are bitmaps to some checkers); a fixed salt for the ids of the SVG (random per process otherwise)
+SAVE_RC = {"pdf.fonttype": 42, "ps.fonttype": 42, "svg.hashsalt": "pedas-study", "svg.fonttype": "path"}
 
 
 def pyplot():
@@ -44,12 +50,17 @@ def bare_figure(figsize: tuple[float, float]):
 
 
 def save_figure(fig, out_dir: str | Path, stem: str, dpi: int = 150) -> list[Path]:
-    """Write a matplotlib figure as `<stem>.png` and `<stem>.pdf` into `out_dir`; close it; return both paths."""
+    """Write a matplotlib figure as `<stem>.png`, `<stem>.svg` and `<stem>.pdf` into `out_dir` (PDF fonts embedded
+    as TrueType, no dates in any of them: the same figure gives the same bytes); close it; return the three paths."""
+    import matplotlib
+
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    paths = [out / f"{stem}.png", out / f"{stem}.pdf"]
-    fig.savefig(paths[0], dpi=dpi, bbox_inches="tight", metadata=PNG_METADATA)
-    fig.savefig(paths[1], bbox_inches="tight", metadata=PDF_METADATA)
+    paths = [out / f"{stem}.{ext}" for ext in FIGURE_FORMATS]
+    metadata = {"png": PNG_METADATA, "svg": SVG_METADATA, "pdf": PDF_METADATA}
+    with matplotlib.rc_context(SAVE_RC):
+        for path, ext in zip(paths, FIGURE_FORMATS):
+            fig.savefig(path, dpi=dpi, bbox_inches="tight", metadata=metadata[ext])
     plt = sys.modules.get("matplotlib.pyplot")  # a figure of pyplot's is closed there; a bare one has nothing to close
     if plt is not None:
         plt.close(fig)

@@ -96,17 +96,22 @@ def test_write_table(tmp_path):
 
 
 # ---------------------------------------------------------------------------------------------- figures
-def test_save_figure_png_pdf_reproducible(tmp_path):
+def test_save_figure_png_svg_pdf_reproducible(tmp_path):
     def draw(out):
         plt = pyplot()
         fig, ax = plt.subplots(figsize=(3, 2))
         ax.plot([0, 1, 2], [0, 1, 4])
+        ax.set_title("Title with text")
         return save_figure(fig, out, "f")
 
     a, b = draw(tmp_path / "a"), draw(tmp_path / "b")
-    assert [p.suffix for p in a] == [".png", ".pdf"]
+    assert [p.suffix for p in a] == [".png", ".svg", ".pdf"]
     for x, y in zip(a, b):
-        assert x.read_bytes() == y.read_bytes()
-    pdf = a[1].read_bytes()
+        assert x.read_bytes() == y.read_bytes(), x.name
+    pdf = a[2].read_bytes()
     assert b"CreationDate" not in pdf and b"pedas-study" in pdf
+    # fonts embedded as TrueType (Type 42 -> /TrueType or /CIDFontType2), never as Type 3
+    assert b"/Type3" not in pdf and (b"/TrueType" in pdf or b"/CIDFontType2" in pdf)
+    svg = a[1].read_text()
+    assert svg.startswith("<?xml") and "<dc:date>" not in svg and "pedas-study" in svg
     assert pyplot().get_fignums() == []      # closed after saving
