@@ -1,0 +1,203 @@
+"""The report's numbered tables and figures as a manuscript's results: a Word document (`results.docx`) and LaTeX
+(`latex/`), both in the reading order of the results document (docs/report.md, "Manuscript outputs").
+
+The exhibits come from ``exhibits.json`` beside the document (:mod:`analysis.report.exhibits`). A report folder
+without that list (one written before the document numbered its exhibits) gets one read from its ``index.html``
+(:func:`exhibits_from_document`): every table and figure in the document's order, numbered in that order.
+"""
+from __future__ import annotations
+
+import html
+import re
+from pathlib import Path
+
+from analysis.report.exhibits import Exhibit, read_exhibits
+
+MANUSCRIPT_DIR = "manuscript"
+# sections of the document whose tables and figures are an appendix's in a list read from index.html
+_APPENDIX_SECTIONS = {"Simulation core", "Reproduction", "Steps and files"}
+_APPENDIX_ROWS, _APPENDIX_COLUMNS = 25, 9  # a table longer or wider than this is an appendix table there
+
+
+# ---------------------------------------------------------------------------------------------- the exhibits
+def parse_markdown_table(text: str) -> tuple[str, list[str], list[list[str]], list[str]]:
+    r"""(title, header, rows, notes) of a table written by :func:`analysis.render.markdown_table`: the title line
+    above (`**title**` or `### title`), the first pipe table, the lines below it as notes (`_note_` unwrapped);
+    escaped pipes restored.
+
+    Examples
+    --------
+    >>> from analysis.report.manuscript import parse_markdown_table
+    >>> parse_markdown_table("**T**\n\n| a | b |\n|---|---:|\n| 1 | x\\|y |\n\n_n1_\n* p < .05  \n")
+    ('T', ['a', 'b'], [['1', 'x|y']], ['n1', '* p < .05'])
+    """
+    lines = text.splitlines()
+    first = next((i for i, ln in enumerate(lines) if ln.startswith("|")), None)
+    if first is None:
+        raise ValueError("no Markdown table in the text")
+    last = first
+    while last + 1 < len(lines) and lines[last + 1].startswith("|"):
+        last += 1
+    title = next((ln.strip() for ln in lines[:first] if ln.strip()), "")
+    title = title[2:-2] if title.startswith("**") and title.endswith("**") else title.lstrip("#").strip()
+
+    def cells(line: str) -> list[str]:
+        parts = re.split(r"(?<!\\)\|", line.strip())[1:-1]
+        return [p.strip().replace("\\|", "|") for p in parts]
+
+    header = cells(lines[first])
+    rows = [cells(ln) for ln in lines[first + 2:last + 1]]
+    notes = []
+    for ln in lines[last + 1:]:
+        ln = ln.strip()
+        if ln:
+            notes.append(ln[1:-1] if len(ln) > 2 and ln[0] == ln[-1] == "_" else ln)
+    return title, header, rows, notes
+
+
+def _figure_files(out: Path, src: str) -> dict[str, str]:
+    stem = Path(src).with_suffix("")
+    return {ext: f"{stem.as_posix()}.{ext}" for ext in ("png", "svg", "pdf") if (out / f"{stem}.{ext}").exists()}
+
+
+def exhibits_from_document(out: Path) -> list[Exhibit]:
+    """The tables and figures of the report document `out/index.html` in its order, numbered in that order (Table 1,
+    Figure 1 ...; Table A1 ... for the appendix: the simulation core, reproduction and files sections and tables of
+    more than 25 rows or 9 columns), titles and notes from the tables' Markdown and the figures' captions."""
+    out = Path(out)
+    doc = (out / "index.html").read_text(encoding="utf-8")
+    token = re.compile(r"<h2[^>]*>(?P<h>.*?)</h2>|<section id=\"tab-(?P<t>[^\"]+)\"|"
+                       r"<figure[^>]*><img src=\"(?P<src>[^\"]+)\"[^>]*>\s*<figcaption>(?P<cap>.*?)</figcaption>", re.S)
+    section, found = "", []
+    for m in token.finditer(doc):
+        if m.group("h") is not None:
+            section = html.unescape(re.sub("<[^>]+>", "", m.group("h"))).strip()
+        elif m.group("t") is not None:
+            stem = html.unescape(m.group("t"))
+            md = out / "tables" / f"{stem}.md"
+            if not md.exists():
+                continue
+            title, header, rows, notes = parse_markdown_table(md.read_text(encoding="utf-8"))
+            big = len(rows) > _APPENDIX_ROWS or len(header) > _APPENDIX_COLUMNS
+            files = {ext: f"tables/{stem}.{ext}" for ext in ("md", "tex", "csv") if (out / "tables" /
+                                                                                     f"{stem}.{ext}").exists()}
+            found.append(("table", "appendix" if big or section in _APPENDIX_SECTIONS else "main", section, stem,
+                          title or stem.replace("_", " "), " ".join(notes), files))
+        else:
+            src = html.unescape(m.group("src"))
+            cap = html.unescape(re.sub("<[^>]+>", "", m.group("cap")))
+            stem = Path(src).stem
+            cap = cap.split(": ", 1)[1] if cap.startswith(f"{stem}: ") else cap
+            cap = cap.split(" · pdf")[0].strip()
+            found.append(("figure", "appendix" if section in _APPENDIX_SECTIONS else "main", section, stem, cap, "",
+                          _figure_files(out, src)))
+    counts: dict[tuple[str, str], int] = {}
+    exhibits = []
+    for kind, part, section, stem, title, note, files in found:
+        n = counts[(kind, part)] = counts.get((kind, part), 0) + 1
+        label = f"{kind.capitalize()} {'A' if part == 'appendix' else ''}{n}"
+        exhibits.append(Exhibit(kind, label, part, section, stem, title, note, files))
+    return exhibits
+
+
+def report_exhibits(out: Path) -> tuple[list[Exhibit], str]:
+    """The exhibits of a report folder and where they came from: ``exhibits.json`` (the document's own list) or,
+    where it is absent, the list read from ``index.html`` (:func:`exhibits_from_document`)."""
+    listed = read_exhibits(out)
+    if listed:
+        return listed, "exhibits.json"
+    if (Path(out) / "index.html").exists():
+        return exhibits_from_document(out), "index.html"
+    return [], "none"
+
+
+def exhibit_cells(out: Path, ex: Exhibit) -> tuple[list[str], list[list[str]]]:
+    """Header and cells of a table exhibit as printed (from its Markdown)."""
+    _, header, rows, _ = parse_markdown_table((Path(out) / ex.files["md"]).read_text(encoding="utf-8"))
+    return header, rows
+
+
+# ---------------------------------------------------------------------------------------------- LaTeX
+PREAMBLE = r"""% the packages and settings the tables and figures of results.tex need
+\usepackage[T1]{fontenc}
+\usepackage{graphicx}
+\usepackage{booktabs,threeparttable,array,makecell,rotating,adjustbox}
+\usepackage{siunitx}
+\sisetup{group-digits=false, table-align-text-after=false}
+"""
+EXAMPLE = r"""\documentclass[twocolumn]{article}
+\input{preamble}
+\begin{document}
+\input{results}
+\end{document}
+"""
+#: a figure wider than this (inches, as drawn) spans both columns of a two-column article
+WIDE_FIGURE_IN = 4.5
+
+
+def _note(ex: Exhibit) -> list[str]:
+    if not ex.note:
+        return []
+    return [ex.note if ex.note.startswith("Note.") else f"Note. {ex.note}"]
+
+
+def latex_table_of(out: Path, ex: Exhibit) -> str:
+    """A table exhibit as LaTeX (:func:`analysis.render.latex_table`) with its number's title and note."""
+    from analysis.render import latex_table
+
+    header, rows = exhibit_cells(out, ex)
+    return latex_table(header, rows, ex.title, _note(ex), label=f"tab:{ex.stem}",
+                       align="l" + "r" * (len(header) - 1))
+
+
+def _figure_inches(path: Path) -> float:
+    """Width of a PNG as drawn, in inches (at the 150 dpi :func:`analysis.render.save_figure` writes)."""
+    with open(path, "rb") as f:
+        head = f.read(24)
+    return int.from_bytes(head[16:20], "big") / 150.0
+
+
+def latex_figure_of(out: Path, ex: Exhibit) -> str:
+    from analysis.render import tex_escape
+
+    png = Path(out) / ex.files["png"] if "png" in ex.files else None
+    env = "figure*" if png is not None and png.exists() and _figure_inches(png) > WIDE_FIGURE_IN else "figure"
+    return "\n".join([rf"\begin{{{env}}}[tbp]", r"\centering",
+                      rf"\includegraphics[width=\linewidth]{{figures/{ex.stem}}}",
+                      rf"\caption{{{tex_escape(ex.title)}}}", rf"\label{{fig:{ex.stem}}}",
+                      *([r"\par\smallskip\footnotesize\raggedright " + tex_escape(_note(ex)[0]).replace(
+                          "Note.", r"\textit{Note.}", 1)] if ex.note else []),
+                      rf"\end{{{env}}}"]) + "\n"
+
+
+def latex_files(out: Path, exhibits: list[Exhibit]) -> dict[str, bytes]:
+    """The LaTeX of the results, by path under ``latex/``: ``tables/<stem>.tex`` per table, ``figures/<stem>.pdf``
+    per figure, ``results.tex`` (the exhibits in reading order, main text then appendix with A-numbers, to
+    ``\\input`` into a manuscript), ``preamble.tex`` (the packages they need) and ``example.tex`` (both in a
+    two-column article)."""
+    from analysis.render import tex_escape
+
+    out = Path(out)
+    files: dict[str, bytes] = {}
+    body, part, section = [], "", ""
+    for ex in exhibits:
+        if ex.part != part:
+            part = ex.part
+            if part == "appendix":
+                body += [r"\appendix", r"\section*{Appendix}", r"\setcounter{table}{0}\setcounter{figure}{0}",
+                         r"\renewcommand{\thetable}{A\arabic{table}}\renewcommand{\thefigure}{A\arabic{figure}}"]
+            section = ""
+        if ex.section != section:
+            section = ex.section
+            body.append(rf"\subsection*{{{tex_escape(section)}}}")
+        if ex.kind == "table":
+            files[f"tables/{ex.stem}.tex"] = latex_table_of(out, ex).encode()
+            body.append(rf"\input{{tables/{ex.stem}}}")
+        else:
+            if "pdf" in ex.files and (out / ex.files["pdf"]).exists():
+                files[f"figures/{ex.stem}.pdf"] = (out / ex.files["pdf"]).read_bytes()
+            body.append(latex_figure_of(out, ex).rstrip("\n"))
+    files["results.tex"] = ("\n".join(body) + "\n").encode()
+    files["preamble.tex"] = PREAMBLE.encode()
+    files["example.tex"] = EXAMPLE.encode()
+    return files
