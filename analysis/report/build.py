@@ -30,7 +30,7 @@ from typing import Iterator
 
 import pandas as pd
 
-from analysis.render import write_table
+from analysis.render import FIGURE_FORMATS, write_table
 from analysis.report.pipeline import Pipeline, Step, StepResult
 from pedas.paths import NETWORK_DIR, REFERENCE_DIR, REPO_ROOT
 from pedas.scenario import DEFAULT_SCENARIO, SINGLE_LANE
@@ -440,8 +440,10 @@ def collect_step(cfg: ReportConfig) -> None:
                     shutil.copy2(g, tables / f"{prefix}_{g.name}")
             else:
                 write_table(pd.read_csv(f), tables, f"{prefix}_{f.stem}", f"{sub}: {f.stem}")
-        for f in sorted((d / "figures").glob("*")) if (d / "figures").exists() else []:
-            shutil.copy2(f, figs / f.name)
+        # a part's figures: in its figures/ folder, or beside its tables (the within-subjects lines_<variable>)
+        for f in [*sorted((d / "figures").glob("*")), *sorted(d.glob("*"))] if d.exists() else []:
+            if f.is_file() and (f.parent.name == "figures" or f.suffix.lstrip(".") in FIGURE_FORMATS):
+                shutil.copy2(f, figs / f.name)
 
 
 # ---------------------------------------------------------------------------------------------- the study
@@ -605,6 +607,7 @@ def run_report(cfg: ReportConfig) -> ReportResult:
     """Run the pipeline for the report's study and render the document (index.html, analysis.report.document); returns
     what ran, what was skipped and why, and the reproduction verdict."""
     from analysis.report.document import render_document
+    from analysis.report.manuscript import write_manuscript
 
     study = report_study(cfg)
     cfg.out.mkdir(parents=True, exist_ok=True)
@@ -614,5 +617,6 @@ def run_report(cfg: ReportConfig) -> ReportResult:
         render_document(cfg.out, st, steps, skipped,
                         mode="reference study" if cfg.reference else "lab store", store_name=cfg.db.name,
                         core=core_figures_apply(study), absent=absent_parts(study))
+    write_manuscript(cfg.out)  # the document's numbered tables and figures as Word and LaTeX
     files = sorted(p for p in cfg.out.rglob("*") if p.is_file())
     return ReportResult(cfg.out, steps, files, _verdict(cfg.out), skipped)

@@ -93,7 +93,7 @@ def exhibits_from_document(out: Path) -> list[Exhibit]:
                           _figure_files(out, src)))
     counts: dict[tuple[str, str], int] = {}
     exhibits = []
-    for kind, part, section, stem, title, note, files in found:
+    for kind, part, section, stem, title, note, files in sorted(found, key=lambda f: f[1] == "appendix"):
         n = counts[(kind, part)] = counts.get((kind, part), 0) + 1
         label = f"{kind.capitalize()} {'A' if part == 'appendix' else ''}{n}"
         exhibits.append(Exhibit(kind, label, part, section, stem, title, note, files))
@@ -180,7 +180,7 @@ def latex_files(out: Path, exhibits: list[Exhibit]) -> dict[str, bytes]:
     out = Path(out)
     files: dict[str, bytes] = {}
     body, part, section = [], "", ""
-    for ex in exhibits:
+    for ex in sorted(exhibits, key=lambda e: e.part == "appendix"):  # main text first (a stable sort)
         if ex.part != part:
             part = ex.part
             if part == "appendix":
@@ -201,3 +201,50 @@ def latex_files(out: Path, exhibits: list[Exhibit]) -> dict[str, bytes]:
     files["preamble.tex"] = PREAMBLE.encode()
     files["example.tex"] = EXAMPLE.encode()
     return files
+
+
+# ---------------------------------------------------------------------------------------------- both
+def study_title(out: Path) -> str:
+    """The study's title as the document shows it (its first heading), "Results" without one."""
+    doc = Path(out) / "index.html"
+    m = re.search(r"<h1[^>]*>(.*?)</h1>", doc.read_text(encoding="utf-8"), re.S) if doc.exists() else None
+    return html.unescape(re.sub("<[^>]+>", "", m.group(1))).strip() if m else "Results"
+
+
+def manuscript_files(out: Path) -> dict[str, bytes]:
+    """The manuscript outputs of a report folder, by path under ``manuscript/``: ``results.docx`` and
+    ``latex/...`` (:func:`latex_files`), and ``README.md`` saying where the exhibits came from."""
+    from analysis.report.word import results_docx
+
+    exhibits, source = report_exhibits(out)
+    if not exhibits:
+        return {}
+    files = {"results.docx": results_docx(out, exhibits, study_title(out))}
+    files.update({f"latex/{k}": v for k, v in latex_files(out, exhibits).items()})
+    tables = sum(e.kind == "table" for e in exhibits)
+    how = ("the results document's numbered list (exhibits.json)" if source == "exhibits.json" else
+           "the tables and figures of index.html in its order, numbered in that order (the report has no "
+           "exhibits.json)")
+    files["README.md"] = (f"# Manuscript outputs\n\n{tables} tables and {len(exhibits) - tables} figures, from {how}."
+                          "\n\n- `results.docx`: main text and appendix, numbered tables (title, note) and figures "
+                          "(caption), A4, APA style.\n- `latex/results.tex`: the same in LaTeX to `\\input` into "
+                          "a manuscript; `latex/preamble.tex`: the packages it needs; `latex/example.tex`: both in a "
+                          "two-column article.\n").encode()
+    return files
+
+
+def write_manuscript(out: Path) -> list[Path]:
+    """Write :func:`manuscript_files` into ``<out>/manuscript/`` (replacing what was there); the paths written."""
+    import shutil
+
+    target = Path(out) / MANUSCRIPT_DIR
+    files = manuscript_files(out)
+    if target.exists():
+        shutil.rmtree(target)
+    paths = []
+    for rel, data in sorted(files.items()):
+        p = target / rel
+        p.parent.mkdir(parents=True, exist_ok=True)
+        p.write_bytes(data)
+        paths.append(p)
+    return paths
