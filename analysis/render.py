@@ -206,7 +206,7 @@ _BREAK_RE = re.compile(r"(?<=[;_])")  # where a wrapped cell may also break: aft
 _NUMBER_RE = re.compile(r"^(?P<sign>[-−+]?)(?P<int>\d*)(?:\.(?P<dec>\d+))?(?P<post>[*†‡]{0,3})$")
 
 
-def _text_pt(s: str) -> float:
+def text_width_pt(s: str) -> float:
     """Estimated width of a cell's text at \\small, in points (`**bold**` as bold)."""
     bold = len(s) > 4 and s.startswith("**") and s.endswith("**")
     return 1.03 * (1.15 if bold else 1.0) * sum(_CHAR_PT.get(ch, 5.5) for ch in (s[2:-2] if bold else s))
@@ -243,25 +243,25 @@ class _Column:
 
 
 def _column(header: str, cells: list[str], letter: str) -> _Column:
-    widths = [_text_pt(c.strip()) for c in cells]
+    widths = [text_width_pt(c.strip()) for c in cells]
     cells = [_plain(c).strip() for c in cells]
     filled = [c for c in cells if c not in ("", "–", "—", "-")]
     nums = [_number(c) for c in filled]
-    head_one = _text_pt(header)
-    head_two = max(_text_pt(x) for x in _two_lines(header))
+    head_one = text_width_pt(header)
+    head_two = max(text_width_pt(x) for x in _two_lines(header))
     if filled and all(nums) and letter != "l":
         ints = max(len(m.group("int")) or 1 for m in nums)
         decs = max(len(m.group("dec") or "") for m in nums)
         signed = any(m.group("sign") in ("-", "−") for m in nums)
         post = max(len(m.group("post")) for m in nums)  # a dagger is narrower than a digit: counted as one
-        body = _text_pt("0" * (ints + decs + (1 if decs else 0) + (1 if signed else 0) + post))
+        body = text_width_pt("0" * (ints + decs + (1 if decs else 0) + (1 if signed else 0) + post))
         zero = not any(m.group("int") == "" for m in nums)
         fmt = f"{'-' if signed else ''}{ints}.{decs}" if decs else f"{'-' if signed else ''}{ints}"
         marks = max((m.group("post") for m in nums), key=len)
         return _Column(True, "S", max(head_one, body) + _TAB_SEP_PT, max(head_two, body) + _TAB_SEP_PT, fmt, zero,
                        marks)
     body = max(widths, default=0.0)
-    word = max((_text_pt(w) for c in [*cells, header] for w in _BREAK_RE.sub(" ", c).split()), default=0.0)
+    word = max((text_width_pt(w) for c in [*cells, header] for w in _BREAK_RE.sub(" ", c).split()), default=0.0)
     return _Column(False, letter, max(head_one, body) + _TAB_SEP_PT,
                    max(min(body, _WRAP_MIN_PT), word, min(head_two, head_one)) + _TAB_SEP_PT)
 
