@@ -154,6 +154,41 @@ def markdown_table(header: Sequence[str], rows: Sequence[Sequence[str]], title: 
     return "\n".join(out) + "\n"
 
 
+def parse_markdown_table(text: str) -> tuple[str, list[str], list[list[str]], list[str]]:
+    r"""(title, header, rows, notes) of a table written by :func:`analysis.render.markdown_table`: the title line
+    above (`**title**` or `### title`), the first pipe table, the lines below it as notes (`_note_` unwrapped);
+    escaped pipes restored.
+
+    Examples
+    --------
+    >>> from analysis.render import parse_markdown_table
+    >>> parse_markdown_table("**T**\n\n| a | b |\n|---|---:|\n| 1 | x\\|y |\n\n_n1_\n* p < .05  \n")
+    ('T', ['a', 'b'], [['1', 'x|y']], ['n1', '* p < .05'])
+    """
+    lines = text.splitlines()
+    first = next((i for i, ln in enumerate(lines) if ln.startswith("|")), None)
+    if first is None:
+        raise ValueError("no Markdown table in the text")
+    last = first
+    while last + 1 < len(lines) and lines[last + 1].startswith("|"):
+        last += 1
+    title = next((ln.strip() for ln in lines[:first] if ln.strip()), "")
+    title = title[2:-2] if title.startswith("**") and title.endswith("**") else title.lstrip("#").strip()
+
+    def cells(line: str) -> list[str]:
+        parts = re.split(r"(?<!\\)\|", line.strip())[1:-1]
+        return [p.strip().replace("\\|", "|") for p in parts]
+
+    header = cells(lines[first])
+    rows = [cells(ln) for ln in lines[first + 2:last + 1]]
+    notes = []
+    for ln in lines[last + 1:]:
+        ln = ln.strip()
+        if ln:
+            notes.append(ln[1:-1] if len(ln) > 2 and ln[0] == ln[-1] == "_" else ln)
+    return title, header, rows, notes
+
+
 # ---------------------------------------------------------------------------------------------- LaTeX
 _TEX_SPECIALS = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_",
                  "{": r"\{", "}": r"\}", "~": r"\textasciitilde{}", "^": r"\^{}"}
@@ -290,6 +325,8 @@ def table_layout(columns: Sequence[_Column]) -> TableLayout:
             continue
         fixed = sum(c.narrow for c in columns if c.numeric)
         text = [c for c in columns if not c.numeric]
+        if not text:  # numbers only: their headers on two lines are what makes the table fit
+            return TableLayout(env, (None,) * len(columns), split_header=True)
         lo, hi = 0.0, max(c.natural for c in text)  # the cap on text widths: largest with the table in the room
         for _ in range(40):
             mid = (lo + hi) / 2
@@ -314,7 +351,7 @@ def _colspec(col: _Column, width: float | None) -> str:
 
 
 def _tex_header(h: str, col: _Column, split: bool) -> str:
-    lines = _two_lines(h) if split and not (not col.numeric and col.natural <= col.narrow) else (h,)
+    lines = _two_lines(h) if split else (h,)
     body = tex_cell(lines[0]) if len(lines) == 1 else r"\makecell[b]{" + r" \\ ".join(map(tex_cell, lines)) + "}"
     return "{" + body + "}" if col.numeric else body
 

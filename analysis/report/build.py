@@ -30,7 +30,7 @@ from typing import Iterator
 
 import pandas as pd
 
-from analysis.render import FIGURE_FORMATS, write_table
+from analysis.render import write_table
 from analysis.report.pipeline import Pipeline, Step, StepResult
 from pedas.paths import NETWORK_DIR, REFERENCE_DIR, REPO_ROOT
 from pedas.scenario import DEFAULT_SCENARIO, SINGLE_LANE
@@ -440,10 +440,8 @@ def collect_step(cfg: ReportConfig) -> None:
                     shutil.copy2(g, tables / f"{prefix}_{g.name}")
             else:
                 write_table(pd.read_csv(f), tables, f"{prefix}_{f.stem}", f"{sub}: {f.stem}")
-        # a part's figures: in its figures/ folder, or beside its tables (the within-subjects lines_<variable>)
-        for f in [*sorted((d / "figures").glob("*")), *sorted(d.glob("*"))] if d.exists() else []:
-            if f.is_file() and (f.parent.name == "figures" or f.suffix.lstrip(".") in FIGURE_FORMATS):
-                shutil.copy2(f, figs / f.name)
+        for f in sorted((d / "figures").glob("*")) if (d / "figures").exists() else []:
+            shutil.copy2(f, figs / f.name)
 
 
 # ---------------------------------------------------------------------------------------------- the study

@@ -138,9 +138,10 @@ def write_bundle(report_dir: Path, st, path: Path, settings: dict) -> Bundle:
     for f in sorted((report_dir / "tables").iterdir()):
         if f.suffix in (".csv", ".md", ".tex"):
             entries[f"tables/{f.name}"] = f.read_bytes()
-    for f in sorted((report_dir / "figures").iterdir()) if (report_dir / "figures").is_dir() else []:
-        if f.suffix.lstrip(".") in FIGURE_FORMATS:
-            entries[f"figures/{f.name}"] = f.read_bytes()
+    # the report's figures/ and the figures a part keeps beside its tables (within/lines_<variable>)
+    for f in [*sorted(report_dir.glob("figures/*")), *sorted(report_dir.glob("*/*"))]:
+        if f.suffix.lstrip(".") in FIGURE_FORMATS and f.is_file():
+            entries.setdefault(f"figures/{f.name}", f.read_bytes())
     if (report_dir / "index.html").exists():
         entries["index.html"] = (report_dir / "index.html").read_bytes()
         for src in document_images(report_dir):

@@ -11,6 +11,7 @@ import html
 import re
 from pathlib import Path
 
+from analysis.render import parse_markdown_table
 from analysis.report.exhibits import Exhibit, read_exhibits
 
 MANUSCRIPT_DIR = "manuscript"
@@ -20,41 +21,6 @@ _APPENDIX_ROWS, _APPENDIX_COLUMNS = 25, 9  # a table longer or wider than this i
 
 
 # ---------------------------------------------------------------------------------------------- the exhibits
-def parse_markdown_table(text: str) -> tuple[str, list[str], list[list[str]], list[str]]:
-    r"""(title, header, rows, notes) of a table written by :func:`analysis.render.markdown_table`: the title line
-    above (`**title**` or `### title`), the first pipe table, the lines below it as notes (`_note_` unwrapped);
-    escaped pipes restored.
-
-    Examples
-    --------
-    >>> from analysis.report.manuscript import parse_markdown_table
-    >>> parse_markdown_table("**T**\n\n| a | b |\n|---|---:|\n| 1 | x\\|y |\n\n_n1_\n* p < .05  \n")
-    ('T', ['a', 'b'], [['1', 'x|y']], ['n1', '* p < .05'])
-    """
-    lines = text.splitlines()
-    first = next((i for i, ln in enumerate(lines) if ln.startswith("|")), None)
-    if first is None:
-        raise ValueError("no Markdown table in the text")
-    last = first
-    while last + 1 < len(lines) and lines[last + 1].startswith("|"):
-        last += 1
-    title = next((ln.strip() for ln in lines[:first] if ln.strip()), "")
-    title = title[2:-2] if title.startswith("**") and title.endswith("**") else title.lstrip("#").strip()
-
-    def cells(line: str) -> list[str]:
-        parts = re.split(r"(?<!\\)\|", line.strip())[1:-1]
-        return [p.strip().replace("\\|", "|") for p in parts]
-
-    header = cells(lines[first])
-    rows = [cells(ln) for ln in lines[first + 2:last + 1]]
-    notes = []
-    for ln in lines[last + 1:]:
-        ln = ln.strip()
-        if ln:
-            notes.append(ln[1:-1] if len(ln) > 2 and ln[0] == ln[-1] == "_" else ln)
-    return title, header, rows, notes
-
-
 def _figure_files(out: Path, src: str) -> dict[str, str]:
     stem = Path(src).with_suffix("")
     return {ext: f"{stem.as_posix()}.{ext}" for ext in ("png", "svg", "pdf") if (out / f"{stem}.{ext}").exists()}

@@ -60,10 +60,13 @@ def _repeat_header(row) -> None:
     row._tr.get_or_add_trPr().append(el)
 
 
+_BREAKS = str.maketrans({";": ";\u200b", "_": "_\u200b"})  # a zero-width space: where a long identifier may wrap
+
+
 def _runs(paragraph, text: str) -> None:
-    """`text` into a paragraph, Markdown `**bold**` as bold."""
+    """`text` into a table cell's paragraph, Markdown `**bold**` as bold, breakable after ; and _."""
     bold = len(text) > 4 and text.startswith("**") and text.endswith("**")
-    paragraph.add_run(text[2:-2] if bold else text).bold = bold or None
+    paragraph.add_run((text[2:-2] if bold else text).translate(_BREAKS)).bold = bold or None
 
 
 def _note(doc, note: str) -> None:
@@ -92,7 +95,7 @@ def column_widths(header: list[str], rows: list[list[str]], room_pt: float) -> l
 
     natural = [max([width(r[j]) for r in rows] + [max(map(width, str(h).split() or [""]))])
                for j, h in enumerate(header)]
-    least = [max(width(w) for c in [h, *(r[j] for r in rows)] for w in (str(c).split() or [""]))
+    least = [max(width(w) for c in [h, *(r[j] for r in rows)] for w in re.split(r"\s+|(?<=[;_])", str(c)))
              for j, h in enumerate(header)]
     if sum(natural) <= room_pt:
         return natural
@@ -143,9 +146,14 @@ def _styles(doc) -> None:
 
     normal = doc.styles["Normal"]
     normal.font.name, normal.font.size = "Times New Roman", Pt(12)
-    for name in ("Heading 1", "Heading 2", "Title"):
+    from docx.oxml.ns import qn
+
+    for name, size in (("Title", 16), ("Heading 1", 14), ("Heading 2", 12)):  # APA: bold, in the body's font
         st = doc.styles[name]
-        st.font.name, st.font.color.rgb = "Times New Roman", None
+        st.font.name, st.font.size, st.font.bold, st.font.color.rgb = "Times New Roman", Pt(size), True, None
+        fonts = st.element.rPr.rFonts
+        for theme in ("w:asciiTheme", "w:hAnsiTheme", "w:eastAsiaTheme", "w:cstheme"):
+            fonts.attrib.pop(qn(theme), None)  # a theme font would win over the name
     for name, size, before, after, keep in (("Exhibit label", 12, 12, 0, True), ("Exhibit title", 12, 0, 6, True),
                                             ("Exhibit note", 10, 4, 12, False), ("Exhibit cell", 10, 0, 0, False)):
         st = doc.styles.add_style(name, WD_STYLE_TYPE.PARAGRAPH)
@@ -172,7 +180,7 @@ def results_docx(out: Path, exhibits: list[Exhibit], title: str = "Results") -> 
     from docx.enum.section import WD_SECTION
     from docx.shared import Cm
 
-    from analysis.report.manuscript import exhibit_cells
+    from analysis.render import parse_markdown_table
 
     out = Path(out)
     doc = docx.Document()
@@ -193,7 +201,7 @@ def results_docx(out: Path, exhibits: list[Exhibit], title: str = "Results") -> 
             section = ex.section
             doc.add_heading(section, level=2)
         if ex.kind == "table" and "md" in ex.files and (out / ex.files["md"]).exists():
-            header, rows = exhibit_cells(out, ex)
+            _, header, rows, _ = parse_markdown_table((out / ex.files["md"]).read_text(encoding="utf-8"))
             wide = len(header) > LANDSCAPE_COLUMNS
             if wide != landscape:
                 landscape = wide

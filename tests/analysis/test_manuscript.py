@@ -6,10 +6,9 @@ import io
 
 import pytest
 
-from analysis.render import markdown_table, pyplot, save_figure
+from analysis.render import markdown_table, parse_markdown_table, pyplot, save_figure
 from analysis.report.exhibits import Exhibit, write_exhibits
-from analysis.report.manuscript import (exhibits_from_document, latex_files, manuscript_files,
-                                        parse_markdown_table, report_exhibits)
+from analysis.report.manuscript import exhibits_from_document, latex_files, manuscript_files, report_exhibits
 from analysis.report.word import column_widths, results_docx
 
 
