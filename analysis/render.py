@@ -297,7 +297,8 @@ def _column(header: str, cells: list[str], letter: str) -> _Column:
                        marks)
     body = max(widths, default=0.0)
     word = max((text_width_pt(w) for c in [*cells, header] for w in _BREAK_RE.sub(" ", c).split()), default=0.0)
-    return _Column(False, letter, max(head_one, body) + _TAB_SEP_PT,
+    # text reads from the left (APA); a column asked to be centred stays so
+    return _Column(False, "l" if letter == "r" else letter, max(head_one, body) + _TAB_SEP_PT,
                    max(min(body, _WRAP_MIN_PT), word, min(head_two, head_one)) + _TAB_SEP_PT)
 
 
@@ -376,7 +377,8 @@ def latex_table(header: Sequence[str], rows: Sequence[Sequence[str]], title: str
     decimal point (a leading zero printed as written: none where the column has none, APA); the smallest place it
     fits in (:func:`table_layout`): `table` in one column of a two-column article, `table*` across both, or
     `sidewaystable*` on a landscape page, wrapping wide text columns; a table too wide even for that is shrunk
-    (`adjustbox`). `align` (l/c/r per column, default l then r) keeps a column given as `l` as text. Needs the
+    (`adjustbox`). `align` (l/c/r per column, default l then r) keeps a column given as `l` as text; a text column
+    given as `r` is set left. Needs the
     packages of :data:`LATEX_PACKAGES`.
 
     Examples

@@ -90,6 +90,7 @@ PREAMBLE = r"""% the packages and settings the tables and figures of results.tex
 \usepackage{booktabs,threeparttable,array,makecell,rotating,adjustbox}
 \usepackage{siunitx}
 \sisetup{group-digits=false, table-align-text-after=false}
+\extrafloats{200}  % results.tex is floats only: more than LaTeX's 18 may wait at once
 """
 EXAMPLE = r"""\documentclass[twocolumn]{article}
 \input{preamble}
@@ -129,7 +130,7 @@ def latex_figure_of(out: Path, ex: Exhibit) -> str:
     png = Path(out) / ex.files["png"] if "png" in ex.files else None
     env = "figure*" if png is not None and png.exists() and _figure_inches(png) > WIDE_FIGURE_IN else "figure"
     return "\n".join([rf"\begin{{{env}}}[tbp]", r"\centering",
-                      rf"\includegraphics[width=\linewidth]{{figures/{ex.stem}}}",
+                      rf"\includegraphics[width=\linewidth,height=0.8\textheight,keepaspectratio]{{figures/{ex.stem}}}",
                       rf"\caption{{{tex_escape(ex.title)}}}", rf"\label{{fig:{ex.stem}}}",
                       *([r"\par\smallskip\footnotesize\raggedright " + tex_escape(_note(ex)[0]).replace(
                           "Note.", r"\textit{Note.}", 1)] if ex.note else []),
@@ -150,7 +151,7 @@ def latex_files(out: Path, exhibits: list[Exhibit]) -> dict[str, bytes]:
         if ex.part != part:
             part = ex.part
             if part == "appendix":
-                body += [r"\appendix", r"\section*{Appendix}", r"\setcounter{table}{0}\setcounter{figure}{0}",
+                body += [r"\clearpage", r"\appendix", r"\section*{Appendix}", r"\setcounter{table}{0}\setcounter{figure}{0}",
                          r"\renewcommand{\thetable}{A\arabic{table}}\renewcommand{\thefigure}{A\arabic{figure}}"]
             section = ""
         if ex.section != section:

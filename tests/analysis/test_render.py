@@ -63,7 +63,7 @@ def test_latex_table_structure():
         r"\midrule", r"PU1 & 0.800 \\", r"x\_y & {\textbf{0.9}} \\", r"\bottomrule", r"\end{tabular}",
         r"\begin{tablenotes}[flushleft]\footnotesize", r"\item \textit{Note.} N = 40.", r"\item * p < .05",
         r"\end{tablenotes}", r"\end{threeparttable}", r"\end{table}"]
-    assert r"\begin{tabular}{lrr}" in latex_table(["a", "b", "c"], [])  # default alignment, no numbers: text
+    assert r"\begin{tabular}{lll}" in latex_table(["a", "b", "c"], [])  # no numbers: text, set left
     with pytest.raises(ValueError):
         latex_table(["a", "b"], [], align="l")
 
