@@ -1,4 +1,4 @@
-"""Figures of the simulation core, each written as PNG + PDF: aerodynamic linearisation (Fig. 5a), speed
+"""Figures of the simulation core, each written as PNG + SVG + PDF: aerodynamic linearisation (Fig. 5a), speed
 correction v_corr (Fig. 5b, eq. 11), power-map fit (eq. 5), DP profile (Fig. 2b), green-wave space-time diagram
 (Fig. 2a). Every `plot_*(out_dir, ...)` returns the list of files written."""
 from __future__ import annotations
@@ -24,14 +24,23 @@ def _plt():
     return plt
 
 
+# as analysis.render.save_figure (pedas does not import analysis): TrueType fonts in the PDF, fixed SVG ids, no dates
+# in any format, so an unchanged figure stays byte-identical between runs and machines
+_SAVE_RC = {"pdf.fonttype": 42, "ps.fonttype": 42, "svg.hashsalt": "pedas-study", "svg.fonttype": "path"}
+_METADATA = {"png": {"Software": None}, "svg": {"Creator": "pedas-study", "Date": None},
+             "pdf": {"Creator": "pedas-study", "Producer": None, "CreationDate": None}}
+
+
 def _save(fig, out_dir: Path, stem: str) -> list[Path]:
+    import matplotlib
+
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    paths = [out_dir / f"{stem}.png", out_dir / f"{stem}.pdf"]
+    paths = [out_dir / f"{stem}.{ext}" for ext in _METADATA]
     fig.tight_layout()
-    fig.savefig(paths[0], dpi=150)
-    # no creation date in the PDF: an unchanged figure stays byte-identical between runs and machines
-    fig.savefig(paths[1], metadata={"CreationDate": None})
+    with matplotlib.rc_context(_SAVE_RC):
+        for path, (ext, metadata) in zip(paths, _METADATA.items()):
+            fig.savefig(path, dpi=150, metadata=metadata)
     _plt().close(fig)
     return paths
 

@@ -1,4 +1,4 @@
-"""The paper's objective-evaluation figures (Sec. 5.1) from a store, PNG + PDF, matplotlib (Agg backend). A figure
+"""The paper's objective-evaluation figures (Sec. 5.1) from a store, PNG + SVG + PDF, matplotlib (Agg backend). A figure
 applies to a study that declares a comparison (control vs treatment drive, study.folder.kpi_spec) with the columns
 it shows (Figs. 11-12 also need a participant); a figure that does not apply is not mentioned, one that applies but
 cannot be drawn from the data is listed with the reason.
@@ -35,6 +35,22 @@ def _points(ax, groups, positions):
             ax.plot(pos + off, vals, "o", ms=3.5, color="black", alpha=0.6, zorder=3)
 
 
+MEDIAN_COLOR = "#ff7f0e"  # matplotlib's default median line, named in the legend
+
+
+def _box_legend(ax) -> None:
+    """What the marks of :func:`_box` mean, below the axes: a box plot is read differently by different readers."""
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    handles = [Patch(facecolor="white", edgecolor="black", label="interquartile range (box)"),
+               Line2D([], [], color=MEDIAN_COLOR, lw=1.5, label="median"),
+               Line2D([], [], ls="none", marker="^", mfc="white", mec="black", label="mean"),
+               Line2D([], [], color="black", lw=1.0, label="whiskers: 1.5 IQR"),
+               Line2D([], [], ls="none", marker="o", ms=3.5, color="black", alpha=0.6, label="one participant")]
+    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=3, fontsize=8, frameon=False)
+
+
 def _box(ax, groups, labels, title):
     data = [np.asarray(g, float)[np.isfinite(np.asarray(g, float))] for g in groups]
     pos = np.arange(1, len(data) + 1)
@@ -42,14 +58,17 @@ def _box(ax, groups, labels, title):
     if nonempty:
         # every participant is drawn as a dot below, so the box plot's own outlier markers would draw some twice
         ax.boxplot([data[i] for i in nonempty], positions=pos[nonempty], widths=0.5, showmeans=True, showfliers=False,
+                   medianprops={"color": MEDIAN_COLOR, "lw": 1.5},
                    meanprops={"marker": "^", "markerfacecolor": "white", "markeredgecolor": "black"})
     _points(ax, data, pos)
     ax.set_xticks(pos, [f"{lab}\n(n={len(d)})" for lab, d in zip(labels, data)])
+    ax.tick_params(labelsize=9)
     ax.set_xlim(0.4, len(data) + 0.6)
     ax.axhline(0.0, color="grey", lw=0.8, ls="--")
-    ax.set_ylabel("Energy savings (%)")
-    ax.set_title(title)
+    ax.set_ylabel("Energy savings (%)", fontsize=10)
+    ax.set_title(title, fontsize=10)
     ax.grid(axis="y", alpha=0.3)
+    _box_legend(ax)
 
 
 def fig9a(per: pd.DataFrame, out: Path) -> list[Path]:
@@ -72,7 +91,8 @@ def fig9_style(per: pd.DataFrame, out: Path, segment: str, letter: str, styles) 
 def fig10(per: pd.DataFrame, out: Path) -> list[Path]:
     plt = pyplot()
     n = len(per)
-    fig, ax = plt.subplots(figsize=(max(6.0, 0.32 * n + 2), 4))
+    # a print column's width at most, so that the tick labels keep their size when the figure is placed
+    fig, ax = plt.subplots(figsize=(min(7.2, max(4.5, 0.17 * n + 1.4)), 3.6))
     x = np.arange(n)
     w = 0.4
     # a light counts when crossed in green without a red stop on its approach (analysis.drives.kpis: tl_green_passes)
@@ -80,14 +100,17 @@ def fig10(per: pd.DataFrame, out: Path) -> list[Path]:
     ax.bar(x + w / 2, per["tl_green_passes_pedas"], w, label="with pEDAS", color=PEDAS_COLOR)
     if "tl_crossed_pedas" in per and n:
         ax.plot(x, per["tl_crossed_pedas"], "_", color="black", ms=12, label="lights on the route")
-    ax.set_xticks(x, per["participant_id"], rotation=90, fontsize=7)
-    ax.set_ylabel("Traffic lights crossed in green\n(without stopping at red)")
-    ax.set_title("Comparison of traffic light signals crossed in green phase")
+    ax.set_xticks(x, per["participant_id"], rotation=90, fontsize=8)
+    ax.tick_params(axis="y", labelsize=9)
+    ax.set_xlim(-0.6, n - 0.4)
+    ax.set_xlabel("Participant", fontsize=9)
+    ax.set_ylabel("Traffic lights crossed in green\n(without stopping at red)", fontsize=9)
+    ax.set_title("Comparison of traffic light signals crossed in green phase", fontsize=10)
     ax.yaxis.get_major_locator().set_params(integer=True)
     top = np.nanmax(np.r_[per["tl_green_passes_baseline"], per["tl_green_passes_pedas"],
                           per.get("tl_crossed_pedas", 0), 1])
     ax.set_ylim(0, top * 1.3 + 0.5)
-    ax.legend(fontsize=8, ncol=3, loc="upper center")
+    ax.legend(fontsize=8, ncol=3, loc="upper center", frameon=False)
     ax.grid(axis="y", alpha=0.3)
     return save_figure(fig, out, "fig10_tl_green")
 

@@ -605,6 +605,7 @@ def run_report(cfg: ReportConfig) -> ReportResult:
     """Run the pipeline for the report's study and render the document (index.html, analysis.report.document); returns
     what ran, what was skipped and why, and the reproduction verdict."""
     from analysis.report.document import render_document
+    from analysis.report.manuscript import write_manuscript
 
     study = report_study(cfg)
     cfg.out.mkdir(parents=True, exist_ok=True)
@@ -614,5 +615,6 @@ def run_report(cfg: ReportConfig) -> ReportResult:
         render_document(cfg.out, st, steps, skipped,
                         mode="reference study" if cfg.reference else "lab store", store_name=cfg.db.name,
                         core=core_figures_apply(study), absent=absent_parts(study))
+    write_manuscript(cfg.out)  # the document's numbered tables and figures as Word and LaTeX
     files = sorted(p for p in cfg.out.rglob("*") if p.is_file())
     return ReportResult(cfg.out, steps, files, _verdict(cfg.out), skipped)

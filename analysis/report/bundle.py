@@ -4,10 +4,12 @@
 Contents (paths inside the archive):
 
 * ``README.md`` -- what is inside and the commands that rerun the report;
+* ``index.html`` -- the report document, with every image it shows at the path it shows it from;
 * ``tables/`` -- every table of the report as CSV, APA-style Markdown and LaTeX (copied from the report's
-  ``tables/``), and ``tables/tables.docx`` with all of them (python-docx; APA style: numbered bold title, italic
-  caption, horizontal rules only);
-* ``figures/`` -- the report's figures (PNG) and ``index.html``, the report document;
+  ``tables/``);
+* ``figures/`` -- every figure of the report (the within-subjects figures too) as PNG, SVG and PDF;
+* ``manuscript/`` -- the numbered tables and figures as ``results.docx`` (Word, APA style) and LaTeX
+  (``latex/results.tex`` with its preamble), analysis.report.manuscript;
 * ``study/`` -- the study folder's files exactly as the store keeps them (study.toml, codebook, protocols, the
   model file in lavaan syntax), and ``model/`` -- any model syntax the analyses wrote (e.g. the SEM of
   ``analyze extended``);
@@ -21,16 +23,17 @@ The archive is deterministic: entries sorted, fixed dates, so the same report an
 from __future__ import annotations
 
 import hashlib
-import io
+import html
 import json
 import platform
+import re
 import zipfile
 from dataclasses import dataclass
-from datetime import datetime
 from pathlib import Path
 
 import pandas as pd
 
+from analysis.render import FIGURE_FORMATS
 from pedas.paths import REPO_ROOT
 
 LOCK_FILE = REPO_ROOT / "requirements.lock"
@@ -84,69 +87,15 @@ def table_hashes(st) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=["table", "rows", "sha256"])
 
 
-def tables_docx(tables_dir: Path) -> bytes:
-    """Every ``*.csv`` table of `tables_dir` in one DOCX, APA style: "Table n" in bold, the caption in italics,
-    the table with rules above and below the header and below the last row only."""
-    import docx
-    from docx.oxml import OxmlElement
-    from docx.oxml.ns import qn
-    from docx.shared import Pt
-
-    doc = docx.Document()
-    # fixed document dates: the same tables give the same bytes
-    doc.core_properties.created = doc.core_properties.modified = datetime(2000, 1, 1)
-    doc.core_properties.author = doc.core_properties.last_modified_by = ""
-    style = doc.styles["Normal"]
-    style.font.name, style.font.size = "Times New Roman", Pt(10)
-
-    def rule(cell, edge: str) -> None:
-        borders = cell._tc.get_or_add_tcPr().first_child_found_in("w:tcBorders")
-        if borders is None:
-            borders = OxmlElement("w:tcBorders")
-            cell._tc.get_or_add_tcPr().append(borders)
-        el = OxmlElement(f"w:{edge}")
-        for k, v in (("val", "single"), ("sz", "6"), ("space", "0"), ("color", "000000")):
-            el.set(qn(f"w:{k}"), v)
-        borders.append(el)
-
-    for n, csv in enumerate(sorted(tables_dir.glob("*.csv")), start=1):
-        df = pd.read_csv(csv, dtype=str, keep_default_na=False)
-        doc.add_paragraph().add_run(f"Table {n}").bold = True
-        doc.add_paragraph().add_run(csv.stem.replace("_", " ")).italic = True
-        t = doc.add_table(rows=len(df) + 1, cols=len(df.columns))
-        rows = [r.cells for r in t.rows]  # once: cell look-ups by index walk the whole table
-        for cell, c in zip(rows[0], df.columns):
-            cell.text = str(c)
-            rule(cell, "top")
-            rule(cell, "bottom")
-        for cells, row in zip(rows[1:], df.itertuples(index=False)):
-            for cell, v in zip(cells, row):
-                cell.text = str(v)
-        for cell in rows[-1]:
-            rule(cell, "bottom")
-        doc.add_paragraph()
-    buf = io.BytesIO()
-    doc.save(buf)
-    return _normalise_docx(buf.getvalue())
-
-
-def _normalise_docx(data: bytes) -> bytes:
-    """The DOCX (itself a zip) rewritten with sorted entries and fixed dates, so it is byte-identical per input."""
-    src = zipfile.ZipFile(io.BytesIO(data))
-    out = io.BytesIO()
-    with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as z:
-        for name in sorted(src.namelist()):
-            z.writestr(zipfile.ZipInfo(name, _EPOCH), src.read(name), zipfile.ZIP_DEFLATED)
-    return out.getvalue()
-
-
 README = """# Submission bundle: {title}
 
 Written by `pedas-study report --bundle` from the report in `{report}` (study `{study_id}`, version {version},
 definition sha256 `{hash}`).
 
-- `tables/`: every table of the report as CSV, Markdown and LaTeX; `tables/tables.docx` has all of them.
-- `figures/`: the report's figures; `figures/index.html` is the report document.
+- `index.html`: the report document (open it in a browser; its images are beside it).
+- `tables/`: every table of the report as CSV, Markdown and LaTeX.
+- `figures/`: every figure of the report as PNG, SVG and PDF.
+- `manuscript/`: the numbered tables and figures as `results.docx` (Word) and LaTeX (`latex/results.tex`).
 - `study/`: the study folder as the store keeps it (the model in lavaan syntax: `study/{model_file}`);
   `model/`: model syntax written by the analyses.
 - `settings.json`: seeds and settings of the run; `versions.txt`: Python and package versions.
@@ -166,8 +115,17 @@ pedas-study --db study.duckdb report --out reports --seed {seed} --bootstrap {n_
 """
 
 
+def document_images(report_dir: Path) -> list[str]:
+    """The images the report document shows that are files of the report folder (relative paths, sorted)."""
+    doc = (Path(report_dir) / "index.html").read_text(encoding="utf-8")
+    found = {html.unescape(m) for m in re.findall(r"<img[^>]*\ssrc=\"([^\"]+)\"", doc)}
+    return sorted(src for src in found if "://" not in src and not src.startswith(("/", "data:")) and ".." not in src
+                  and (Path(report_dir) / src).is_file())
+
+
 def write_bundle(report_dir: Path, st, path: Path, settings: dict) -> Bundle:
     """Write the bundle of the report in `report_dir` (made from the open store `st`) to `path` (zip)."""
+    from analysis.report.manuscript import MANUSCRIPT_DIR, manuscript_files
     from study.store.studies import current
 
     report_dir = Path(report_dir)
@@ -180,11 +138,16 @@ def write_bundle(report_dir: Path, st, path: Path, settings: dict) -> Bundle:
     for f in sorted((report_dir / "tables").iterdir()):
         if f.suffix in (".csv", ".md", ".tex"):
             entries[f"tables/{f.name}"] = f.read_bytes()
-    entries["tables/tables.docx"] = tables_docx(report_dir / "tables")
-    for f in sorted((report_dir / "figures").glob("*.png")) if (report_dir / "figures").is_dir() else []:
-        entries[f"figures/{f.name}"] = f.read_bytes()
+    # the report's figures/ and the figures a part keeps beside its tables (within/lines_<variable>)
+    for f in [*sorted(report_dir.glob("figures/*")), *sorted(report_dir.glob("*/*"))]:
+        if f.suffix.lstrip(".") in FIGURE_FORMATS and f.is_file():
+            entries.setdefault(f"figures/{f.name}", f.read_bytes())
     if (report_dir / "index.html").exists():
-        entries["figures/index.html"] = (report_dir / "index.html").read_bytes()
+        entries["index.html"] = (report_dir / "index.html").read_bytes()
+        for src in document_images(report_dir):
+            entries[src] = (report_dir / src).read_bytes()
+    for rel, data in manuscript_files(report_dir).items():
+        entries[f"{MANUSCRIPT_DIR}/{rel}"] = data
     files = json.loads(study["files"])
     for rel, text in sorted(files.items()):
         entries[f"study/{rel}"] = text.encode("utf-8")

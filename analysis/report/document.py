@@ -319,7 +319,8 @@ FIGURES: dict[str, tuple[str, Callable[[Path, object], str | None] | None]] = {
     "fig9d_savings_overall_by_style": ("Overall energy savings by driving style (Fig. 9d).",
                                        _reading_by_style("saving_overall_pct", "Overall")),
     "fig10_tl_green": ("Traffic lights passed in green without a stop, per participant (Fig. 10).", _reading_green),
-    "fig11_driving_behaviour": ("Speed, advice and controller of one participant's drives (Fig. 11).", None),
+    "fig11_driving_behaviour": ("Velocity (with the speed limit), acceleration and cumulative battery energy over "
+                                "distance of one participant's drives without and with pEDAS (Fig. 11).", None),
     "fig12_controller_switching": ("Switching between the controllers along the route (Fig. 12).", None),
     "sweep_indices": ("What moves each KPI across the what-if sweep: Morris mu* and sigma of every factor, Sobol "
                       "total indices of the top factors (docs/sweep.md).", None),

@@ -172,36 +172,53 @@ def region_lines(reg: pd.DataFrame) -> list[str]:
 
 
 def plot_indices(ind: pd.DataFrame, out: Path) -> list[Path]:
-    """sweep_indices.png/.pdf: per KPI, Morris mu* (bars) and sigma (dots) of every factor, and the Sobol total
-    index ST with its 95 % half-width on a second axis (0-1) for the Sobol factors."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    """sweep_indices.png/.svg/.pdf: per KPI, Morris mu* (bars) and sigma (dots) of every factor on the bottom axis
+    (KPI units), and the Sobol total index ST of the Sobol factors with its 95 % interval on the top axis, fixed to
+    [0, 1] (ST is a share of the output variance; an interval reaching past 0 or 1 is cut at the axis, its cut end
+    marked by an arrow head). One legend below the panels."""
+    from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
-    from analysis.render import save_figure
+    from analysis.render import pyplot, save_figure
 
+    plt = pyplot()
+    morris_c, sobol_c = "#4c72b0", "#dd8452"
     factors = list(dict.fromkeys(ind["factor"]))
-    fig, axes = plt.subplots(2, 3, figsize=(13, 8.5), sharey=True, layout="constrained")
-    y = np.arange(len(factors))
+    fig, axes = plt.subplots(3, 2, figsize=(7.2, 9.4), sharey=True, layout="constrained")
+    y = np.arange(len(factors))[::-1]  # the first factor on top
     for ax, kpi in zip(axes.flat, KPIS):
         m = ind[(ind["kpi"] == kpi) & (ind["phase"] == "morris")].set_index("factor").reindex(factors)
-        ax.barh(y + 0.2, m["mu_star"], height=0.4, color="#4c72b0", label="Morris mu*")
-        ax.plot(m["sigma"], y + 0.2, "o", color="#222222", ms=4, label="Morris sigma")
-        ax.set_title(LABELS[kpi], fontsize=10, pad=30)  # above the Sobol axis on top
-        ax.set_xlabel("mu*, sigma (KPI units)")
+        ax.barh(y + 0.2, m["mu_star"], height=0.4, color=morris_c)
+        ax.plot(m["sigma"], y + 0.2, "o", color="#222222", ms=3.5)
+        ax.set_xlabel(r"Morris $\mu^*$, $\sigma$ (KPI units)", fontsize=8)
+        ax.set_xlim(0, 1.08 * float(np.nanmax(np.r_[m["mu_star"], m["sigma"], 1e-12])))
+        ax.tick_params(labelsize=8)
+        ax.set_yticks(y, [f.replace("_", " ") for f in factors], fontsize=8)
+        top = ax
         s = ind[(ind["kpi"] == kpi) & (ind["phase"] == "sobol")].set_index("factor").reindex(factors)
         if s["ST"].notna().any():
-            ax2 = ax.twiny()
-            ax2.barh(y - 0.2, s["ST"], xerr=s["ST_conf"], height=0.4, color="#dd8452", label="Sobol ST")
-            ax2.set_xlim(0, max(1.0, float(np.nanmax(s["ST"] + s["ST_conf"].fillna(0)))))
-            ax2.set_xlabel("Sobol ST", fontsize=8)
-        ax.set_yticks(y, factors, fontsize=8)
-    handles, _ = axes.flat[0].get_legend_handles_labels()
-    axes.flat[0].legend(handles=[*handles, Patch(color="#dd8452", label="Sobol ST (top axis)")], fontsize=7,
-                        loc="lower right")
-    fig.suptitle("What moves each KPI: Morris screening (all factors) and Sobol total indices (top factors)")
+            top = ax.twiny()
+            st = s["ST"].clip(0.0, 1.0).to_numpy(float)
+            conf = s["ST_conf"].fillna(0.0).to_numpy(float)
+            lo, hi = s["ST"].to_numpy(float) - conf, s["ST"].to_numpy(float) + conf
+            top.barh(y - 0.2, st, height=0.4, color=sobol_c)
+            ok = np.isfinite(st)
+            top.errorbar(st[ok], y[ok] - 0.2, xerr=[st[ok] - np.clip(lo[ok], 0, 1), np.clip(hi[ok], 0, 1) - st[ok]],
+                         fmt="none", ecolor="black", elinewidth=0.9, capsize=2)
+            for yy, cut_lo, cut_hi in zip(y[ok] - 0.2, lo[ok] < 0, hi[ok] > 1):
+                for cut, x, mk in ((cut_lo, 0.0, "<"), (cut_hi, 1.0, ">")):
+                    if cut:
+                        top.plot(x, yy, mk, color="black", ms=4, clip_on=False)
+            top.set_xlim(0, 1)
+            top.set_xlabel("Sobol $S_T$", fontsize=8)
+            top.tick_params(labelsize=8)
+        # on the axis that owns the top edge, so that the title stands above the Sobol ticks, never on them
+        top.set_title(LABELS[kpi], fontsize=9, fontweight="bold")
+    handles = [Patch(color=morris_c, label=r"Morris $\mu^*$ (bottom axis)"),
+               Line2D([], [], ls="none", marker="o", color="#222222", ms=4, label=r"Morris $\sigma$ (bottom axis)"),
+               Patch(color=sobol_c, label="Sobol $S_T$ (top axis)"),
+               Line2D([], [], color="black", lw=0.9, label="95 % interval of $S_T$ (cut at 0 and 1: arrow head)")]
+    fig.legend(handles=handles, loc="outside lower center", ncol=2, fontsize=8, frameon=False)
     return save_figure(fig, out / "figures", "sweep_indices")
 
 

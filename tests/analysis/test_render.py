@@ -56,13 +56,57 @@ def test_tex_cell_bold_and_stars():
 
 def test_latex_table_structure():
     tex = latex_table(["Item", "λ"], [["PU1", "0.800"], ["x_y", "**0.9**"]], title="Loadings (%)",
-                      notes=["N = 40.", "* p < .05"], label="tab:l", align="lc")
+                      notes=["Note. N = 40.", "* p < .05"], label="tab:l", align="lc")
     assert tex.splitlines() == [
-        r"\begin{table}[t]", r"\centering", r"\caption{Loadings (\%)}", r"\label{tab:l}",
-        r"\begin{tabular}{lc}", r"\toprule", r"Item & $\lambda$ \\", r"\midrule",
-        r"PU1 & 0.800 \\", r"x\_y & \textbf{0.9} \\", r"\bottomrule", r"\end{tabular}",
-        r"\par\smallskip\footnotesize N = 40. \\ * p < .05", r"\end{table}"]
-    assert latex_table(["a", "b", "c"], [])[:200].count(r"\begin{tabular}{lrr}") == 1  # default alignment
+        r"\begin{table}[tbp]", r"\centering\small", r"\begin{threeparttable}", r"\caption{Loadings (\%)}",
+        r"\label{tab:l}", r"\begin{tabular}{lS[table-format=1.3]}", r"\toprule", r"Item & {$\lambda$} \\",
+        r"\midrule", r"PU1 & 0.800 \\", r"x\_y & {\textbf{0.9}} \\", r"\bottomrule", r"\end{tabular}",
+        r"\begin{tablenotes}[flushleft]\footnotesize", r"\item \textit{Note.} N = 40.", r"\item * p < .05",
+        r"\end{tablenotes}", r"\end{threeparttable}", r"\end{table}"]
+    assert r"\begin{tabular}{lll}" in latex_table(["a", "b", "c"], [])  # no numbers: text, set left
+    with pytest.raises(ValueError):
+        latex_table(["a", "b"], [], align="l")
+
+
+def test_latex_numeric_columns_align_on_the_decimal_point_as_written():
+    tex = latex_table(["x", "r", "b", "n"], [["a", ".41**", "-1.50", "12"], ["b", "−.07", "0.25", "–"]])
+    # no leading zero where the column has none (APA: values bounded by 1); the marks' room kept; a dash as text
+    assert "S[table-format=-1.2, print-zero-integer=false, table-space-text-post={**}]" in tex
+    assert "S[table-format=-1.2]S[table-format=2]" in tex
+    assert r"a & .41{**} & -1.50 & 12 \\" in tex and r"b & -.07 & 0.25 & {--} \\" in tex
+
+
+def _label_table(columns: int, label: str = "Perceived usefulness of the advice", rows: int = 4):
+    header = ["Construct", *[f"Statistic number {j}" for j in range(1, columns)]]
+    return header, [[f"{label} {i}", *[f"{0.1 * i + j:.3f}" for j in range(1, columns)]] for i in range(rows)]
+
+
+def test_latex_table_goes_where_it_fits():
+    assert latex_table(*_label_table(2)).startswith(r"\begin{table}[tbp]")
+    assert latex_table(*_label_table(6)).startswith(r"\begin{table*}[tbp]")
+    assert latex_table(*_label_table(12)).startswith(r"\begin{sidewaystable*}[p]")
+    wide = latex_table(*_label_table(30))
+    assert wide.startswith(r"\begin{sidewaystable*}[p]") and r"\begin{adjustbox}{max width=\linewidth}" in wide
+    # a long label wraps (p column) rather than pushing the table out of its column
+    header, rows = _label_table(3, label="A label long enough to need more than one line in one column of a page")
+    narrow = latex_table(header, rows)
+    assert narrow.startswith(r"\begin{table}[tbp]") and r"p{" in narrow
+
+
+def test_latex_tables_fit_a_two_column_article(tmp_path):
+    """Compiled in a two-column article, none of the tables is wider than its room (0 overfull boxes)."""
+    from tests.latex_fit import compile_tables, overfull, pdflatex
+
+    if pdflatex() is None:
+        return
+    tables = [latex_table(*_label_table(n), title=f"{n} columns", notes=["Note. A note long enough to wrap " * 3])
+              for n in (2, 4, 6, 9, 12, 30)]
+    header, rows = _label_table(3, label="A label long enough to need more than one line in one column of a page")
+    tables.append(latex_table(header, rows, title="wrapped"))
+    tables.append(latex_table(["Item", "β", "p"], [["PU → BI", ".41**", "< .001"], ["SN → BI", "−.07", ".512"]],
+                              notes=["Note. ** p < .01."]))
+    log = compile_tables(tables, tmp_path)
+    assert overfull(log) == []
 
 
 # ---------------------------------------------------------------------------------------------- Markdown
@@ -96,17 +140,22 @@ def test_write_table(tmp_path):
 
 
 # ---------------------------------------------------------------------------------------------- figures
-def test_save_figure_png_pdf_reproducible(tmp_path):
+def test_save_figure_png_svg_pdf_reproducible(tmp_path):
     def draw(out):
         plt = pyplot()
         fig, ax = plt.subplots(figsize=(3, 2))
         ax.plot([0, 1, 2], [0, 1, 4])
+        ax.set_title("Title with text")
         return save_figure(fig, out, "f")
 
     a, b = draw(tmp_path / "a"), draw(tmp_path / "b")
-    assert [p.suffix for p in a] == [".png", ".pdf"]
+    assert [p.suffix for p in a] == [".png", ".svg", ".pdf"]
     for x, y in zip(a, b):
-        assert x.read_bytes() == y.read_bytes()
-    pdf = a[1].read_bytes()
+        assert x.read_bytes() == y.read_bytes(), x.name
+    pdf = a[2].read_bytes()
     assert b"CreationDate" not in pdf and b"pedas-study" in pdf
+    # fonts embedded as TrueType (Type 42 -> /TrueType or /CIDFontType2), never as Type 3
+    assert b"/Type3" not in pdf and (b"/TrueType" in pdf or b"/CIDFontType2" in pdf)
+    svg = a[1].read_text()
+    assert svg.startswith("<?xml") and "<dc:date>" not in svg and "pedas-study" in svg
     assert pyplot().get_fignums() == []      # closed after saving

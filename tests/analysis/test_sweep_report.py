@@ -33,7 +33,8 @@ def test_sweep_step_recomputes_from_the_points_and_sets_the_bands_beside(tmp_pat
     sweep_step(cfg)
     out = cfg.out / "sweep"
     for name in ("indices.csv", "indices.md", "indices.tex", "region.csv", "region.md", "region.tex", "sweep.md",
-                 "bands.csv", "bands.md", "bands.tex", "figures/sweep_indices.png", "figures/sweep_indices.pdf"):
+                 "bands.csv", "bands.md", "bands.tex", "figures/sweep_indices.png", "figures/sweep_indices.svg",
+                 "figures/sweep_indices.pdf"):
         assert (out / name).exists(), name
     _, points, meta = read_run(REPO / "data" / "sweep")
     # recomputed from points.csv, not copied: the same frames as the analysis functions give

@@ -124,7 +124,8 @@ TINY = ["--factors", "compliance_shift", "speeding_shift", "--trajectories", "2"
         "--styles", "normal", "--seed", "0"]
 SOBOL = ["--sobol-n", "1", "--top", "1"]
 ANALYSIS = ["design.csv", "points.csv", "indices.csv", "indices.md", "indices.tex", "region.csv", "region.md",
-            "region.tex", "figures/sweep_indices.png", "figures/sweep_indices.pdf"]
+            "region.tex", "figures/sweep_indices.png", "figures/sweep_indices.svg",
+            "figures/sweep_indices.pdf"]
 
 
 def _sweep(*args, timeout=600, **kw) -> subprocess.CompletedProcess:

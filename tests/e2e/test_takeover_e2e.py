@@ -112,7 +112,8 @@ def test_takeover_study_end_to_end(tmp_path, capsys, reference):
 
         out = run("analyze", "within", "--out", tmp_path / "within")
         assert "across none, visual, audiovisual" in out
-        run("report", "--out", tmp_path / "reports", "--bootstrap", "0", "--cache-dir", tmp_path / "cache")
+        run("report", "--out", tmp_path / "reports", "--bootstrap", "0", "--cache-dir", tmp_path / "cache",
+            "--bundle")
     finally:
         print(run.write())
 
@@ -136,6 +137,16 @@ def test_takeover_study_end_to_end(tmp_path, capsys, reference):
     doc = (tmp_path / "reports" / "index.html").read_text(encoding="utf-8")
     assert "Within-subjects comparison" in doc and "Simulation core" not in doc
     assert re.search(r"pingouin \d", doc) and "DAQP" not in doc and "SUMO" not in doc
+    # the bundle holds the within-subjects figures in three formats and every image the document shows
+    import zipfile
+
+    from analysis.report.bundle import document_images
+
+    names = set(zipfile.ZipFile(tmp_path / "reports" / "bundle.zip").namelist())
+    assert {f"figures/lines_{v}.{ext}" for v in ("sus", "tlx_raw", "trust", "takeover_time")
+            for ext in ("png", "svg", "pdf")} <= names
+    shown = document_images(tmp_path / "reports")
+    assert len(shown) == 5 and set(shown) <= names
 
 
 def total(pair) -> float:

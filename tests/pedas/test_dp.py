@@ -111,4 +111,4 @@ def test_dp_profile_figure(tmp_path, town, town_dp):
     from pedas.figures_core import plot_dp_profile
 
     files = plot_dp_profile(tmp_path, town, town_dp)
-    assert {f.name for f in files} == {"dp_profile.png", "dp_profile.pdf"}
+    assert {f.name for f in files} == {"dp_profile.png", "dp_profile.svg", "dp_profile.pdf"}

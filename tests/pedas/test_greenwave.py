@@ -161,4 +161,4 @@ def test_space_time_figure_and_its_scenario(tmp_path):
     t_dp, s_dp, v_dp = simulate_reference_following(route, green_wave=False)
     assert np.any((v_dp < 0.1) & (np.abs(s_dp - route.lights[0].s) < 2.0))  # the v_DP driver waits at red
     files = plot_green_wave(tmp_path, route)
-    assert {f.name for f in files} == {"green_wave_space_time.png", "green_wave_space_time.pdf"}
+    assert {f.name for f in files} == {"green_wave_space_time.png", "green_wave_space_time.svg", "green_wave_space_time.pdf"}

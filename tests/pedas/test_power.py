@@ -171,7 +171,7 @@ def test_power_map_figure(tmp_path):
     from pedas.figures_core import plot_power_map
 
     files = plot_power_map(tmp_path)
-    assert {f.name for f in files} == {"power_map_fit.png", "power_map_fit.pdf"}
+    assert {f.name for f in files} == {"power_map_fit.png", "power_map_fit.svg", "power_map_fit.pdf"}
     assert all(f.stat().st_size > 1000 for f in files)
 
 

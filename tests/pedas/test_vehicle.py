@@ -135,7 +135,8 @@ def test_figures_aero_and_speed_correction(tmp_path):
     from pedas.figures_core import plot_aero_linearisation, plot_speed_correction, v_corr
 
     files = plot_aero_linearisation(tmp_path) + plot_speed_correction(tmp_path)
-    assert sorted(f.suffix for f in files) == [".pdf", ".pdf", ".png", ".png"]
+    assert sorted(f.suffix for f in files) == [".pdf", ".pdf", ".png", ".png", ".svg", ".svg"]
     assert all(f.stat().st_size > 1000 for f in files)
+    assert all(b"/Type3" not in f.read_bytes() for f in files if f.suffix == ".pdf")  # TrueType fonts embedded
     # eq. (11) at psi = -5: 0.008 * 25 * (-0.05 * 25 + 0.4 * -5) = -0.65 m/s
     assert v_corr(-5.0) == pytest.approx(-0.65)
