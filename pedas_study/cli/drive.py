@@ -93,8 +93,8 @@ def register(cli) -> None:
     p.add_argument("--net", default=None, metavar="FILE",
                    help="the SUMO network (.net.xml) of a SUMO FCD file: limits and lights from there")
     p.add_argument("--force", default=None, metavar="REASON",
-                   help="import despite plausibility problems (distance, sampling) or a condition other than the "
-                        "participant's current drive phase; the reason is recorded")
+                   help="import despite plausibility problems (distance, sampling) or a drive phase the participant "
+                        "has not entered; the reason is recorded")
     p.add_argument("--replace", action="store_true", help="replace a different log stored for this drive")
     p.add_argument("--route", default=None, help="route name stored with the drive (default: the study's route)")
     p.add_argument("--verbose", "-v", action="store_true", help="report progress on stderr")

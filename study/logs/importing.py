@@ -224,25 +224,32 @@ def drive_target(st, participant_id: str, name: str) -> tuple[str | None, str | 
 
 
 def phase_mismatch(st, participant_id: str, condition: str | None, phase: str | None) -> str | None:
-    """Why a log of `condition` (or of the drive `phase` without one) does not belong to the participant's current
-    drive phase (the last drive phase they entered), or None when it does. A participant without recorded phases
-    is not checked (a lab that does not record the protocol)."""
+    """Why a log of `condition` (or of the drive `phase` without one) does not belong to a drive phase the participant
+    has entered (in progress, completed or aborted: a log is often copied after the session), or None when it does.
+    A phase not yet entered (also after an abort that ended the participant's protocol before it) is named with the
+    phases the participant did enter. A participant without recorded phases is not checked (a lab that does not
+    record the protocol)."""
     from study.people.protocol import protocol_of
 
-    entered = st.df("SELECT phase FROM phase_events WHERE participant_id = ? ORDER BY seq", [participant_id])["phase"]
-    if entered.empty:
+    entered = st.con.execute("SELECT phase, outcome FROM phase_events WHERE participant_id = ? ORDER BY seq",
+                             [participant_id]).fetchall()
+    if not entered:
         return None
     proto = protocol_of(st, participant_id)
     steps = {p.name: p for p in proto.steps}
-    driven = [steps[n] for n in entered if n in steps and steps[n].drive]
-    want = condition if condition is not None else f"the drive phase {phase}"
-    if not driven:
-        return f"{participant_id} has not started a drive phase (is at {entered.iloc[-1]}); the log is for {want}"
-    cur = driven[-1]
-    if (cur.condition == condition) if condition is not None else (cur.condition is None and cur.name == phase):
+
+    def belongs(step) -> bool:
+        return step.drive and ((step.condition == condition) if condition is not None
+                               else (step.condition is None and step.name == phase))
+
+    if any(name in steps and belongs(steps[name]) for name, _ in entered):
         return None
-    return (f"{participant_id}'s current drive phase is {cur.name} ({cur.condition or 'no condition'}), "
-            f"the log is for {want}")
+    target = next((p.name for p in proto.steps if belongs(p)), None)
+    want = (f"{condition} ({target})" if condition is not None and target else condition) if condition is not None \
+        else f"the drive phase {phase}"
+    done = ", ".join(name if outcome == "completed" else f"{name} ({outcome.replace('_', ' ')})"
+                     for name, outcome in entered)
+    return f"{participant_id} has not entered the drive of {want}; phases entered: {done}"
 
 
 # ---------------------------------------------------------------------------------------------- study settings

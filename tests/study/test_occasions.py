@@ -308,24 +308,34 @@ def test_a_familiarisation_drive_is_stored_outside_the_conditions(tor, tmp_db, t
                                              "familiarisation)")
 
 
-def test_a_log_for_another_condition_than_the_current_drive_is_refused_unless_forced(tor, tmp_db, tmp_path):
+def test_a_log_of_a_drive_entered_imports_after_the_fact_and_one_not_entered_is_refused_unless_forced(
+        tor, tmp_db, tmp_path):
     for phase in ("familiarisation", "drive_none", "survey_after_none", "drive_visual"):
         assert tor("session", "advance", "TOR-A01", phase).code == 0
-    log = _log(tmp_path / "none.csv", 2)
+    # the none drive is over and the participant is in the next drive: its log is copied afterwards
+    assert tor("drive", "import", "TOR-A01", "none", _log(tmp_path / "none.csv", 2)).code == 0
+    assert tor("drive", "import", "TOR-A01", "familiarisation", _log(tmp_path / "fam.csv", 4)).code == 0
+    # a second, different log of the same drive still needs --replace
+    r = tor("drive", "import", "TOR-A01", "none", _log(tmp_path / "none2.csv", 5))
+    assert r.code == 2 and "already has a none drive from none.csv with different content; use --replace" in r.err
+    assert tor("session", "abort", "TOR-A01", "--reason", "motion sickness").code == 0
+    log = _log(tmp_path / "av.csv", 6)
     before = _counts(tmp_db)
-    r = tor("drive", "import", "TOR-A01", "none", log)
+    r = tor("drive", "import", "TOR-A01", "audiovisual", log)
+    expected = ("TOR-A01 has not entered the drive of audiovisual (drive_audiovisual); phases entered: "
+                "familiarisation, drive_none, survey_after_none, drive_visual (aborted)")
     assert r.code == 2 and r.err.strip() == (
-        "pedas-study: error: TOR-A01's current drive phase is drive_visual (visual), the log is for none; import "
-        "with --force REASON to store it anyway")
+        f"pedas-study: error: {expected}; import with --force REASON to store it anyway")
     assert _counts(tmp_db) == before
-    r = tor("drive", "import", "TOR-A01", "none", log, "--force", "log copied from the none drive after the fact")
+    r = tor("drive", "import", "TOR-A01", "audiovisual", log, "--force", "log of a drive the protocol did not record")
     assert r.code == 0, r.err
-    assert "note: imported with --force despite: TOR-A01's current drive phase is drive_visual (visual)" in r.err
+    assert f"note: imported with --force despite: {expected}" in r.err
     with Store.open(tmp_db, read_only=True) as st:
-        new = json.loads(st.one("SELECT new FROM audit_log WHERE table_name = 'drives' AND action = 'insert'"))
-    forced = json.loads(new["meta"])["forced"]
-    assert forced == {"reason": "log copied from the none drive after the fact",
-                      "overridden": ["TOR-A01's current drive phase is drive_visual (visual), the log is for none"]}
+        new = [json.loads(n) for n in st.df("SELECT new FROM audit_log WHERE table_name = 'drives' "
+                                            "AND action = 'insert' ORDER BY audit_id")["new"]]
+    assert json.loads(new[-1]["meta"])["forced"] == {"reason": "log of a drive the protocol did not record",
+                                                     "overridden": [expected]}
+    # the drive aborted (entered) takes its log without --force
     assert tor("drive", "import", "TOR-A01", "visual", _log(tmp_path / "visual.csv", 3)).code == 0
 
 
