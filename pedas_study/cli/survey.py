@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import os
 
+from pedas_study.cli.bulk import add_ignore_option
 from pedas_study.cli.common import add_format_option, format_frame, open_store
 
 PASSWORD_ENV = "PEDAS_SURVEY_PASSWORD"
@@ -11,10 +12,14 @@ PASSWORD_ENV = "PEDAS_SURVEY_PASSWORD"
 def _import(args):
     from study.survey.survey_import import import_survey
 
+    from study.common.errors import split_names
+
     with open_store(args) as st:
-        r = import_survey(st, args.file, entry=args.entry, instrument=args.instrument, occasion=args.occasion)
+        r = import_survey(st, args.file, entry=args.entry, instrument=args.instrument, occasion=args.occasion,
+                          ignore_columns=split_names(args.ignore_columns))
     kind = f"entry round {r.entry_round} of a double entry" if r.double_entry else "single electronic entry (final)"
-    at = f" at {len(r.occasions)} occasions ({', '.join(r.occasions)})" if len(r.occasions) > 1 else ""
+    at = (f" at {len(r.occasions)} occasions ({', '.join(r.occasions)}; {r.questionnaires} questionnaires)"
+          if len(r.occasions) > 1 else "")
     print(f"imported {r.participants} participants{at} ({r.answers} answers, {r.missing} missing) as {kind}")
 
 
@@ -129,6 +134,7 @@ def register(cli) -> None:
     p.add_argument("--entry", type=int, choices=(1, 2), default=None,
                    help="paper-form double entry round; without it the file is a single electronic entry (final)")
     _instrument_option(p, "the file's occasion or condition column, else the instrument's only one")
+    add_ignore_option(p)
 
     p = g.command("serve", "run the survey web form (participant links + researcher data entry)", _serve)
     p.add_argument("--host", default="127.0.0.1", help="address to bind (default 127.0.0.1: this machine only)")

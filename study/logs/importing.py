@@ -39,7 +39,7 @@ from typing import Any, Callable, Iterator
 import numpy as np
 import pandas as pd
 
-from study.common.errors import UserError, check_choice
+from study.common.errors import UserError, check_choice, shown
 from study.common.file_checks import register_file_check
 from study.common.toml_lines import line_of
 from study.folder import logmap, route_file
@@ -499,7 +499,7 @@ def _mapping_for(study, path: Path, fmt: str, mapping) -> logmap.Mapping | None:
             raise UserError(f"no such log mapping file: {mp}")
         m = logmap.load_mapping(mp.read_text(encoding="utf-8"), mp.name)
     if m.format != fmt:
-        raise UserError(f"log mapping {m.name} reads {m.format} files, {path.name} is {fmt}")
+        raise UserError(f"log mapping {m.name} reads {m.format} files, {shown(path)} is {fmt}")
     return m
 
 
@@ -577,7 +577,7 @@ def _read_chunks(path: Path, kind: str) -> Iterator[pd.DataFrame]:
     except UserError:
         raise
     except Exception as exc:  # unreadable file: one line
-        raise _Unreadable(f"cannot read {path.name}: {' '.join(str(exc).split())}") from exc
+        raise _Unreadable(f"cannot read {shown(path)}: {' '.join(str(exc).split())}") from exc
 
 
 def _log_chunks(path: Path, kind: str, route: route_file.RouteFile | None) -> Iterator[tuple]:
@@ -648,12 +648,12 @@ def _validated_again(path: Path, kind: str, route: route_file.RouteFile | None,
         for rows, valid, problem, _, _ in chunks:
             n += rows
             if problem is not None:
-                raise UserError(f"{path.name} changed while it was being imported: {problem}")
+                raise UserError(f"{shown(path)} changed while it was being imported: {problem}")
             if len(valid):
                 last = (valid["t"].iloc[-1], valid["s"].iloc[-1])
                 yield valid
     if n != summary.n or last != (summary.t[1], summary.s[1]):
-        raise UserError(f"{path.name} changed while it was being imported")
+        raise UserError(f"{shown(path)} changed while it was being imported")
 
 
 def _force_reason(force: str | None) -> str | None:
@@ -706,7 +706,7 @@ def import_drive_file(st, participant_id: str, condition: str, path: str | Path,
         except _Unreadable:
             raise
         except UserError as exc:
-            raise UserError(f"{path.name}: {exc}") from None
+            raise UserError(f"{shown(path)}: {exc}") from None
         if progress:
             progress(f"read {prep.summary.n} rows from {path.name}")
     else:  # a mapped log (units, integrated positions, lights by position) or SUMO FCD: read whole
@@ -719,7 +719,7 @@ def import_drive_file(st, participant_id: str, condition: str, path: str | Path,
                 raw, rfile = fcd_route.fcd_route(raw, rfile, net, m)
             prep = _prepare(raw, m, rfile, "import", force)
         except UserError as exc:
-            raise UserError(f"{path.name}: {exc}") from None
+            raise UserError(f"{shown(path)}: {exc}") from None
     checksum = file_checksum(path)
     if m is not None or prep.joined or prep.s_integrated:
         h = hashlib.sha256(f"file\0{checksum}\0".encode())
@@ -750,7 +750,7 @@ def import_drive_file(st, participant_id: str, condition: str, path: str | Path,
         return replace_overridden(r, mismatch)
     except UserError as exc:
         if str(exc).startswith("channel "):
-            raise UserError(f"{path.name}: {exc}") from None
+            raise UserError(f"{shown(path)}: {exc}") from None
         raise
 
 

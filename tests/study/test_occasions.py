@@ -144,8 +144,9 @@ def test_study_check_refuses_bad_questionnaire_phases(tmp_path, change, message)
 def test_a_wide_file_with_a_condition_or_occasion_column_imports_every_occasion(tor, tmp_path, which):
     r = tor("survey", "import", _wide_file(tmp_path / "wide.csv", which))
     assert r.code == 0, r.err
-    assert r.out.strip() == ("imported 56 participants at 3 occasions (survey_after_none, survey_after_visual, "
-                             "survey_after_audiovisual) (1232 answers, 0 missing) as single electronic entry (final)")
+    assert r.out.strip() == ("imported 19 participants at 3 occasions (survey_after_none, survey_after_visual, "
+                             "survey_after_audiovisual; 56 questionnaires) (1232 answers, 0 missing) as single "
+                             "electronic entry (final)")
     out = tmp_path / "final.csv"
     r = tor("survey", "final", "--instrument", "post_drive", "--out", out)
     assert r.code == 0 and r.out.strip() == f"wrote 56 rows (19 participants) to {out}"
@@ -169,13 +170,26 @@ def test_a_wide_file_with_a_condition_or_occasion_column_imports_every_occasion(
     assert list(pd.read_csv(out).columns) == ["participant_id"] + ITEMS
 
 
+def test_a_survey_file_s_own_columns_are_left_out_with_ignore_columns(tor, tmp_path):
+    wide = pd.read_csv(_wide_file(tmp_path / "wide.csv"))
+    wide.insert(1, "position", range(len(wide)))      # the lab's own bookkeeping beside the items
+    wide.to_csv(tmp_path / "own.csv", index=False)
+    r = tor("survey", "import", tmp_path / "own.csv")
+    assert r.code == 2 and "unknown item column(s) position for instrument post_drive" in r.err
+    r = tor("survey", "import", tmp_path / "own.csv", "--ignore-columns", "position,seat")
+    assert r.code == 2 and r.err.strip().endswith("own.csv: --ignore-columns names no column of the file: seat "
+                                                  f"(the columns are {', '.join(wide.columns)})")
+    r = tor("survey", "import", tmp_path / "own.csv", "--ignore-columns", "position")
+    assert r.code == 0 and r.out.startswith("imported 19 participants at 3 occasions"), r.err
+
+
 def test_a_long_file_gives_the_same_answers_as_the_wide_one(tor, cli, tmp_path):
     wide = seed().rename(columns={"participant": "participant_id"})
     wide["occasion"] = "survey_after_" + wide["condition"]
     long = wide.melt(id_vars=["participant_id", "occasion"], value_vars=ITEMS, var_name="item_id")
     long.sample(frac=1.0, random_state=7).to_csv(tmp_path / "long.csv", index=False)   # any row order
     r = tor("survey", "import", tmp_path / "long.csv")
-    assert r.code == 0 and "imported 56 participants at 3 occasions" in r.out, r.err
+    assert r.code == 0 and "imported 19 participants at 3 occasions" in r.out, r.err
     r = tor("survey", "final", "--instrument", "post_drive", "--out", tmp_path / "f.csv")
     final = pd.read_csv(tmp_path / "f.csv").set_index(["participant_id", "occasion"])[ITEMS]
     assert final.sort_index().equals(wide.set_index(["participant_id", "occasion"])[ITEMS].sort_index())
@@ -201,7 +215,7 @@ def test_bad_occasion_columns_are_refused_in_one_line_and_nothing_is_stored(tor,
     edit(pd.read_csv(path)).to_csv(path, index=False)
     before = _counts(tmp_db)
     r = tor("survey", "import", path, "--instrument", "post_drive")
-    assert r.code == 2 and r.err.strip() == f"pedas-study: error: {message}"
+    assert r.code == 2 and r.err.strip() == f"pedas-study: error: {tmp_path}/{message}"
     assert _counts(tmp_db) == before
 
 
