@@ -83,6 +83,19 @@ def _final(args):
     print(f"wrote {rows} to {out}")
 
 
+def _scores(args):
+    from study.common.errors import split_names
+    from study.export.writer import write_scores
+
+    formats = split_names(args.format) or ("csv",)
+    if "sav" in formats:
+        import pyreadstat  # noqa: F401  (loaded before the store is held)
+    with open_store(args, read_only=True) as st:
+        written = write_scores(st, args.out, formats)
+    for path, n in written.items():
+        print(f"wrote {n} rows of scores to {path}")
+
+
 def _serve(args):
     import secrets
     import signal
@@ -169,6 +182,11 @@ def register(cli) -> None:
     p.add_argument("--note", default=None)
     _instrument_option(p)
 
+    p = g.command("scores", "write every declared score per participant and occasion (and the rated condition) "
+                            "as CSV, Parquet or SPSS .sav with labels", _scores)
+    p.add_argument("--out", required=True, metavar="DIR", help="the folder of scores.<format>")
+    p.add_argument("--format", default="csv", metavar="FORMATS",
+                   help="csv, parquet, sav or several, comma-separated (default csv)")
     p = g.command("final", "write the final answers as a wide CSV (survey CSV of docs/contracts.md)", _final)
     p.add_argument("--out", required=True, metavar="CSV")
     _instrument_option(p, "every occasion of the instrument, one row per participant and occasion")

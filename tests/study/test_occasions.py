@@ -409,3 +409,4 @@ def test_a_store_of_the_schema_before_occasions_keeps_its_answers(tmp_db, tmp_pa
         assert list(final.index) == ["P001", "P002"]
         assert final.loc["P002", "PU1"] == 3.0        # the resolution wins, as before
         assert final.loc["P001", scaled].tolist() == [float(1 + k % 5) for k in range(len(scaled))]
+
