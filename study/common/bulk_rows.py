@@ -23,12 +23,13 @@ if TYPE_CHECKING:  # pandas only for the DataFrame of read_rows: a bulk command 
 class BadRow:
     """One row of a bulk file that a check refused (or that was not checked, see :class:`BadRows`)."""
 
-    line: int                 # line in the file, the header being line 1
+    line: int                 # line in the file, the header being line 1 (0: not a line of a file)
     participant_id: str
     reason: str
 
     def __str__(self) -> str:
-        return f"line {self.line}: {self.participant_id or '(no id)'}: {self.reason}"
+        where = f"line {self.line}: " if self.line else ""   # 0: a row of no file (a folder's file)
+        return f"{where}{self.participant_id or '(no id)'}: {self.reason}"
 
 
 class BadRows(UserError):

@@ -664,43 +664,36 @@ def _force_reason(force: str | None) -> str | None:
     return force.strip()
 
 
-def import_drive_file(st, participant_id: str, condition: str, path: str | Path, replace: bool = False,
-                      route: str | None = None, progress: Callable[[str], None] | None = None,
-                      mapping: Any = None, fmt: str | None = None, vehicle: str | None = None,
-                      force: str | None = None, net: str | Path | None = None) -> DriveImport:
-    """Read, map, check and import a drive log file (CSV, Parquet or SUMO FCD) for (participant, condition).
+@dataclass(frozen=True)
+class ReadLog:
+    """A drive log file read, mapped and checked, ready to store: the prepared log, its checksum, the
+    ``drives.meta`` it brings (format, mapping, units, ...), the route name of the study and the file's name."""
 
-    `mapping`: None = the study's log mapping when it reads this format (else the file is a canonical log),
-    "none" = a canonical log, or a mapping file path / :class:`study.folder.logmap.Mapping`. `fmt` overrides the format
-    taken from the file name; `vehicle` picks the vehicle of an FCD file, `net` its SUMO network (limits and lights
-    from there instead of the study's route: :mod:`study.logs.fcd_route`). `force` = a reason to import despite
-    plausibility problems (recorded in drives.meta) and despite :func:`phase_mismatch` (a log for another condition
-    than the participant's current drive phase: refused without it). `condition` is a condition of the study or a
-    drive phase without one (:func:`drive_target`). `route` names the route stored with the drive (default: the
-    study's route file's name). Checksum: sha256 of the file; of file, mapping and route when those were used.
-    Every problem of the log is one line starting with the file name. A canonical CSV or Parquet log (no mapping) is
-    read in chunks of :data:`CHUNK_ROWS` rows, twice (validated, then stored), so that its size does not bound the
-    memory; a mapped or SUMO FCD log is read whole.
-    """
-    from study.store.studies import definition
+    prepared: PreparedDrive
+    checksum: str
+    meta: dict[str, Any]
+    route: str | None
+    file_name: str
 
-    study = definition(st)  # first: parsing a stored study (its model file) is not part of the import's time
+
+def read_log(study, path: str | Path, mapping: Any = None, fmt: str | None = None, vehicle: str | None = None,
+             force: str | None = None, net: str | Path | None = None, whole: bool = False,
+             progress: Callable[[str], None] | None = None) -> ReadLog:
+    """Read, map and check a drive log file of `study` (a StudyDefinition) without a store: what
+    :func:`import_drive_file` stores, and what a bulk import (:mod:`study.logs.bulk_import`) reads in parallel.
+    `whole`: read a canonical CSV or Parquet log whole rather than in chunks (a result that can cross processes).
+    Every problem -> UserError starting with the file name as given."""
     t0 = time.perf_counter()
     path = Path(path)
-    force = _force_reason(force)
-    condition, phase = drive_target(st, participant_id, condition)
-    mismatch = phase_mismatch(st, participant_id, condition, phase)
-    if mismatch and not force:
-        raise UserError(f"{mismatch}; import with --force REASON to store it anyway")
     kind = log_format(path, fmt)
     m = _mapping_for(study, path, kind, mapping)
     fcd_route.check_net_option(net, kind, m)
     rfile = route_file.study_route(study)
     derived: list[str] = []
     vehicle = vehicle or (m.vehicle if m is not None else None)
-    if m is None and kind in ("csv", "parquet"):  # a canonical log: read in chunks, never whole
-        if not path.exists():
-            raise UserError(f"no such file: {path}")
+    if not path.exists():
+        raise UserError(f"no such file: {shown(path)}")
+    if m is None and kind in ("csv", "parquet") and not whole:  # a canonical log: read in chunks, never whole
         try:
             prep = _prepare_file(path, kind, rfile, force)
         except _Unreadable:
@@ -740,18 +733,60 @@ def import_drive_file(st, participant_id: str, condition: str, path: str | Path,
         meta["from_route"] = list(prep.joined)
     if prep.s_integrated:
         meta["s"] = "integrated from v"
+    meta["read_s"] = time.perf_counter() - t0
+    return ReadLog(prep, checksum, meta, rfile.name if rfile is not None else None, path.name)
+
+
+def store_read_log(st, participant_id: str, condition: str | None, phase: str | None, log: ReadLog,
+                   force: str | None, mismatch: str | None, replace: bool = False, route: str | None = None,
+                   progress: Callable[[str], None] | None = None, started: float | None = None) -> DriveImport:
+    """Store a :class:`ReadLog` as the drive (participant, condition or phase) in one transaction (joining the
+    caller's): the forced reason and the overridden phase mismatch go into ``drives.meta``."""
+    meta = {k: v for k, v in log.meta.items() if k != "read_s"}
     if force is not None:
-        meta["forced"] = {"reason": force, "overridden": list(prep.overridden) + ([mismatch] if mismatch else [])}
-    route = route or (rfile.name if rfile is not None else None)
+        meta["forced"] = {"reason": force,
+                          "overridden": list(log.prepared.overridden) + ([mismatch] if mismatch else [])}
+    t0 = started if started is not None else time.perf_counter() - log.meta.get("read_s", 0.0)
     try:
-        r = _store_drive(st, DriveRecord(participant_id, condition, prep, checksum, "import", t0, route=route,
-                                         file_name=path.name, meta=meta, replace=replace, progress=progress,
-                                         phase=phase))
+        r = _store_drive(st, DriveRecord(participant_id, condition, log.prepared, log.checksum, "import", t0,
+                                         route=route or log.route, file_name=log.file_name, meta=meta,
+                                         replace=replace, progress=progress, phase=phase))
         return replace_overridden(r, mismatch)
     except UserError as exc:
         if str(exc).startswith("channel "):
-            raise UserError(f"{shown(path)}: {exc}") from None
+            raise UserError(f"{log.file_name}: {exc}") from None
         raise
+
+
+def import_drive_file(st, participant_id: str, condition: str, path: str | Path, replace: bool = False,
+                      route: str | None = None, progress: Callable[[str], None] | None = None,
+                      mapping: Any = None, fmt: str | None = None, vehicle: str | None = None,
+                      force: str | None = None, net: str | Path | None = None) -> DriveImport:
+    """Read, map, check and import a drive log file (CSV, Parquet or SUMO FCD) for (participant, condition).
+
+    `mapping`: None = the study's log mapping when it reads this format (else the file is a canonical log),
+    "none" = a canonical log, or a mapping file path / :class:`study.folder.logmap.Mapping`. `fmt` overrides the format
+    taken from the file name; `vehicle` picks the vehicle of an FCD file, `net` its SUMO network (limits and lights
+    from there instead of the study's route: :mod:`study.logs.fcd_route`). `force` = a reason to import despite
+    plausibility problems (recorded in drives.meta) and despite :func:`phase_mismatch` (a log for a drive phase the
+    participant has not entered: refused without it). `condition` is a condition of the study or a
+    drive phase without one (:func:`drive_target`). `route` names the route stored with the drive (default: the
+    study's route file's name). Checksum: sha256 of the file; of file, mapping and route when those were used.
+    Every problem of the log is one line starting with the file name. A canonical CSV or Parquet log (no mapping) is
+    read in chunks of :data:`CHUNK_ROWS` rows, twice (validated, then stored), so that its size does not bound the
+    memory; a mapped or SUMO FCD log is read whole (:func:`read_log`).
+    """
+    from study.store.studies import definition
+
+    study = definition(st)  # first: parsing a stored study (its model file) is not part of the import's time
+    t0 = time.perf_counter()
+    force = _force_reason(force)
+    condition, phase = drive_target(st, participant_id, condition)
+    mismatch = phase_mismatch(st, participant_id, condition, phase)
+    if mismatch and not force:
+        raise UserError(f"{mismatch}; import with --force REASON to store it anyway")
+    log = read_log(study, path, mapping, fmt, vehicle, force, net, progress=progress)
+    return store_read_log(st, participant_id, condition, phase, log, force, mismatch, replace, route, progress, t0)
 
 
 def import_drive_frame(st, participant_id: str, condition: str, df: pd.DataFrame, source: str = "simulation",

@@ -2,7 +2,7 @@
 store, as that lab would run it: check the folder, create the store, import the roster of 19 participants, assign the
 Latin square's orders, walk each through the familiarisation drive and the three condition drives with a post-drive
 questionnaire after each (TOR-A19 breaks off before the third drive), then, after the fact, import the 20 Hz logs
-(ms, mph, ft) with the takeover flags and the questionnaires as one wide file with a condition column, then
+(ms, mph, ft) with the takeover flags from one folder at once and the questionnaires as one wide file with a condition column, then
 `analyze within` and the report. The statistics are compared with R's (tests/data/takeover/within_reference.json: afex/aov with Error(),
 friedman.test, paired tests, lme4::lmer), the takeover-time KPI with the log generator's truth. Every command and what
 it printed is written to tests/output/takeover_e2e.txt."""
@@ -99,16 +99,15 @@ def test_takeover_study_end_to_end(tmp_path, capsys, reference):
             else:
                 run("session", "complete", pid, quiet=k > 0)
 
-        # the end of the day: every log copied from the simulator, imported after the protocol was walked
-        for k, pid in enumerate(people):
-            for phase in protocol["orders"][orders[pid]]:
-                if phase.startswith("drive_") or phase == "familiarisation":
-                    condition = None if phase == "familiarisation" else phase.removeprefix("drive_")
-                    if pid == DROPOUT and condition == "audiovisual":
-                        continue
-                    run("drive", "import", pid, condition or phase, write_log(logs, pid, condition), quiet=k > 0)
+        # the end of the day: every log copied from the simulator into one folder, imported at once
+        for pid in people:
+            for condition in (None, *CONDITIONS):
+                if not (pid == DROPOUT and condition == "audiovisual"):
+                    write_log(logs, pid, condition)
+        out = run("drive", "import", "--dir", logs, "--pattern", "{participant}_{condition}.csv")
+        assert f"{4 * len(people) - 1} drive logs of {len(people)} participants" in out
         # the dropout never entered the third drive: a log for it is refused, naming the phases entered
-        out = run("drive", "import", DROPOUT, "audiovisual", write_log(logs, DROPOUT, "audiovisual"), code=2)
+        out = run("drive", "import", DROPOUT, "audiovisual", write_log(tmp_path, DROPOUT, "audiovisual"), code=2)
         assert f"{DROPOUT} has not entered the drive of audiovisual (drive_audiovisual); phases entered: " in out
 
         # the post-drive questionnaires of everyone, one wide file with a condition column
