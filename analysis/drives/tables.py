@@ -162,6 +162,7 @@ def write_tables(result, out_dir: str | Path) -> list[Path]:
         put(f"{stem}.md", kpi_markdown(h, r, title, notes, text_columns))
         put(f"{stem}.tex", latex_table(h, r, title, notes, label))
 
+    written += write_phases(result, out)
     comparison = result.spec.comparison
     if comparison is None:
         for name, df in (("kpis.csv", result.kpis), ("summary.csv", result.summary)):
@@ -190,3 +191,34 @@ def bands_markdown(bands: pd.DataFrame) -> str:
     rows = [[b["band"], "yes" if b["holds"] else "no", b["note"], _fmt(b["paper_value"]), _fmt(b["our_value"])]
             for _, b in bands.iterrows()]
     return kpi_markdown(header, rows, "Reproduction bands", text_columns=3)
+
+
+#: the drives outside the compared conditions (familiarisation, practice), summarised apart
+PHASES = "phases"
+
+
+def phase_summary(kpis: pd.DataFrame, spec) -> pd.DataFrame:
+    """phase, metric, n, mean, median, sd, min, max of every declared KPI over the whole drive of the drives that
+    belong to a drive phase without a condition (e.g. the familiarisation drive's takeover time); empty when the
+    store has none."""
+    from analysis.drives.savings import _stats
+
+    cols = ["phase", "metric", "n", "mean", "median", "sd", "min", "max"]
+    if "phase" not in kpis.columns:
+        return pd.DataFrame(columns=cols)
+    k = kpis[kpis["phase"].notna() & (kpis["segment"] == "overall")]
+    rows = [{"phase": ph, "metric": m, **_stats(g[m])} for ph, g in k.groupby("phase", sort=False)
+            for m in spec.columns]
+    return pd.DataFrame(rows, columns=cols)
+
+
+def write_phases(result, out: Path) -> list[Path]:
+    """phases.csv (full precision), .md and .tex (for reading) when the store has drives outside the conditions;
+    the report's drive section shows the table apart from the compared conditions."""
+    from analysis.render import write_table
+
+    table = phase_summary(result.kpis, result.spec)
+    if table.empty:
+        return []
+    return write_table(table, out, PHASES, title="KPIs of the drives outside the compared conditions (whole drive, "
+                                                 "e.g. familiarisation; in no comparison)", digits=3)

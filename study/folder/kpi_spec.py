@@ -45,7 +45,7 @@ BUILTINS: dict[str, tuple[str, ...]] = {
 TOLERANCES = ("none", "absolute", "relative", "german")
 ENERGY_MODELS = {"nissan_leaf": "modelled (Nissan Leaf parameters)", "none": None}
 _NAME = re.compile(r"^[a-z][a-z0-9_]*$")
-_RESERVED = {"participant_id", "condition", "drive_id", "segment", "n_intervals", "overall", "all"}
+_RESERVED = {"participant_id", "condition", "phase", "drive_id", "segment", "n_intervals", "overall", "all"}
 _KEYS = {"builtins", "group_by", "channels", "violations", "stops", "red_stops", "sql", "events", "comparison"}
 #: how an event KPI sums up several events of one drive (or segment); docs/kpis.md says why "first" is the default
 STATISTICS = ("first", "mean", "max", "count")

@@ -234,7 +234,7 @@ def test_label_and_unit_head_the_markdown_and_latex_tables(store, cli, tmp_path)
     assert "Takeover time (s) mean (SD)" in r.out
     # the CSV files keep the KPI names
     kpis = pd.read_csv(tmp_path / "o" / "kpis.csv")
-    assert list(kpis.columns[5:]) == ["distance_m", "trip_time_s", "mean_speed_mps", "sdlp", "takeover_query",
+    assert list(kpis.columns[6:]) == ["distance_m", "trip_time_s", "mean_speed_mps", "sdlp", "takeover_query",
                                       "departures", "takeover_time", "takeover_mean", "takeover_max", "requests",
                                       "warning_reaction"]
     table = pd.read_csv(tmp_path / "o" / "kpi_table.csv")

@@ -126,3 +126,18 @@ def test_the_bulk_options_are_checked(cli, tmp_db, walked):
     assert r.code == 2 and "give no ID, CONDITION, FILE" in r.err
     r = cli("drive", "import", "TOR-A01")
     assert r.code == 2 and "required: CONDITION, FILE (or --from MANIFEST" in r.err
+
+
+def test_familiarisation_drives_are_summarised_apart_from_the_conditions(cli, tmp_db, walked, tmp_path):
+    assert cli("drive", "import", "--dir", walked, "--pattern", "{participant}_{condition}.csv").code == 2  # TOR-A03
+    (walked / "TOR-A03_visual.csv").unlink()
+    assert cli("drive", "import", "--dir", walked, "--pattern", "{participant}_{condition}.csv").code == 0
+    assert cli("analyze", "drives", "--out", tmp_path / "d").code == 0
+    kpis = pd.read_csv(tmp_path / "d" / "kpis.csv")
+    assert list(kpis.columns[:4]) == ["participant_id", "condition", "phase", "drive_id"]
+    fam = kpis[kpis["phase"] == "familiarisation"]
+    assert len(fam[fam["segment"] == "overall"]) == 3 and fam["condition"].isna().all()
+    phases = pd.read_csv(tmp_path / "d" / "phases.csv")
+    trip = phases[(phases["phase"] == "familiarisation") & (phases["metric"] == "trip_time_s")].iloc[0]
+    assert trip["n"] == 3 and trip["mean"] == pytest.approx(fam.loc[fam["segment"] == "overall", "trip_time_s"].mean())
+    assert (tmp_path / "d" / "phases.md").read_text().startswith("### KPIs of the drives outside the compared")
