@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Iterable
 
-from study.common.bulk_rows import BadRow, BadRows, cell, check_columns, read_table
+from study.common.bulk_rows import BadRow, BadRows, BulkRows, cell, check_columns, read_table
 from study.common.errors import UserError, shown
 
 #: columns of a manifest: participant_id, the drive (condition or phase) and the file are required
@@ -59,7 +59,7 @@ def manifest_items(path: str | Path, ignore: Iterable[str] = ()) -> list[BulkIte
     if len(set(columns)) != len(columns):
         raise UserError(f"{shown(path)}: give participant or participant_id, condition or phase, not both")
     rows = [(line, {rename.get(k, k): v for k, v in row.items()}) for line, row in table.rows]
-    check_columns(_Columns(columns), shown(path), MANIFEST_COLUMNS[:3], MANIFEST_COLUMNS[3:])
+    check_columns(BulkRows(columns, rows), shown(path), MANIFEST_COLUMNS[:3], MANIFEST_COLUMNS[3:])
     base = path.parent
     out = []
     for line, row in rows:
@@ -68,11 +68,6 @@ def manifest_items(path: str | Path, ignore: Iterable[str] = ()) -> list[BulkIte
                             (base / file) if file else Path(""), cell(row.get("mapping")), cell(row.get("format")),
                             cell(row.get("vehicle"))))
     return out
-
-
-@dataclass(frozen=True)
-class _Columns:
-    columns: list[str]
 
 
 def pattern_regex(pattern: str) -> re.Pattern:
