@@ -135,9 +135,12 @@ def _summary_cells(t: pd.DataFrame, spec=None) -> tuple[list[str], list[list[str
     metrics = [c[:-5] for c in t.columns if c.endswith("_mean")]
     keys = [c for c in t.columns if c != "n" and not c.endswith(("_mean", "_sd"))]
     headings = spec.headings if spec is not None else {}
+    # rounded for reading by the KPI's unit (kpi_table.csv and summary.csv keep full precision)
+    dec = {m: spec.decimals(m) if spec is not None else 3 for m in metrics}
     header = [k.capitalize() for k in keys] + ["n"] + [f"{headings.get(m, m)} mean (SD)" for m in metrics]
     rows = [[str(r[k]) for k in keys] + [str(int(r["n"]))]
-            + [f"{_fmt(r[f'{m}_mean'], 3)} ({_fmt(r[f'{m}_sd'], 3)})" for m in metrics] for _, r in t.iterrows()]
+            + [f"{_fmt(r[f'{m}_mean'], dec[m])} ({_fmt(r[f'{m}_sd'], dec[m])})" for m in metrics]
+            for _, r in t.iterrows()]
     return header, rows
 
 
