@@ -216,12 +216,17 @@ def phase_summary(kpis: pd.DataFrame, spec) -> pd.DataFrame:
 
 
 def write_phases(result, out: Path) -> list[Path]:
-    """phases.csv (full precision), .md and .tex (for reading) when the store has drives outside the conditions;
-    the report's drive section shows the table apart from the compared conditions."""
-    from analysis.render import write_table
-
+    """phases.csv (full precision), .md and .tex (each KPI to the decimals of its unit) when the store has drives
+    outside the conditions; the report's drive section shows the table apart from the compared conditions."""
     table = phase_summary(result.kpis, result.spec)
     if table.empty:
         return []
-    return write_table(table, out, PHASES, title="KPIs of the drives outside the compared conditions (whole drive, "
-                                                 "e.g. familiarisation; in no comparison)", digits=3)
+    title = "KPIs of the drives outside the compared conditions (whole drive, e.g. familiarisation; in no comparison)"
+    header = list(table.columns)
+    rows = [[r.phase, r.metric, str(int(r.n))] + [_fmt(getattr(r, c), result.spec.decimals(r.metric))
+                                                  for c in header[3:]] for r in table.itertuples(index=False)]
+    paths = [out / f"{PHASES}.csv", out / f"{PHASES}.md", out / f"{PHASES}.tex"]
+    table.to_csv(paths[0], index=False)
+    paths[1].write_text(markdown_table(header, rows, title), encoding="utf-8")
+    paths[2].write_text(latex_table(header, rows, title, (), f"tab:{PHASES}"), encoding="utf-8")
+    return paths
