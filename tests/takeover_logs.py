@@ -31,10 +31,11 @@ def takeover_time(participant: str, condition: str) -> float:
     return max(0.8, TAKEOVER_S[condition] + person.normal(0, 0.35) + noise.normal(0, 0.25))
 
 
-def make_log(participant: str, condition: str | None) -> pd.DataFrame:
-    """One drive's log as the lab writes it (columns time_ms, speed_mph, dist_ft, tor, hands_on)."""
+def make_log(participant: str, condition: str | None, duration_s: float = DURATION_S) -> pd.DataFrame:
+    """One drive's log as the lab writes it (columns time_ms, speed_mph, dist_ft, tor, hands_on), `duration_s`
+    long (at least 60 s: the request and the slowing down)."""
     rng = np.random.default_rng(zlib.crc32(f"log/{participant}/{condition}".encode()))
-    t = np.arange(int(DURATION_S * RATE_HZ)) / RATE_HZ
+    t = np.arange(int(duration_s * RATE_HZ)) / RATE_HZ
     v = 118 / 3.6 + np.cumsum(rng.normal(0, 0.01, t.size))           # m/s, automated: nearly constant
     tor = np.zeros(t.size, dtype=int)
     hands = np.zeros(t.size, dtype=int)
@@ -49,7 +50,7 @@ def make_log(participant: str, condition: str | None) -> pd.DataFrame:
                          "dist_ft": np.round(s / FT, 3), "tor": tor, "hands_on": hands})
 
 
-def write_log(folder: Path, participant: str, condition: str | None) -> Path:
+def write_log(folder: Path, participant: str, condition: str | None, duration_s: float = DURATION_S) -> Path:
     path = Path(folder) / f"{participant}_{condition or 'familiarisation'}.csv"
-    make_log(participant, condition).to_csv(path, index=False)
+    make_log(participant, condition, duration_s).to_csv(path, index=False)
     return path

@@ -407,7 +407,8 @@ UNAVAILABLE = "unavailable"
 def store_kpis(st, drive_ids=None, params: KpiParams | None = None, spec=None) -> pd.DataFrame:
     """KPIs of the drives in the store ``st`` (a :class:`study.store.store.Store`), optionally only ``drive_ids``, as the
     study declares them (``spec``: :class:`study.folder.kpi_spec.KpiSpec`, default the store's study's; ``params``
-    overrides its thresholds). Columns participant_id, condition, drive_id, segment, n_intervals, then the declared
+    overrides its thresholds). Columns participant_id, condition, phase (the drive phase of a drive outside the
+    conditions, e.g. familiarisation; empty for a condition's drive), drive_id, segment, n_intervals, then the declared
     KPI columns (:attr:`KpiSpec.columns`). :func:`store_kpis_with_sources` also says where each energy comes from."""
     return store_kpis_with_sources(st, drive_ids, params, spec)[0]
 
@@ -428,7 +429,7 @@ def store_kpis_with_sources(st, drive_ids=None, params: KpiParams | None = None,
 
         spec = study_spec(definition(st))
     params = params or spec.params
-    out_cols = ["participant_id", "condition", "drive_id", "segment", "n_intervals", *spec.columns]
+    out_cols = ["participant_id", "condition", "phase", "drive_id", "segment", "n_intervals", *spec.columns]
     con = st.con
     where = ""
     if drive_ids is not None:
@@ -485,7 +486,7 @@ def store_kpis_with_sources(st, drive_ids=None, params: KpiParams | None = None,
                {p_expr} AS p_batt, r.tl_id, r.tl_state, r.d_tl{rest}
         FROM kpi_src_raw r {join} ORDER BY r.drive_id, r.idx""")
     k = kpis_from_relation(con, "kpi_src", params, sql_kpis=user)
-    drives = con.execute("SELECT drive_id, participant_id, condition FROM drives").df()
+    drives = con.execute("SELECT drive_id, participant_id, condition, phase FROM drives").df()
     return drives.merge(k, on="drive_id", how="inner")[out_cols], sources
 
 

@@ -135,9 +135,12 @@ def _summary_cells(t: pd.DataFrame, spec=None) -> tuple[list[str], list[list[str
     metrics = [c[:-5] for c in t.columns if c.endswith("_mean")]
     keys = [c for c in t.columns if c != "n" and not c.endswith(("_mean", "_sd"))]
     headings = spec.headings if spec is not None else {}
+    # rounded for reading by the KPI's unit (kpi_table.csv and summary.csv keep full precision)
+    dec = {m: spec.decimals(m) if spec is not None else 3 for m in metrics}
     header = [k.capitalize() for k in keys] + ["n"] + [f"{headings.get(m, m)} mean (SD)" for m in metrics]
     rows = [[str(r[k]) for k in keys] + [str(int(r["n"]))]
-            + [f"{_fmt(r[f'{m}_mean'], 3)} ({_fmt(r[f'{m}_sd'], 3)})" for m in metrics] for _, r in t.iterrows()]
+            + [f"{_fmt(r[f'{m}_mean'], dec[m])} ({_fmt(r[f'{m}_sd'], dec[m])})" for m in metrics]
+            for _, r in t.iterrows()]
     return header, rows
 
 
@@ -162,6 +165,7 @@ def write_tables(result, out_dir: str | Path) -> list[Path]:
         put(f"{stem}.md", kpi_markdown(h, r, title, notes, text_columns))
         put(f"{stem}.tex", latex_table(h, r, title, notes, label))
 
+    written += write_phases(result, out)
     comparison = result.spec.comparison
     if comparison is None:
         for name, df in (("kpis.csv", result.kpis), ("summary.csv", result.summary)):
@@ -190,3 +194,39 @@ def bands_markdown(bands: pd.DataFrame) -> str:
     rows = [[b["band"], "yes" if b["holds"] else "no", b["note"], _fmt(b["paper_value"]), _fmt(b["our_value"])]
             for _, b in bands.iterrows()]
     return kpi_markdown(header, rows, "Reproduction bands", text_columns=3)
+
+
+#: the drives outside the compared conditions (familiarisation, practice), summarised apart
+PHASES = "phases"
+
+
+def phase_summary(kpis: pd.DataFrame, spec) -> pd.DataFrame:
+    """phase, metric, n, mean, median, sd, min, max of every declared KPI over the whole drive of the drives that
+    belong to a drive phase without a condition (e.g. the familiarisation drive's takeover time); empty when the
+    store has none."""
+    from analysis.drives.savings import _stats
+
+    cols = ["phase", "metric", "n", "mean", "median", "sd", "min", "max"]
+    if "phase" not in kpis.columns:
+        return pd.DataFrame(columns=cols)
+    k = kpis[kpis["phase"].notna() & (kpis["segment"] == "overall")]
+    rows = [{"phase": ph, "metric": m, **_stats(g[m])} for ph, g in k.groupby("phase", sort=False)
+            for m in spec.columns]
+    return pd.DataFrame(rows, columns=cols)
+
+
+def write_phases(result, out: Path) -> list[Path]:
+    """phases.csv (full precision), .md and .tex (each KPI to the decimals of its unit) when the store has drives
+    outside the conditions; the report's drive section shows the table apart from the compared conditions."""
+    table = phase_summary(result.kpis, result.spec)
+    if table.empty:
+        return []
+    title = "KPIs of the drives outside the compared conditions (whole drive, e.g. familiarisation; in no comparison)"
+    header = list(table.columns)
+    rows = [[r.phase, r.metric, str(int(r.n))] + [_fmt(getattr(r, c), result.spec.decimals(r.metric))
+                                                  for c in header[3:]] for r in table.itertuples(index=False)]
+    paths = [out / f"{PHASES}.csv", out / f"{PHASES}.md", out / f"{PHASES}.tex"]
+    table.to_csv(paths[0], index=False)
+    paths[1].write_text(markdown_table(header, rows, title), encoding="utf-8")
+    paths[2].write_text(latex_table(header, rows, title, (), f"tab:{PHASES}"), encoding="utf-8")
+    return paths

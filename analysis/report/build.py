@@ -53,13 +53,19 @@ class ReportConfig:
     seed: int = 0
     n_boot: int = 2000
     force: bool = False
-    cache_dir: Path = field(default_factory=lambda: REPO_ROOT / ".report-cache")
+    # step and drive cache; None: `.report-cache` beside the output folder (so an installed tool writes nothing into
+    # its package: `make report` in a checkout gets <checkout>/.report-cache as before)
+    cache_dir: Path | None = None
     reference_dir: Path = REFERENCE_DIR
     scenario: str = DEFAULT_SCENARIO  # the traffic scenario of the reference cohort's drives (pedas.scenario)
     # reference mode: the same cohort also driven in this scenario, its bands beside the default's (None: not)
     compare_scenario: str | None = SINGLE_LANE
     # the committed what-if sweep the report re-analyses (`make sweep`, docs/sweep.md)
     sweep_dir: Path = field(default_factory=lambda: REPO_ROOT / "data" / "sweep")
+
+    def __post_init__(self) -> None:
+        if self.cache_dir is None:
+            self.cache_dir = Path(self.out).resolve().parent / ".report-cache"
 
     def comparison_db(self) -> Path:
         """The store of the comparison scenario's drives, beside `db`."""

@@ -11,11 +11,15 @@ optionally the period in which the condition was driven) and returns a :class:`W
   = SS_c / (SS_c + SS_subjects + SS_error); Mauchly's W and its p (pingouin ``sphericity``); the Greenhouse-Geisser
   and Huynh-Feldt epsilons (pingouin ``epsilon``; HF capped at 1 as pingouin and car's corrected p do) and the
   p-values of F on (eps (k - 1), eps (n - 1)(k - 1)) df;
-- ``friedman``: Friedman's chi^2 on k - 1 df and Kendall's W = chi^2 / (n (k - 1)) (pingouin ``friedman``);
-- ``posthoc``: every pair of conditions a < b (in the conditions' order), the paired t-test and the Wilcoxon
-  signed-rank test (pingouin ``pairwise_tests``; Wilcoxon with zero differences dropped, normal approximation with
-  continuity correction when there are ties or zeros, as R's ``wilcox.test``), Holm's correction over the pairs of
-  each test, Cohen's d_z = mean(a - b) / SD(a - b) (pingouin ``effsize="cohen_dz"``);
+- ``friedman``: Friedman's chi^2 with the tie correction on k - 1 df and Kendall's W = chi^2 / (n (k - 1)) (R's
+  ``friedman.test``, :func:`analysis.ranks.friedman`);
+- ``posthoc``: every pair of conditions a < b (in the conditions' order), the paired t-test (pingouin
+  ``pairwise_tests``) and the Wilcoxon signed-rank test as R's ``wilcox.test(a, b, paired = TRUE)``
+  (:func:`analysis.ranks.wilcoxon_signed_rank`: V = the rank sum of the positive differences, zero differences
+  dropped, the exact distribution only without ties and zeros, else the normal approximation with continuity and
+  tie correction), Holm's correction over the pairs of each test, Cohen's d_z = mean(a - b) / SD(a - b) (pingouin
+  ``effsize="cohen_dz"``). Both rank tests compare values at the variable's resolution (:mod:`analysis.ranks`), so
+  values the data tie stay tied through float noise;
 - ``mixed`` and ``mixed_fit``: the linear mixed model value ~ C(condition) + C(period) + (1 | participant)
   (statsmodels ``MixedLM``, REML) on every row: fixed effects with SE, Wald z, normal p and 95 % CI; the
   random-intercept and residual variances, convergence and whether the random-intercept variance is on the
@@ -176,30 +180,52 @@ def _anova(pg, c: pd.DataFrame, variable: str, k: int) -> pd.DataFrame:
     }], columns=ANOVA)
 
 
-def _friedman(pg, c: pd.DataFrame, variable: str, k: int) -> pd.DataFrame:
-    fr = pg.friedman(data=c, dv="value", within="condition", subject="participant", method="chisq").iloc[0]
-    return pd.DataFrame([{"variable": variable, "source": "condition", "n": int(c["participant"].nunique()),
-                          "k": k, "chi2": float(fr["Q"]), "df": float(fr["ddof1"]), "p": float(fr["p_unc"]),
-                          "kendall_w": float(fr["W"])}], columns=FRIEDMAN)
+def _friedman(c: pd.DataFrame, variable: str, k: int, resolution: float | None) -> pd.DataFrame:
+    """R's friedman.test at the variable's resolution (:func:`analysis.ranks.friedman`)."""
+    from analysis.ranks import friedman
 
-
-def _posthoc(pg, c: pd.DataFrame, variable: str) -> pd.DataFrame:
     wide = c.pivot(index="participant", columns="condition", values="value")
-    frames = []
-    for parametric, test, stat in ((True, "t", "T"), (False, "wilcoxon", "W_val")):
-        with _warnings.catch_warnings():
-            # a pair without any difference gives NaN statistics; pingouin/scipy warn about it, the NaN stays
-            _warnings.simplefilter("ignore", RuntimeWarning)
-            pt = pg.pairwise_tests(data=c, dv="value", within="condition", subject="participant",
-                                   parametric=parametric, padjust="holm", effsize="cohen_dz")
-        holm = pt["p_corr"] if "p_corr" in pt else pt["p_unc"]  # one pair: pingouin adjusts nothing, Holm(p) = p
-        frames.append(pd.DataFrame({
-            "variable": variable, "a": pt["A"].astype(str), "b": pt["B"].astype(str), "test": test,
-            "n": len(wide), "mean_diff": [float((wide[a] - wide[b]).mean()) for a, b in zip(pt["A"], pt["B"])],
-            "statistic": pt[stat].astype(float), "df": pt["dof"].astype(float) if parametric else np.nan,
-            "p": pt["p_unc"].astype(float), "p_holm": holm.astype(float),
-            "dz": pt["cohen_dz"].astype(float)}))
-    return pd.concat(frames, ignore_index=True)[POSTHOC]
+    fr = friedman(wide.to_numpy(dtype=float), resolution)
+    return pd.DataFrame([{"variable": variable, "source": "condition", "n": fr.n, "k": k, "chi2": fr.statistic,
+                          "df": float(k - 1), "p": fr.p, "kendall_w": fr.estimate}], columns=FRIEDMAN)
+
+
+def _posthoc(pg, c: pd.DataFrame, variable: str, resolution: float | None) -> pd.DataFrame:
+    """The paired t-tests (pingouin) and R's paired wilcox.test at the variable's resolution
+    (:func:`analysis.ranks.wilcoxon_signed_rank`: V = the rank sum of the positive differences a - b) of every
+    pair, each test Holm-corrected over the pairs."""
+    from analysis.ranks import wilcoxon_signed_rank
+
+    wide = c.pivot(index="participant", columns="condition", values="value")
+    with _warnings.catch_warnings():
+        # a pair without any difference gives NaN statistics; pingouin/scipy warn about it, the NaN stays
+        _warnings.simplefilter("ignore", RuntimeWarning)
+        pt = pg.pairwise_tests(data=c, dv="value", within="condition", subject="participant",
+                               parametric=True, padjust="holm", effsize="cohen_dz")
+    pairs = list(zip(pt["A"].astype(str), pt["B"].astype(str)))
+    diff = [float((wide[a] - wide[b]).mean()) for a, b in pairs]
+    holm = pt["p_corr"] if "p_corr" in pt else pt["p_unc"]  # one pair: pingouin adjusts nothing, Holm(p) = p
+    t = pd.DataFrame({"variable": variable, "a": [a for a, _ in pairs], "b": [b for _, b in pairs], "test": "t",
+                      "n": len(wide), "mean_diff": diff, "statistic": pt["T"].astype(float),
+                      "df": pt["dof"].astype(float), "p": pt["p_unc"].astype(float), "p_holm": holm.astype(float),
+                      "dz": pt["cohen_dz"].astype(float)})
+    tests = [wilcoxon_signed_rank(wide[a], wide[b], resolution) for a, b in pairs]
+    p = np.array([r.p for r in tests])
+    w = t.assign(test="wilcoxon", statistic=[r.statistic for r in tests], df=np.nan, p=p, p_holm=_holm(p))
+    return pd.concat([t, w], ignore_index=True)[POSTHOC]
+
+
+def _holm(p: np.ndarray) -> np.ndarray:
+    """Holm's step-down adjusted p-values (R's p.adjust(method = "holm")); NaN stays NaN and is not counted."""
+    out = np.full(len(p), np.nan)
+    ok = np.flatnonzero(~np.isnan(p))
+    order = ok[np.argsort(p[ok], kind="stable")]
+    m = len(order)
+    running = 0.0
+    for i, j in enumerate(order):
+        running = max(running, min(1.0, (m - i) * p[j]))
+        out[j] = running
+    return out
 
 
 def _design(d: pd.DataFrame, conditions, period: bool) -> tuple[pd.DataFrame, list[tuple[str, str, str]]]:
@@ -286,7 +312,7 @@ def _mixed(sm, d: pd.DataFrame, variable: str, conditions, period: bool) -> tupl
 
 def compare_within(data: pd.DataFrame, dv: str = "value", subject: str = "participant",
                    within: str = "condition", period: str | None = None, conditions=None,
-                   variable: str | None = None) -> WithinComparison:
+                   variable: str | None = None, resolution: float | None = None) -> WithinComparison:
     """Compare the conditions of one dependent variable within subjects.
 
     Parameters
@@ -303,6 +329,9 @@ def compare_within(data: pd.DataFrame, dv: str = "value", subject: str = "partic
         the categories of a categorical `within` column, else the order of first appearance.
     variable : str, optional
         Name in the output's ``variable`` column (default `dv`).
+    resolution : float, optional
+        The step at which values tie for the rank tests (Friedman, Wilcoxon; :mod:`analysis.ranks`), e.g. 1/6 for a
+        mean of six whole-number items; default: 1e-9 of the largest magnitude.
 
     Returns
     -------
@@ -351,5 +380,6 @@ def compare_within(data: pd.DataFrame, dv: str = "value", subject: str = "partic
     return WithinComparison(
         variable=variable, conditions=conditions, n_participants=int(counts.size), n_complete=len(complete),
         dropped=dropped, descriptives=_descriptives(d, variable, conditions), anova=_anova(pg, c, variable, k),
-        friedman=_friedman(pg, c, variable, k), posthoc=_posthoc(pg, c, variable), mixed=fixed, mixed_fit=fit,
+        friedman=_friedman(c, variable, k, resolution), posthoc=_posthoc(pg, c, variable, resolution), mixed=fixed,
+        mixed_fit=fit,
         warnings=tuple(notes + mixed_notes))

@@ -105,7 +105,7 @@ def axis_label(v) -> str:
 
 
 def analyze_within(data: pd.DataFrame, conditions, *, items: pd.DataFrame | None = None,
-                   alpha: float = 0.05) -> WithinStudy:
+                   alpha: float = 0.05, resolutions: dict[str, float | None] | None = None) -> WithinStudy:
     """Compare every variable of `data` across `conditions` (:func:`compare_within`, with the period as a fixed
     effect of the mixed model when `data` has a ``period`` column).
 
@@ -121,6 +121,10 @@ def analyze_within(data: pd.DataFrame, conditions, *, items: pd.DataFrame | None
         condition.
     alpha : float
         Significance level of the sentences and of the sphericity decision.
+    resolutions : dict, optional
+        variable -> the step at which its values tie in the rank tests (:mod:`analysis.ranks`; a score's from its
+        declaration, :func:`analysis.within.data.resolutions`); a variable not named is compared at 1e-9 of its
+        largest magnitude.
     """
     from analysis.survey.omega import omega_stack
     from analysis.survey.reliability import cronbach_alpha
@@ -139,7 +143,7 @@ def analyze_within(data: pd.DataFrame, conditions, *, items: pd.DataFrame | None
     for v in variables["variable"]:
         d = data[data["variable"] == v]
         r = compare_within(d, period="period" if has_period and d["period"].nunique() > 1 else None,
-                           conditions=conditions, variable=v)
+                           conditions=conditions, variable=v, resolution=(resolutions or {}).get(v))
         parts.append(r)
         warnings += list(r.warnings)
 
@@ -267,7 +271,7 @@ def methods_markdown(study: WithinStudy) -> str:
 def analyze_store_within(st, study=None) -> tuple[WithinStudy, pd.DataFrame]:
     """(the analysis, its long data) of the ``[within]`` declaration of the store's study
     (:mod:`analysis.within.data`); UserError when the study declares none or the store has nothing to compare."""
-    from analysis.within.data import within_data
+    from analysis.within.data import resolutions, within_data
     from study.store.studies import definition
     from study.folder.within_spec import within_spec
 
@@ -278,4 +282,5 @@ def analyze_store_within(st, study=None) -> tuple[WithinStudy, pd.DataFrame]:
     data, items = within_data(st, study, spec)
     if data.empty:
         raise UserError("the store has no scores or KPIs of the compared conditions yet")
-    return analyze_within(data, spec.conditions, items=items, alpha=study.alpha), data
+    return analyze_within(data, spec.conditions, items=items, alpha=study.alpha,
+                          resolutions=resolutions(st, study, spec)), data

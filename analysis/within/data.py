@@ -99,3 +99,15 @@ def within_data(st, study, spec) -> tuple[pd.DataFrame, pd.DataFrame]:
     data = (data.assign(_v=data["variable"].map(order)).sort_values(["_v", "participant", "condition"], kind="stable")
             .drop(columns="_v").reset_index(drop=True))
     return data[COLUMNS], items
+
+
+def resolutions(st, study, spec) -> dict[str, float | None]:
+    """variable -> the step at which its values tie in the rank tests: each compared score's from its declaration
+    (:func:`study.folder.scores.score_resolution`); KPIs are left to the default (1e-9 of the largest magnitude,
+    :func:`analysis.ranks.resolution_of`)."""
+    from study.folder.scores import score_resolution, study_scores
+    from study.survey.answers import instrument_of
+
+    declared = {s.name: s for s in study_scores(study)}
+    return {name: score_resolution(declared[name], instrument_of(st, declared[name].instrument))
+            for name in spec.scores if name in declared}

@@ -23,6 +23,7 @@ import argparse
 import importlib
 import logging
 import os
+import re
 import signal
 import sys
 import threading
@@ -139,7 +140,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 def error_line(exc: BaseException) -> str:
     """The one line printed for an exception: its message for bad input, else marked as an internal error."""
-    text = " ".join(str(exc).split())
+    from study.common.errors import escaped
+
+    # one line: runs of blanks and line breaks become a space, other control characters (a CR in a file
+    # name) are shown escaped rather than hidden
+    text = escaped(re.sub(r"[ \t\n]+", " ", str(exc)).strip())
     if isinstance(exc, UsageError):
         return f"{text.split(': ', 1)[0]}: error: {text.split(': ', 1)[1]}"
     if is_user_error(exc):

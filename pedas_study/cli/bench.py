@@ -19,6 +19,20 @@ def _import(args) -> None:
           f"({r.peer_rows_per_s:,.0f} rows/s); ratio {r.ratio:.1f}x")
 
 
+# ---------------------------------------------------------------------------------------------- bench bulk-import
+def _bulk_import(args) -> None:
+    import json
+    import sys
+
+    from pedas_study.bench.bulk_import import bench_bulk_import
+
+    if args.repeats < 1 or args.single_repeats < 1:
+        raise ValueError("--repeats and --single-repeats must be >= 1")
+    r = bench_bulk_import(args.repeats, args.single_repeats,
+                          progress=None if args.json else lambda msg: print(msg, file=sys.stderr, flush=True))
+    print(json.dumps(r.as_dict(), indent=1) if args.json else r.to_text())
+
+
 # ---------------------------------------------------------------------------------------------- bench cli
 def _cli(args) -> None:
     import json
@@ -253,6 +267,14 @@ def register(cli) -> None:
     p = g.command("import", "throughput of drive-log import (rows/s) vs a plain DuckDB load", _import)
     p.add_argument("--rows", type=int, default=1_000_000)
     p.add_argument("--repeats", type=int, default=3)
+    p.add_argument("--json", action="store_true")
+
+    p = g.command("bulk-import", "the takeover study's 72 drive logs (20 Hz, 2,300 samples each) imported after the "
+                  "protocol: one `drive import --dir` vs 72 `drive import` calls, each a fresh process; medians, "
+                  "ratio, peak memory", _bulk_import)
+    p.add_argument("--repeats", type=int, default=3, metavar="N", help="runs of the bulk import (default 3)")
+    p.add_argument("--single-repeats", dest="single_repeats", type=int, default=1, metavar="N",
+                   help="runs of the 72 one-by-one imports (default 1: ~2 s a call)")
     p.add_argument("--json", action="store_true")
 
     p = g.command("export", "time and peak memory of exports (parquet, csv, csv --deidentify) of a store of "

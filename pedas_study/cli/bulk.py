@@ -23,13 +23,20 @@ def apply_file(args, name: str, apply, report) -> int | None:
 
     from pedas_study.cli.common import open_store
     from study.common.bulk_rows import BadRows, read_table
+    from study.common.errors import shown, split_names
 
     path = Path(getattr(args, name))
     try:
-        rows = read_table(path)
+        rows = read_table(path, split_names(getattr(args, "ignore_columns", None)))
         with open_store(args) as st:
-            result = apply(st, rows, source=path.name)
+            result = apply(st, rows, source=shown(path))
     except BadRows as exc:
         return refused(exc)
     print(report(result))  # after closing: the store is held only while used
     return None
+
+
+def add_ignore_option(p) -> None:
+    """``--ignore-columns a,b`` of a command that reads a bulk file."""
+    p.add_argument("--ignore-columns", dest="ignore_columns", default=None, metavar="A,B",
+                   help="columns of the file to leave out (a lab's own bookkeeping), comma-separated")

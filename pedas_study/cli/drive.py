@@ -3,11 +3,20 @@ from __future__ import annotations
 
 import sys
 
+from pedas_study.cli.bulk import add_ignore_option
 from pedas_study.cli.common import (DRIVE_CACHE_HELP, add_format_option, add_scenario_option, format_frame, open_store,
                                     scenario_of, simulate_and_store)
 
 
-def _import(args) -> None:
+def _import(args) -> int | None:
+    if args.manifest is not None or args.dir is not None:
+        return _import_many(args)
+    if args.pattern is not None or args.jobs is not None:
+        args.usage_error("--pattern goes with --dir, --jobs with --from or --dir")
+    if args.file is None:
+        missing = [n for n, v in (("ID", args.id), ("CONDITION", args.condition), ("FILE", args.file)) if v is None]
+        args.usage_error(f"the following arguments are required: {', '.join(missing)} (or --from MANIFEST, or "
+                         f"--dir DIR --pattern PATTERN)")
     from study.logs.importing import import_drive_file
 
     def progress(msg: str) -> None:
@@ -26,6 +35,62 @@ def _import(args) -> None:
           f"in {r.seconds:.2f} s ({r.rows_per_second:,.0f} rows/s); energy: {r.energy_source}{channels}{extra}")
     for problem in r.overridden:
         print(f"note: imported with --force despite: {problem}", file=sys.stderr)
+
+
+def _import_many(args) -> int | None:
+    """`drive import --from MANIFEST` or `--dir DIR --pattern PATTERN`: every log at once, all or nothing."""
+    from pedas_study.cli.bulk import refused
+    from study.common.bulk_rows import BadRows
+    from study.common.errors import shown, split_names
+    from study.logs import bulk_import
+
+    if args.id is not None or args.map is not None or args.log_format is not None or args.vehicle is not None \
+            or args.net is not None or args.route is not None:
+        args.usage_error("--from and --dir take the drives from the list: give no ID, CONDITION, FILE, --map, "
+                         "--format, --vehicle, --net or --route with them (a manifest has mapping, format, vehicle "
+                         "columns)")
+    if (args.manifest is None) == (args.dir is None):
+        args.usage_error("give either --from MANIFEST or --dir DIR --pattern PATTERN")
+    if args.dir is not None and args.pattern is None:
+        args.usage_error("--dir needs --pattern, e.g. --pattern \"{participant}_{condition}.csv\"")
+    if args.jobs is not None and args.jobs < 1:
+        args.usage_error("--jobs must be at least 1")
+    other: list[str] = []
+    try:
+        if args.manifest is not None:
+            items = bulk_import.manifest_items(args.manifest, split_names(args.ignore_columns))
+            source = shown(args.manifest)
+        else:
+            items, other = bulk_import.folder_items(args.dir, args.pattern)
+            source = shown(args.dir)
+        from study.common.units import units
+
+        units()   # before the store is held, as a single import does
+        with open_store(args) as st:
+            r = bulk_import.import_many(st, items, source, replace=args.replace, force=args.force, jobs=args.jobs,
+                                        progress=_bar)
+    except BadRows as exc:
+        return refused(exc)
+    if other:
+        print(f"note: {len(other)} file(s) of {source} do not match the pattern: {', '.join(other[:5])}"
+              f"{', ...' if len(other) > 5 else ''}", file=sys.stderr)
+    parts = [f"{r.imported} imported"] + [f"{n} {s}" for n, s in ((r.replaced, "replaced"), (r.unchanged, "unchanged"))
+                                          if n]
+    print(f"{len(items)} drive logs of {r.participants} participant{'s' if r.participants != 1 else ''} from "
+          f"{source}: {', '.join(parts)} "
+          f"({r.samples:,} samples)")
+    for d in r.results:
+        for problem in d.overridden:
+            print(f"note: {d.participant_id} {d.condition}: imported with --force despite: {problem}", file=sys.stderr)
+    return None
+
+
+def _bar(total: int):
+    """A progress bar of the files read (on stderr when it is a terminal)."""
+    from tqdm import tqdm
+
+    bar = tqdm(total=total, unit="file", desc="reading", file=sys.stderr, disable=None, leave=False)
+    return lambda: bar.update(1)
 
 
 def _list(args) -> None:
@@ -77,11 +142,23 @@ def register(cli) -> None:
     from pedas.vocabulary import CONDITIONS
 
     g = cli.group("drive", "drive logs")
-    p = g.command("import", "import a drive log (CSV, Parquet or SUMO FCD XML) for a participant", _import)
-    p.add_argument("id", metavar="ID")
-    p.add_argument("condition", metavar="CONDITION", help="a condition the study declares, or a drive phase without "
-                                                          "one (familiarisation)")
-    p.add_argument("file", metavar="FILE")
+    p = g.command("import", "import a drive log (CSV, Parquet or SUMO FCD XML) for a participant; --from or --dir: "
+                            "many logs at once, all or nothing", _import)
+    p.add_argument("id", metavar="ID", nargs="?")
+    p.add_argument("condition", metavar="CONDITION", nargs="?",
+                   help="a condition the study declares, or a drive phase without one (familiarisation)")
+    p.add_argument("file", metavar="FILE", nargs="?")
+    p.add_argument("--from", dest="manifest", default=None, metavar="MANIFEST.csv",
+                   help="import every log the manifest lists (columns participant_id, condition or phase, file "
+                        "relative to the manifest; optionally mapping, format, vehicle), all or nothing")
+    p.add_argument("--dir", default=None, metavar="DIR", help="import every file of DIR whose name matches --pattern")
+    p.add_argument("--pattern", default=None, metavar="PATTERN",
+                   help='file names of --dir, e.g. "{participant}_{condition}.csv" ({condition} may name a drive '
+                        'phase without a condition)')
+    p.add_argument("--jobs", type=int, default=None, metavar="N",
+                   help="worker processes reading the files of --from/--dir (default: the machine's cores)")
+    add_ignore_option(p)
+    p.set_defaults(usage_error=p.error)
     p.add_argument("--map", default=None, metavar="FILE",
                    help="log mapping (TOML) for this file instead of the study's; 'none' = a canonical log")
     p.add_argument("--format", dest="log_format", default=None, choices=("csv", "parquet", "sumo-fcd"),
@@ -90,8 +167,8 @@ def register(cli) -> None:
     p.add_argument("--net", default=None, metavar="FILE",
                    help="the SUMO network (.net.xml) of a SUMO FCD file: limits and lights from there")
     p.add_argument("--force", default=None, metavar="REASON",
-                   help="import despite plausibility problems (distance, sampling) or a condition other than the "
-                        "participant's current drive phase; the reason is recorded")
+                   help="import despite plausibility problems (distance, sampling) or a drive phase the participant "
+                        "has not entered; the reason is recorded")
     p.add_argument("--replace", action="store_true", help="replace a different log stored for this drive")
     p.add_argument("--route", default=None, help="route name stored with the drive (default: the study's route)")
     p.add_argument("--verbose", "-v", action="store_true", help="report progress on stderr")

@@ -2,6 +2,7 @@
 the store's study, and what data each still lacks."""
 from __future__ import annotations
 
+from pedas_study.cli.bulk import add_ignore_option
 from pedas_study.cli.common import add_format_option, format_frame, open_store
 from study.common.errors import UserError
 
@@ -85,8 +86,9 @@ def register(cli) -> None:
     p.add_argument("--eco-familiarity", dest="eco_familiarity", metavar="N",
                    help="same as --attr eco_familiarity=N")
     p = g.command("import", "register the participants of a roster CSV, all or nothing (participant_id, the "
-                            "study's attribute columns, optionally protocol)", _import)
+                            "study's attribute columns, optionally protocol and order)", _import)
     p.add_argument("roster", metavar="ROSTER.csv")
+    add_ignore_option(p)
     p = g.command("list", "list participants with their attributes, protocol position and exclusions", _list)
     add_format_option(p)
     p = g.command("completeness", "per participant: the protocol phases, drives and survey answers still missing",

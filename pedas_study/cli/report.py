@@ -84,7 +84,7 @@ def register(cli) -> None:
     p.add_argument("--compare-scenario", default=SINGLE_LANE, metavar="NAME",
                    help=f"reference mode: also drive the cohort in this traffic scenario ({'|'.join(SCENARIOS)}) and "
                         f"show its bands beside the default's (default {SINGLE_LANE}; none: only --scenario)")
-    p.add_argument("--cache-dir", default=None, help="step and drive cache (default .report-cache in the checkout)")
+    p.add_argument("--cache-dir", default=None, help="step and drive cache (default .report-cache beside the --out folder)")
     p.add_argument("--bundle", nargs="?", const="", default=None, metavar="ZIP",
                    help="also write the submission bundle (tables as CSV/Markdown/LaTeX/DOCX, the study's model "
                         "files, seeds, package versions, input hashes) to ZIP (default OUT/bundle.zip)")

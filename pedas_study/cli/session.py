@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from pedas_study.cli.bulk import add_ignore_option
 from pedas_study.cli.common import add_format_option, format_frame, open_store
 from study.common.times import when
 
@@ -59,10 +60,18 @@ def _status(args) -> None:
         proto = protocol_of(st, args.id)
         df = status(st, args.id)
         exc = list_exclusions(st, args.id)
-        drives = st.df("SELECT condition, source, n_samples FROM drives WHERE participant_id = ? ORDER BY condition",
-                       [args.id])
+        drives = st.df("SELECT coalesce(condition, phase) AS condition, source, n_samples FROM drives "
+                       "WHERE participant_id = ? ORDER BY condition", [args.id])
+        order = st.dicts("SELECT order_name, given, reason FROM order_assignments WHERE participant_id = ?",
+                         [args.id])
+    entered = df[~df["outcome"].isin(["pending", "skipped"])]
+    current = (f"{entered['phase'].iloc[-1]} ({entered['outcome'].iloc[-1].replace('_', ' ')})"
+               if len(entered) else "not started")
+    order = order[0] if order else None
     if args.format == "json":
         print(json.dumps({"participant_id": args.id, "protocol": proto.name,
+                          "order": order["order_name"] if order else None,
+                          "order_given": bool(order["given"]) if order else None,
                           "phases": json.loads(df.to_json(orient="records", date_format="iso")),
                           "exclusions": json.loads(exc.to_json(orient="records", date_format="iso")),
                           "drives": json.loads(drives.to_json(orient="records"))}, indent=1))
@@ -70,7 +79,9 @@ def _status(args) -> None:
     if args.format == "csv":
         print(format_frame(df, "csv"))
         return
-    print(f"{args.id} (protocol {proto.name})")
+    given = (" (given" + (f": {order['reason']}" if order["reason"] else "") + ")") if order and order["given"] else ""
+    print(f"{args.id} (protocol {proto.name}" + (f", order {order['order_name']}{given}" if order else "") + ")")
+    print(f"current phase: {current}")
     print(format_frame(df.drop(columns=["seq"]), "table"))
     if exc.empty:
         print("exclusions: none")
@@ -111,9 +122,43 @@ def _close(status: str):
 def _assign(args) -> None:
     from study.people.orders import assign_order
 
+    if args.reason is not None and args.order is None:
+        args.usage_error("--reason goes with --order (a drawn order needs none)")
     with open_store(args) as st:
-        order = assign_order(st, args.id)
-    print(f"{args.id}: order {order}")
+        order = assign_order(st, args.id, args.order, args.reason)
+    print(f"{args.id}: order {order}" + (" (given)" if args.order else ""))
+
+
+def _orders(args) -> None:
+    from study.people.orders import order_balance
+
+    with open_store(args, read_only=True) as st:
+        counts, deviations = order_balance(st)
+    columns = ["protocol", "order_name", "assigned", "given", "dropped_out", "active"]
+    if args.format != "table":
+        import json
+
+        if args.format == "json":
+            print(json.dumps({"orders": [dict(zip(columns, c)) for c in counts], "deviations": deviations},
+                             indent=1))
+        else:
+            from pedas_study.cli.rows_text import format_rows
+
+            print(format_rows(columns, counts, "csv"))
+        return
+    from pedas_study.cli.rows_text import format_rows
+
+    print(format_rows(columns, counts, "table") if counts else "no orders assigned")
+    for proto in dict.fromkeys(c[0] for c in counts):
+        active = [c[5] for c in counts if c[0] == proto]
+        if max(active) - min(active) > 1:
+            print(f"{proto}: active participants per order differ by {max(active) - min(active)} "
+                  f"(the design keeps them within 1)")
+    for d in deviations:
+        why = f": {d['reason']}" if d["reason"] else ""
+        print(f"deviation: {d['participant_id']} drove {d['order_name']}, the balanced draw was {d['drawn']}{why}")
+    if counts and not deviations:
+        print("deviations: none (every given order is the one the balanced draw gives)")
 
 
 def _add_time(p: argparse.ArgumentParser) -> None:
@@ -136,6 +181,7 @@ def register(cli) -> None:
     p.add_argument("--from", dest="events", metavar="EVENTS.csv", default=None,
                    help="apply the file's events in order instead (columns participant_id, phase and optionally "
                         "action advance|complete|abort, at, note, reason), all or nothing")
+    add_ignore_option(p)
     p.set_defaults(usage_error=p.error)
     p = g.command("abort", "abort the phase in progress (e.g. motion sickness)", _abort)
     p.add_argument("id", metavar="ID")
@@ -165,5 +211,13 @@ def register(cli) -> None:
         p = g.command(name, text, _close(status))
         p.add_argument("id")
         p.add_argument("--note", default=None)
-    p = g.command("assign", "assign the condition order of a multi-order protocol (balanced)", _assign)
+    p = g.command("assign", "assign the condition order of a multi-order protocol (balanced draw, or --order as "
+                            "it was fixed or happened)", _assign)
     p.add_argument("id")
+    p.add_argument("--order", default=None, metavar="NAME",
+                   help="the order the participant drives (one of the protocol's orders), recorded as given")
+    p.add_argument("--reason", default=None, metavar="TEXT", help="why the order was given (audited)")
+    p.set_defaults(usage_error=p.error)
+    p = g.command("orders", "the balance of the condition orders: per order assigned, given, dropped out, active; "
+                            "each given order that deviates from the balanced draw", _orders)
+    add_format_option(p)

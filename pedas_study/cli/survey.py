@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import os
 
+from pedas_study.cli.bulk import add_ignore_option
 from pedas_study.cli.common import add_format_option, format_frame, open_store
 
 PASSWORD_ENV = "PEDAS_SURVEY_PASSWORD"
@@ -11,10 +12,14 @@ PASSWORD_ENV = "PEDAS_SURVEY_PASSWORD"
 def _import(args):
     from study.survey.survey_import import import_survey
 
+    from study.common.errors import split_names
+
     with open_store(args) as st:
-        r = import_survey(st, args.file, entry=args.entry, instrument=args.instrument, occasion=args.occasion)
+        r = import_survey(st, args.file, entry=args.entry, instrument=args.instrument, occasion=args.occasion,
+                          ignore_columns=split_names(args.ignore_columns))
     kind = f"entry round {r.entry_round} of a double entry" if r.double_entry else "single electronic entry (final)"
-    at = f" at {len(r.occasions)} occasions ({', '.join(r.occasions)})" if len(r.occasions) > 1 else ""
+    at = (f" at {len(r.occasions)} occasions ({', '.join(r.occasions)}; {r.questionnaires} questionnaires)"
+          if len(r.occasions) > 1 else "")
     print(f"imported {r.participants} participants{at} ({r.answers} answers, {r.missing} missing) as {kind}")
 
 
@@ -78,6 +83,19 @@ def _final(args):
     print(f"wrote {rows} to {out}")
 
 
+def _scores(args):
+    from study.common.errors import split_names
+    from study.export.writer import write_scores
+
+    formats = split_names(args.format) or ("csv",)
+    if "sav" in formats:
+        import pyreadstat  # noqa: F401  (loaded before the store is held)
+    with open_store(args, read_only=True) as st:
+        written = write_scores(st, args.out, formats)
+    for path, n in written.items():
+        print(f"wrote {n} rows of scores to {path}")
+
+
 def _serve(args):
     import secrets
     import signal
@@ -129,6 +147,7 @@ def register(cli) -> None:
     p.add_argument("--entry", type=int, choices=(1, 2), default=None,
                    help="paper-form double entry round; without it the file is a single electronic entry (final)")
     _instrument_option(p, "the file's occasion or condition column, else the instrument's only one")
+    add_ignore_option(p)
 
     p = g.command("serve", "run the survey web form (participant links + researcher data entry)", _serve)
     p.add_argument("--host", default="127.0.0.1", help="address to bind (default 127.0.0.1: this machine only)")
@@ -163,6 +182,11 @@ def register(cli) -> None:
     p.add_argument("--note", default=None)
     _instrument_option(p)
 
+    p = g.command("scores", "write every declared score per participant and occasion (and the rated condition) "
+                            "as CSV, Parquet or SPSS .sav with labels", _scores)
+    p.add_argument("--out", required=True, metavar="DIR", help="the folder of scores.<format>")
+    p.add_argument("--format", default="csv", metavar="FORMATS",
+                   help="csv, parquet, sav or several, comma-separated (default csv)")
     p = g.command("final", "write the final answers as a wide CSV (survey CSV of docs/contracts.md)", _final)
     p.add_argument("--out", required=True, metavar="CSV")
     _instrument_option(p, "every occasion of the instrument, one row per participant and occasion")

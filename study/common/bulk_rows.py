@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterable, Sequence
 
-from study.common.errors import UserError
+from study.common.errors import UserError, shown
 from study.common.input_size import check_size
 
 if TYPE_CHECKING:  # pandas only for the DataFrame of read_rows: a bulk command reads its file without it
@@ -24,12 +24,13 @@ if TYPE_CHECKING:  # pandas only for the DataFrame of read_rows: a bulk command 
 class BadRow:
     """One row of a bulk file that a check refused (or that was not checked, see :class:`BadRows`)."""
 
-    line: int                 # line in the file, the header being line 1
+    line: int                 # line in the file, the header being line 1 (0: not a line of a file)
     participant_id: str
     reason: str
 
     def __str__(self) -> str:
-        return f"line {self.line}: {self.participant_id or '(no id)'}: {self.reason}"
+        where = f"line {self.line}: " if self.line else ""   # 0: a row of no file (a folder's file)
+        return f"{where}{self.participant_id or '(no id)'}: {self.reason}"
 
 
 class BadRows(UserError):
@@ -96,15 +97,17 @@ def csv_text(path: Path, missing: str, reason_prefix: str = "") -> str:
     try:
         text = path.read_text(encoding="utf-8-sig")
     except UnicodeDecodeError as exc:
-        raise UserError(f"{path.name}: {reason_prefix}not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+        raise UserError(f"{shown(path)}: {reason_prefix}not UTF-8 text ({exc.reason} at byte {exc.start})") from None
     if "\x00" in text:
-        raise UserError(f"{path.name}: {reason_prefix}contains NUL bytes (binary file?)")
+        raise UserError(f"{shown(path)}: {reason_prefix}contains NUL bytes (binary file?)")
     return text
 
 
-def read_table(path: str | Path) -> BulkRows:
+def read_table(path: str | Path, ignore: Sequence[str] = ()) -> BulkRows:
     """The rows of a bulk CSV as text: one column per header name (stripped), every cell stripped text ('' when
-    empty), each row with its line in the file (the header is line 1, blank lines are skipped).
+    empty), each row with its line in the file (the header is line 1, blank lines are skipped). The columns named
+    in `ignore` (``--ignore-columns``: a lab's own bookkeeping beside the declared columns) are left out; a name
+    the header lacks is refused.
 
     Refused (UserError, one line): a missing file, text that is not UTF-8 (a BOM is accepted), malformed CSV, an
     empty or duplicate column name, no rows. Rows with more or fewer fields than the header -> :class:`BadRows`.
@@ -120,23 +123,34 @@ def read_table(path: str | Path) -> BulkRows:
             if any(c.strip() for c in fields):
                 rows.append((start, [c.strip() for c in fields]))
     except csv.Error as exc:
-        raise UserError(f"{path.name}: malformed CSV at line {reader.line_num}: {exc}") from None
+        raise UserError(f"{shown(path)}: malformed CSV at line {reader.line_num}: {exc}") from None
     if not rows:
-        raise UserError(f"{path.name}: empty file (expected a header row, then one row per line)")
+        raise UserError(f"{shown(path)}: empty file (expected a header row, then one row per line)")
     header = rows[0][1]
     if "" in header:
-        raise UserError(f"{path.name}: column {header.index('') + 1} of the header has no name")
+        raise UserError(f"{shown(path)}: column {header.index('') + 1} of the header has no name")
     dup = sorted({c for c in header if header.count(c) > 1})
     if dup:
-        raise UserError(f"{path.name}: duplicate column(s) {', '.join(dup)}")
+        raise UserError(f"{shown(path)}: duplicate column(s) {', '.join(dup)}")
     body = rows[1:]
     if not body:
-        raise UserError(f"{path.name}: no rows below the header")
+        raise UserError(f"{shown(path)}: no rows below the header")
     malformed = [BadRow(line, fields[0], f"{len(fields)} fields, the header has {len(header)}")
                  for line, fields in body if len(fields) != len(header)]
     if malformed:
-        raise BadRows(path.name, malformed)
-    return BulkRows(list(header), [(line, dict(zip(header, fields))) for line, fields in body])
+        raise BadRows(shown(path), malformed)
+    kept = without_ignored(path, header, ignore)
+    return BulkRows([header[k] for k in kept], [(line, {header[k]: fields[k] for k in kept}) for line, fields in body])
+
+
+def without_ignored(path: Path, header: Sequence[str], ignore: Sequence[str]) -> list[int]:
+    """The positions of `header`'s columns that are not in `ignore`; UserError when `ignore` names a column the
+    header lacks (a misspelt name would otherwise leave the column it meant in place)."""
+    absent = [c for c in ignore if c not in header]
+    if absent:
+        raise UserError(f"{shown(path)}: --ignore-columns names no column of the file: {', '.join(absent)} "
+                        f"(the columns are {', '.join(header)})")
+    return [k for k, c in enumerate(header) if c not in ignore]
 
 
 def check_columns(frame: "pd.DataFrame | BulkRows", source: str, required: Sequence[str],
@@ -147,7 +161,7 @@ def check_columns(frame: "pd.DataFrame | BulkRows", source: str, required: Seque
     unknown = [c for c in frame.columns if c not in declared]
     if unknown:
         raise UserError(f"{source}: unknown column(s) {', '.join(map(str, unknown))}; the columns are "
-                        f"{', '.join(declared)}")
+                        f"{', '.join(declared)} (--ignore-columns {','.join(map(str, unknown))} leaves them out)")
     missing = [c for c in required if c not in frame.columns]
     if missing:
         raise UserError(f"{source}: column(s) {', '.join(missing)} missing; the columns are {', '.join(declared)}")

@@ -1,7 +1,8 @@
 """Export of the store for SPSS, R and Python: every table as CSV, Parquet or SPSS ``.sav``.
 
 Besides the tables, a wide survey file per instrument (``survey_wide_<instrument>``: one row per participant,
-one column per item, the final answers) is written, because that is the file an analyst opens in SPSS.
+one column per item, the final answers) is written, because that is the file an analyst opens in SPSS, and, when the
+study declares scores, ``scores`` (every score per participant and occasion, :func:`study.survey.scores.score_table`).
 ``participants`` carries the study's declared attributes as columns (``study.people.participants.participant_attributes``;
 the long ``participant_attributes`` table is written as well). A ``manifest.json`` lists the files, their row
 counts, the schema version and what was left out.
@@ -47,6 +48,8 @@ from study.common.errors import UserError, check_choice
 from study.common.file_checks import register_file_check
 
 FORMATS = ("csv", "parquet", "sav")
+#: the file of every declared score per participant and occasion
+SCORES = "scores"
 
 #: enumerations of the store itself (not of a study): coded 1..k in .sav files
 ENUMS: dict[str, tuple[str, ...]] = {
@@ -457,7 +460,42 @@ def collect(st, deidentify: bool = False) -> tuple[list[Part], tuple[str, ...]]:
             text_items = [i for i, kind in spec.items["response_type"].items() if kind == "text"]
             wide = wide.drop(columns=[c for c in list(attribute_items(spec)) + text_items if c in wide.columns])
         parts.append(Part(f"{WIDE}{ins}", frame=wide))
+    scores = score_part(st)
+    if scores is not None:
+        parts.append(scores)
     return parts, tuple(skipped)
+
+
+def score_part(st) -> Part | None:
+    """The ``scores`` file: every declared score per participant and occasion (:func:`study.survey.scores.score_table`);
+    None when the study declares no score. Scores carry no names or exact attributes, so the de-identified export
+    keeps them as they are."""
+    from study.survey.scores import score_table
+
+    df = score_table(st)
+    return Part(SCORES, frame=df) if len(df.columns) > 1 else None
+
+
+def write_scores(st, outdir: str | Path, formats: tuple[str, ...]) -> dict[Path, int]:
+    """Write the ``scores`` file (:func:`score_part`) to `outdir` in each of `formats`; {path: rows}. A study that
+    declares no score -> UserError."""
+    outdir = Path(outdir)
+    for fmt in formats:
+        check_choice("format", fmt, FORMATS)
+    if outdir.exists() and not outdir.is_dir():
+        raise UserError(f"{outdir} exists and is not a directory")
+    part = score_part(st)
+    if part is None:
+        raise UserError("the study declares no score ([[scores]] in study.toml, docs/survey.md \"Scores\")")
+    voc = vocabulary(st) if "sav" in formats else None
+    outdir.mkdir(parents=True, exist_ok=True)
+    written = {}
+    for fmt in formats:
+        path = outdir / f"{SCORES}.{fmt}"
+        tmp = path.with_name(path.name + ".partial")
+        written[path] = _write(st, fmt, part, tmp, voc)
+        tmp.replace(path)
+    return written
 
 
 # ---------------------------------------------------------------------------------------------- SPSS
@@ -495,6 +533,10 @@ def vocabulary(st) -> Vocabulary:
     if study is None:
         return voc
     voc.title = study.study_id
+    from study.folder.scores import study_scores
+
+    for spec in study_scores(study):
+        voc.labels.setdefault(spec.name, spec.label or spec.name)
     voc.enums["condition"] = study.condition_names
     voc.labels["condition"] = ("Drive condition (" + "; ".join(f"{c.name} = {c.label}" for c in study.conditions)
                                + ")")[:250]

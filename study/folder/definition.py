@@ -40,8 +40,8 @@ ATTRIBUTE_TYPES = ("integer", "number", "choice", "text")
 NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")   # attribute, condition, construct and item names
 MAX_ID_LENGTH = 64
 #: names an attribute cannot take: columns that participant listings, exports and KPI tables already have
-RESERVED_ATTRIBUTES = ("participant_id", "protocol", "study_version", "phase", "phase_outcome", "excluded",
-                       "created_at", "condition")
+RESERVED_ATTRIBUTES = ("participant_id", "protocol", "order", "study_version", "phase", "phase_outcome",
+                       "excluded", "created_at", "condition")
 #: files a study may declare in [files]; the value names the key's meaning in the docs
 FILE_KEYS = {"instrument": "survey codebook (CSV)", "protocols": "protocol files (JSON), the first is the default",
              "model": "analysis model (lavaan syntax)", "published": "published values to compare with (CSV)",

@@ -50,7 +50,7 @@ BUILTINS: dict[str, tuple[str, ...]] = {
 TOLERANCES = ("none", "absolute", "relative", "german")
 ENERGY_MODELS = {"nissan_leaf": "modelled (Nissan Leaf parameters)", "none": None}
 _NAME = re.compile(r"^[a-z][a-z0-9_]*$")
-_RESERVED = {"participant_id", "condition", "drive_id", "segment", "n_intervals", "overall", "all"}
+_RESERVED = {"participant_id", "condition", "phase", "drive_id", "segment", "n_intervals", "overall", "all"}
 _KEYS = {"builtins", "group_by", "channels", "violations", "stops", "red_stops", "sql", "events", "measures", "regions",
          "comparison"}
 #: how an event KPI sums up several events of one drive (or segment); docs/kpis.md says why "first" is the default
@@ -196,6 +196,15 @@ class Comparison:
         return template.replace("{condition}", condition) if "{condition}" in template else f"{template}_{condition}"
 
 
+#: decimals a KPI is shown with for reading (rendered tables, printed lines), by its unit; the CSV files and the
+#: store keep full precision. A unit not listed: 3. (A 20 Hz time is a multiple of 0.05 s: 2 decimals.)
+DECIMALS = {"m": 1, "km": 3, "s": 2, "min": 2, "m/s": 2, "km/h": 1, "m/s^2": 2, "m/s2": 2, "%": 1, "Wh": 1,
+            "kWh": 3, "Wh/km": 1, "W": 0, "kW": 2, "N": 0, "deg": 1, "rad": 3, "1": 3, "": 3}
+#: the units of the built-in KPI columns by their name's ending
+_BUILTIN_UNITS = (("_pct", "%"), ("_mps", "m/s"), ("_kmh", "km/h"), ("_wh_per_km", "Wh/km"), ("_wh", "Wh"),
+                  ("_m", "m"), ("_s", "s"))
+
+
 @dataclass(frozen=True)
 class KpiSpec:
     """What a study's KPI file declares (module docstring); thresholds in SI units."""
@@ -240,6 +249,16 @@ class KpiSpec:
     def headings(self) -> dict[str, str]:
         """Column -> how rendered tables name it: 'Label (unit)' for the study's own KPIs, the name for built-ins."""
         return {k.name: k.heading for k in self.user_kpis}
+
+    def decimals(self, column: str) -> int:
+        """Decimals `column` is shown with for reading (:data:`DECIMALS` of its unit: a declared KPI's ``unit``, a
+        built-in's from its name; counts without decimals)."""
+        unit = next((k.unit for k in self.user_kpis if k.name == column), None)
+        if unit is None:
+            if column.endswith(("_events", "_stops", "n_intervals")):
+                return 0
+            unit = next((u for end, u in _BUILTIN_UNITS if column.endswith(end)), "")
+        return DECIMALS.get(unit, 3)
 
     @property
     def params(self):

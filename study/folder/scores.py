@@ -21,6 +21,7 @@ A score is missing (NaN) for a participant who left any of its items or weights 
 """
 from __future__ import annotations
 
+import math
 import re
 import tomllib
 from dataclasses import dataclass
@@ -281,3 +282,21 @@ def check_scores(study, problems: Problems) -> None:
         for n in sorted({n for n in stored if stored.count(n) > 1}):
             problems.add(STUDY_FILE, line, "instrument.include", f"two instruments named {n}")
     parse_scores(study, problems)
+
+
+def score_resolution(spec: ScoreSpec, instrument: Instrument) -> float | None:
+    """The step in which a score moves (the resolution at which its values tie, analysis/ranks.py): the greatest
+    common divisor of weight x item step over the items, times |multiply|, over the sum of the weights for a mean
+    (TLX raw: 5 / 6; a mean of six 1-7 items: 1 / 6; SUS: 2.5). None when it has no fixed step (weights taken from
+    the answers, or weights and steps that are not whole numbers)."""
+    if spec.weights_from is not None:
+        return None
+    weights = spec.weights if spec.weights is not None else (1.0,) * len(spec.items)
+    terms = [w * instrument.step(item) for w, item in zip(weights, spec.items)]
+    if not all(float(t).is_integer() and t != 0 for t in terms):
+        return None
+    step = 0
+    for t in terms:
+        step = math.gcd(step, abs(int(t)))
+    res = step * abs(spec.multiply) / (abs(sum(weights)) if spec.aggregate == "mean" else 1)
+    return res if res > 0 else None

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from study.common.errors import UserError
+from study.common.errors import UserError, shown
 
 TEXT_ATTRIBUTES = ("id", "lane", "edge", "type", "signals")
 LISTED_IDS = 20   # vehicle ids a message lists (sorted); a longer list ends in "..."
@@ -79,7 +79,7 @@ def read_fcd(path: str | Path, vehicle: str | None = None) -> pd.DataFrame:
                     if root is None:
                         root = el.tag
                         if root != "fcd-export":
-                            raise UserError(f"{path.name}: not SUMO FCD output (element <{el.tag}>, "
+                            raise UserError(f"{shown(path)}: not SUMO FCD output (element <{el.tag}>, "
                                             f"expected <fcd-export>)")
                     if el.tag == "timestep":
                         t = el.get("time")
@@ -92,14 +92,14 @@ def read_fcd(path: str | Path, vehicle: str | None = None) -> pd.DataFrame:
                 elif el.tag == "timestep":
                     el.clear()  # streaming: a long run's file is never held in memory
     except ET.ParseError as exc:
-        raise UserError(f"{path.name}: not readable XML: {exc}") from None
+        raise UserError(f"{shown(path)}: not readable XML: {exc}") from None
     if vehicle is None and len(seen) > 1:
         ids = sorted(seen, key=_natural)
-        shown = ", ".join(ids[:LISTED_IDS]) + (", ..." if len(ids) > LISTED_IDS else "")
-        raise UserError(f"{path.name} holds {len(ids)} vehicles ({shown}): name one with --vehicle (or [log] vehicle "
+        listed = ", ".join(ids[:LISTED_IDS]) + (", ..." if len(ids) > LISTED_IDS else "")
+        raise UserError(f"{shown(path)} holds {len(ids)} vehicles ({listed}): name one with --vehicle (or [log] vehicle "
                         f"in the mapping); likely the ego: {likely_ego(seen)}")
     if not rows:
-        raise UserError(f"{path.name}: no vehicle {vehicle!r} in this FCD file; it holds "
+        raise UserError(f"{shown(path)}: no vehicle {vehicle!r} in this FCD file; it holds "
                         f"{vehicles_text(seen) if seen else 'no vehicles'}")
     return _frame(rows)
 

@@ -39,7 +39,7 @@ from typing import Any, Callable, Iterator
 import numpy as np
 import pandas as pd
 
-from study.common.errors import UserError, check_choice
+from study.common.errors import UserError, check_choice, shown
 from study.common.file_checks import register_file_check
 from study.common.toml_lines import line_of
 from study.folder import logmap, route_file
@@ -224,25 +224,32 @@ def drive_target(st, participant_id: str, name: str) -> tuple[str | None, str | 
 
 
 def phase_mismatch(st, participant_id: str, condition: str | None, phase: str | None) -> str | None:
-    """Why a log of `condition` (or of the drive `phase` without one) does not belong to the participant's current
-    drive phase (the last drive phase they entered), or None when it does. A participant without recorded phases
-    is not checked (a lab that does not record the protocol)."""
+    """Why a log of `condition` (or of the drive `phase` without one) does not belong to a drive phase the participant
+    has entered (in progress, completed or aborted: a log is often copied after the session), or None when it does.
+    A phase not yet entered (also after an abort that ended the participant's protocol before it) is named with the
+    phases the participant did enter. A participant without recorded phases is not checked (a lab that does not
+    record the protocol)."""
     from study.people.protocol import protocol_of
 
-    entered = st.df("SELECT phase FROM phase_events WHERE participant_id = ? ORDER BY seq", [participant_id])["phase"]
-    if entered.empty:
+    entered = st.con.execute("SELECT phase, outcome FROM phase_events WHERE participant_id = ? ORDER BY seq",
+                             [participant_id]).fetchall()
+    if not entered:
         return None
     proto = protocol_of(st, participant_id)
     steps = {p.name: p for p in proto.steps}
-    driven = [steps[n] for n in entered if n in steps and steps[n].drive]
-    want = condition if condition is not None else f"the drive phase {phase}"
-    if not driven:
-        return f"{participant_id} has not started a drive phase (is at {entered.iloc[-1]}); the log is for {want}"
-    cur = driven[-1]
-    if (cur.condition == condition) if condition is not None else (cur.condition is None and cur.name == phase):
+
+    def belongs(step) -> bool:
+        return step.drive and ((step.condition == condition) if condition is not None
+                               else (step.condition is None and step.name == phase))
+
+    if any(name in steps and belongs(steps[name]) for name, _ in entered):
         return None
-    return (f"{participant_id}'s current drive phase is {cur.name} ({cur.condition or 'no condition'}), "
-            f"the log is for {want}")
+    target = next((p.name for p in proto.steps if belongs(p)), None)
+    want = (f"{condition} ({target})" if condition is not None and target else condition) if condition is not None \
+        else f"the drive phase {phase}"
+    done = ", ".join(name if outcome == "completed" else f"{name} ({outcome.replace('_', ' ')})"
+                     for name, outcome in entered)
+    return f"{participant_id} has not entered the drive of {want}; phases entered: {done}"
 
 
 # ---------------------------------------------------------------------------------------------- study settings
@@ -492,7 +499,7 @@ def _mapping_for(study, path: Path, fmt: str, mapping) -> logmap.Mapping | None:
             raise UserError(f"no such log mapping file: {mp}")
         m = logmap.load_mapping(mp.read_text(encoding="utf-8"), mp.name)
     if m.format != fmt:
-        raise UserError(f"log mapping {m.name} reads {m.format} files, {path.name} is {fmt}")
+        raise UserError(f"log mapping {m.name} reads {m.format} files, {shown(path)} is {fmt}")
     return m
 
 
@@ -570,7 +577,7 @@ def _read_chunks(path: Path, kind: str) -> Iterator[pd.DataFrame]:
     except UserError:
         raise
     except Exception as exc:  # unreadable file: one line
-        raise _Unreadable(f"cannot read {path.name}: {' '.join(str(exc).split())}") from exc
+        raise _Unreadable(f"cannot read {shown(path)}: {' '.join(str(exc).split())}") from exc
 
 
 def _log_chunks(path: Path, kind: str, route: route_file.RouteFile | None) -> Iterator[tuple]:
@@ -641,12 +648,12 @@ def _validated_again(path: Path, kind: str, route: route_file.RouteFile | None,
         for rows, valid, problem, _, _ in chunks:
             n += rows
             if problem is not None:
-                raise UserError(f"{path.name} changed while it was being imported: {problem}")
+                raise UserError(f"{shown(path)} changed while it was being imported: {problem}")
             if len(valid):
                 last = (valid["t"].iloc[-1], valid["s"].iloc[-1])
                 yield valid
     if n != summary.n or last != (summary.t[1], summary.s[1]):
-        raise UserError(f"{path.name} changed while it was being imported")
+        raise UserError(f"{shown(path)} changed while it was being imported")
 
 
 def _force_reason(force: str | None) -> str | None:
@@ -657,49 +664,42 @@ def _force_reason(force: str | None) -> str | None:
     return force.strip()
 
 
-def import_drive_file(st, participant_id: str, condition: str, path: str | Path, replace: bool = False,
-                      route: str | None = None, progress: Callable[[str], None] | None = None,
-                      mapping: Any = None, fmt: str | None = None, vehicle: str | None = None,
-                      force: str | None = None, net: str | Path | None = None) -> DriveImport:
-    """Read, map, check and import a drive log file (CSV, Parquet or SUMO FCD) for (participant, condition).
+@dataclass(frozen=True)
+class ReadLog:
+    """A drive log file read, mapped and checked, ready to store: the prepared log, its checksum, the
+    ``drives.meta`` it brings (format, mapping, units, ...), the route name of the study and the file's name."""
 
-    `mapping`: None = the study's log mapping when it reads this format (else the file is a canonical log),
-    "none" = a canonical log, or a mapping file path / :class:`study.folder.logmap.Mapping`. `fmt` overrides the format
-    taken from the file name; `vehicle` picks the vehicle of an FCD file, `net` its SUMO network (limits and lights
-    from there instead of the study's route: :mod:`study.logs.fcd_route`). `force` = a reason to import despite
-    plausibility problems (recorded in drives.meta) and despite :func:`phase_mismatch` (a log for another condition
-    than the participant's current drive phase: refused without it). `condition` is a condition of the study or a
-    drive phase without one (:func:`drive_target`). `route` names the route stored with the drive (default: the
-    study's route file's name). Checksum: sha256 of the file; of file, mapping and route when those were used.
-    Every problem of the log is one line starting with the file name. A canonical CSV or Parquet log (no mapping) is
-    read in chunks of :data:`CHUNK_ROWS` rows, twice (validated, then stored), so that its size does not bound the
-    memory; a mapped or SUMO FCD log is read whole.
-    """
-    from study.store.studies import definition
+    prepared: PreparedDrive
+    checksum: str
+    meta: dict[str, Any]
+    route: str | None
+    file_name: str
 
-    study = definition(st)  # first: parsing a stored study (its model file) is not part of the import's time
+
+def read_log(study, path: str | Path, mapping: Any = None, fmt: str | None = None, vehicle: str | None = None,
+             force: str | None = None, net: str | Path | None = None, whole: bool = False,
+             progress: Callable[[str], None] | None = None) -> ReadLog:
+    """Read, map and check a drive log file of `study` (a StudyDefinition) without a store: what
+    :func:`import_drive_file` stores, and what a bulk import (:mod:`study.logs.bulk_import`) reads in parallel.
+    `whole`: read a canonical CSV or Parquet log whole rather than in chunks (a result that can cross processes).
+    Every problem -> UserError starting with the file name as given."""
     t0 = time.perf_counter()
     path = Path(path)
-    force = _force_reason(force)
-    condition, phase = drive_target(st, participant_id, condition)
-    mismatch = phase_mismatch(st, participant_id, condition, phase)
-    if mismatch and not force:
-        raise UserError(f"{mismatch}; import with --force REASON to store it anyway")
     kind = log_format(path, fmt)
     m = _mapping_for(study, path, kind, mapping)
     fcd_route.check_net_option(net, kind, m)
     rfile = route_file.study_route(study)
     derived: list[str] = []
     vehicle = vehicle or (m.vehicle if m is not None else None)
-    if m is None and kind in ("csv", "parquet"):  # a canonical log: read in chunks, never whole
-        if not path.exists():
-            raise UserError(f"no such file: {path}")
+    if not path.exists():
+        raise UserError(f"no such file: {shown(path)}")
+    if m is None and kind in ("csv", "parquet") and not whole:  # a canonical log: read in chunks, never whole
         try:
             prep = _prepare_file(path, kind, rfile, force)
         except _Unreadable:
             raise
         except UserError as exc:
-            raise UserError(f"{path.name}: {exc}") from None
+            raise UserError(f"{shown(path)}: {exc}") from None
         if progress:
             progress(f"read {prep.summary.n} rows from {path.name}")
     else:  # a mapped log (units, integrated positions, lights by position) or SUMO FCD: read whole
@@ -712,7 +712,7 @@ def import_drive_file(st, participant_id: str, condition: str, path: str | Path,
                 raw, rfile = fcd_route.fcd_route(raw, rfile, net, m)
             prep = _prepare(raw, m, rfile, "import", force)
         except UserError as exc:
-            raise UserError(f"{path.name}: {exc}") from None
+            raise UserError(f"{shown(path)}: {exc}") from None
     checksum = file_checksum(path)
     if m is not None or prep.joined or prep.s_integrated:
         h = hashlib.sha256(f"file\0{checksum}\0".encode())
@@ -733,18 +733,60 @@ def import_drive_file(st, participant_id: str, condition: str, path: str | Path,
         meta["from_route"] = list(prep.joined)
     if prep.s_integrated:
         meta["s"] = "integrated from v"
+    meta["read_s"] = time.perf_counter() - t0
+    return ReadLog(prep, checksum, meta, rfile.name if rfile is not None else None, path.name)
+
+
+def store_read_log(st, participant_id: str, condition: str | None, phase: str | None, log: ReadLog,
+                   force: str | None, mismatch: str | None, replace: bool = False, route: str | None = None,
+                   progress: Callable[[str], None] | None = None, started: float | None = None) -> DriveImport:
+    """Store a :class:`ReadLog` as the drive (participant, condition or phase) in one transaction (joining the
+    caller's): the forced reason and the overridden phase mismatch go into ``drives.meta``."""
+    meta = {k: v for k, v in log.meta.items() if k != "read_s"}
     if force is not None:
-        meta["forced"] = {"reason": force, "overridden": list(prep.overridden) + ([mismatch] if mismatch else [])}
-    route = route or (rfile.name if rfile is not None else None)
+        meta["forced"] = {"reason": force,
+                          "overridden": list(log.prepared.overridden) + ([mismatch] if mismatch else [])}
+    t0 = started if started is not None else time.perf_counter() - log.meta.get("read_s", 0.0)
     try:
-        r = _store_drive(st, DriveRecord(participant_id, condition, prep, checksum, "import", t0, route=route,
-                                         file_name=path.name, meta=meta, replace=replace, progress=progress,
-                                         phase=phase))
+        r = _store_drive(st, DriveRecord(participant_id, condition, log.prepared, log.checksum, "import", t0,
+                                         route=route or log.route, file_name=log.file_name, meta=meta,
+                                         replace=replace, progress=progress, phase=phase))
         return replace_overridden(r, mismatch)
     except UserError as exc:
         if str(exc).startswith("channel "):
-            raise UserError(f"{path.name}: {exc}") from None
+            raise UserError(f"{log.file_name}: {exc}") from None
         raise
+
+
+def import_drive_file(st, participant_id: str, condition: str, path: str | Path, replace: bool = False,
+                      route: str | None = None, progress: Callable[[str], None] | None = None,
+                      mapping: Any = None, fmt: str | None = None, vehicle: str | None = None,
+                      force: str | None = None, net: str | Path | None = None) -> DriveImport:
+    """Read, map, check and import a drive log file (CSV, Parquet or SUMO FCD) for (participant, condition).
+
+    `mapping`: None = the study's log mapping when it reads this format (else the file is a canonical log),
+    "none" = a canonical log, or a mapping file path / :class:`study.folder.logmap.Mapping`. `fmt` overrides the format
+    taken from the file name; `vehicle` picks the vehicle of an FCD file, `net` its SUMO network (limits and lights
+    from there instead of the study's route: :mod:`study.logs.fcd_route`). `force` = a reason to import despite
+    plausibility problems (recorded in drives.meta) and despite :func:`phase_mismatch` (a log for a drive phase the
+    participant has not entered: refused without it). `condition` is a condition of the study or a
+    drive phase without one (:func:`drive_target`). `route` names the route stored with the drive (default: the
+    study's route file's name). Checksum: sha256 of the file; of file, mapping and route when those were used.
+    Every problem of the log is one line starting with the file name. A canonical CSV or Parquet log (no mapping) is
+    read in chunks of :data:`CHUNK_ROWS` rows, twice (validated, then stored), so that its size does not bound the
+    memory; a mapped or SUMO FCD log is read whole (:func:`read_log`).
+    """
+    from study.store.studies import definition
+
+    study = definition(st)  # first: parsing a stored study (its model file) is not part of the import's time
+    t0 = time.perf_counter()
+    force = _force_reason(force)
+    condition, phase = drive_target(st, participant_id, condition)
+    mismatch = phase_mismatch(st, participant_id, condition, phase)
+    if mismatch and not force:
+        raise UserError(f"{mismatch}; import with --force REASON to store it anyway")
+    log = read_log(study, path, mapping, fmt, vehicle, force, net, progress=progress)
+    return store_read_log(st, participant_id, condition, phase, log, force, mismatch, replace, route, progress, t0)
 
 
 def import_drive_frame(st, participant_id: str, condition: str, df: pd.DataFrame, source: str = "simulation",

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from study.common.errors import UserError, check_choice
+from study.common.errors import UserError, check_choice, shown
 from study.folder import logmap
 from study.folder.drive_columns import COLUMNS
 
@@ -28,7 +28,7 @@ def log_format(path: str | Path, fmt: str | None = None) -> str:
         return "csv"
     if name.endswith((".xml", ".xml.gz")):
         return "sumo-fcd"
-    raise UserError(f"{Path(path).name}: unknown drive log format (use .csv, .parquet or SUMO FCD .xml, "
+    raise UserError(f"{shown(path)}: unknown drive log format (use .csv, .parquet or SUMO FCD .xml, "
                     f"or --format)")
 
 
@@ -49,7 +49,7 @@ def read_drive_file(path: str | Path, fmt: str | None = None, vehicle: str | Non
     except UserError:
         raise
     except Exception as exc:  # unreadable file: one line
-        raise UserError(f"cannot read {path.name}: {' '.join(str(exc).split())}") from exc
+        raise UserError(f"cannot read {shown(path)}: {' '.join(str(exc).split())}") from exc
 
 
 def file_checksum(path: str | Path) -> str:

@@ -72,22 +72,59 @@ def _order_counts(st, protocol: str) -> list[tuple[str, int, int, int]]:
     return out
 
 
-def assign_order(st, participant_id: str) -> str:
-    """Assign (once) and return the participant's condition order; audited. Idempotent for an assigned participant."""
+def _drawn(st, protocol: str) -> str:
+    """The order the balanced assignment draws next: fewest active participants, ties -> first in the file."""
+    return str(min(_order_counts(st, protocol), key=lambda c: c[3])[0])
+
+
+def assign_order(st, participant_id: str, order: str | None = None, reason: str | None = None) -> str:
+    """Assign (once) and return the participant's condition order; audited. Idempotent for an assigned participant.
+
+    `order` None draws the balanced order (:func:`_drawn`). A given `order` (the lab's own, fixed beforehand or
+    deviating from the draw) is stored with ``given`` = true, the `reason` and the order the draw would have given
+    (``drawn``), which :func:`order_balance` reports where it differs. A given order replaces an assigned one only
+    while the participant has entered no phase (audited as an update); afterwards -> UserError."""
     p = participant_row(st, participant_id)
+    if order is not None:
+        orders = protocol_orders(definition(st).protocol(p["protocol"]))
+        if order not in orders:
+            raise UserError(f"protocol {p['protocol']} has no order {order!r} (orders: {', '.join(orders)})")
+    reason = reason.strip() if isinstance(reason, str) and reason.strip() else None
     with st.transaction():
         have = st.one("SELECT order_name FROM order_assignments WHERE participant_id = ?", [participant_id])
-        if have:
+        if have and (order is None or order == have):
             return have
         excluded = exclusion_of(st, participant_id)
         if excluded:
             raise UserError(f"{participant_id} is excluded ({excluded}); no order is assigned")
-        counts = _order_counts(st, p["protocol"])
-        # fewest active participants; ties -> first order in the protocol file (min keeps the first)
-        order = str(min(counts, key=lambda c: c[3])[0])
+        if have:
+            started = st.one("SELECT phase FROM phase_events WHERE participant_id = ? ORDER BY seq LIMIT 1",
+                             [participant_id])
+            if started:
+                raise UserError(f"{participant_id} has order {have} and has started the protocol ({started}); "
+                                f"the order cannot change")
+            st.update("order_assignments", {"participant_id": participant_id},
+                      {"order_name": order, "given": True, "reason": reason})
+            return order
+        drawn = _drawn(st, p["protocol"])
         st.insert("order_assignments", {"participant_id": participant_id, "protocol": p["protocol"],
-                                        "order_name": order})
-    return order
+                                        "order_name": order or drawn, "given": order is not None, "drawn": drawn,
+                                        "reason": reason})
+    return order or drawn
+
+
+def order_balance(st) -> tuple[list[tuple[str, str, int, int, int, int]], list[dict[str, Any]]]:
+    """The balance report of every protocol with several orders: (protocol, order_name, assigned, given,
+    dropped_out, active) per order, and the deviations from the design — each given order that differs from the
+    order the balanced draw would have given then (participant_id, order_name, drawn, reason)."""
+    protocols = [r[0] for r in st.con.execute("SELECT DISTINCT protocol FROM order_assignments ORDER BY 1").fetchall()]
+    given = {(proto, o): int(n) for proto, o, n in st.con.execute(
+        "SELECT protocol, order_name, count(*) FROM order_assignments WHERE given GROUP BY ALL").fetchall()}
+    counts = [(proto, o, a, given.get((proto, o), 0), d, act) for proto in protocols
+              for o, a, d, act in _order_counts(st, proto)]
+    deviations = st.dicts("SELECT participant_id, protocol, order_name, drawn, reason FROM order_assignments "
+                          "WHERE given AND order_name IS DISTINCT FROM drawn ORDER BY participant_id")
+    return counts, deviations
 
 
 def ensure_order(st, participant_id: str) -> str | None:

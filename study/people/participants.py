@@ -105,7 +105,8 @@ def import_roster(st, frame: "pd.DataFrame | BulkRows", source: str = "roster") 
     """Register every participant of a roster in one transaction (audited); returns how many.
 
     `frame`: one row per participant, column ``participant_id``, optionally one column per declared attribute
-    (raw text or numbers; empty = not given) and ``protocol`` (empty = the first declared); its index names the row
+    (raw text or numbers; empty = not given), ``protocol`` (empty = the first declared) and ``order`` (the condition
+    order the participant drives, recorded as given: :func:`study.people.orders.assign_order`); its index names the row
     in messages (:func:`study.common.bulk_rows.read_rows` sets it to the line in the file); a
     :class:`study.common.bulk_rows.BulkRows` (:func:`study.common.bulk_rows.read_table`) is taken the same way, its lines naming
     the rows. A column that is neither -> UserError naming the declared ones; a required attribute without a
@@ -119,13 +120,14 @@ def import_roster(st, frame: "pd.DataFrame | BulkRows", source: str = "roster") 
     study = _study(st)
     names = [a.name for a in study.attributes]
     columns, rows = records(frame)
-    check_columns(frame, source, ["participant_id"], [*names, "protocol"])
+    check_columns(frame, source, ["participant_id"], [*names, "protocol", "order"])
     lacking = [a.name for a in study.attributes if a.required and a.name not in columns]
     if lacking:
         raise UserError(f"{source}: no column for the required attribute(s) {', '.join(lacking)}")
     given = [n for n in names if n in columns]
     bad: list[BadRow] = []
     regs: list[Registration] = []
+    orders: dict[str, str] = {}   # id -> the order the roster gives
     first: dict[str, Any] = {}  # id -> line of its first row
     with st.transaction():  # the existence check and the inserts see the same store
         known = {r[0] for r in st.con.execute("SELECT participant_id FROM participants").fetchall()}
@@ -138,6 +140,9 @@ def import_roster(st, frame: "pd.DataFrame | BulkRows", source: str = "roster") 
                     raise UserError(f"participant {pid} is also on line {first[pid]}")
                 if pid in known:
                     raise UserError(f"participant {pid} already exists")
+                order = cell(row["order"]) if "order" in columns else None
+                if order is not None:
+                    orders[pid] = _check_order(study, reg.protocol, order)
                 regs.append(reg)
             except UserError as exc:
                 bad.append(BadRow(line, pid, str(exc)))
@@ -147,7 +152,23 @@ def import_roster(st, frame: "pd.DataFrame | BulkRows", source: str = "roster") 
         study_version = version(st)
         for reg in regs:
             _store(st, reg, study_version)
+        if orders:
+            from study.people.orders import assign_order
+
+            for reg in regs:   # in file order: each draw the balance report compares with sees the rows before
+                if reg.participant_id in orders:
+                    assign_order(st, reg.participant_id, orders[reg.participant_id], f"roster {source}")
     return len(regs)
+
+
+def _check_order(study, protocol: str, order: str) -> str:
+    """`order` if the protocol declares it, else UserError naming its orders."""
+    from study.folder.protocol_file import protocol_orders
+
+    names = protocol_orders(study.protocol(protocol))
+    if order not in names:
+        raise UserError(f"protocol {protocol} has no order {order!r} (orders: {', '.join(names) or 'none'})")
+    return order
 
 
 def require(st, participant_id: str) -> None:
@@ -190,9 +211,10 @@ _LISTING = """
     exc AS (
         SELECT participant_id, string_agg(scope, ',' ORDER BY scope) AS excluded
         FROM exclusions GROUP BY participant_id)
-    SELECT p.participant_id, p.protocol, last.phase, last.phase_outcome,
+    SELECT p.participant_id, p.protocol, o.order_name AS "order", last.phase, last.phase_outcome,
            coalesce(exc.excluded, '') AS excluded, p.created_at
     FROM participants p LEFT JOIN last USING (participant_id) LEFT JOIN exc USING (participant_id)
+         LEFT JOIN order_assignments o USING (participant_id)
     ORDER BY p.participant_id"""
 
 
@@ -200,7 +222,7 @@ def list_participants(st) -> pd.DataFrame:
     """Participants with their attributes, protocol position and exclusions, one row each, ordered by id.
 
     Columns: participant_id, one per declared attribute (typed as :func:`participant_attributes`), protocol,
-    phase (last phase entered), phase_outcome, excluded (comma-separated scopes, '' when none), created_at.
+    order (the condition order assigned, None before one is), phase (last phase entered), phase_outcome, excluded (comma-separated scopes, '' when none), created_at.
     :func:`participant_rows` gives the same as Python rows.
     """
     base = st.df(_LISTING)

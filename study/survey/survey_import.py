@@ -30,9 +30,10 @@ import csv
 import io
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Sequence
 
-from study.common.bulk_rows import csv_text
-from study.common.errors import UserError
+from study.common.bulk_rows import csv_text, without_ignored
+from study.common.errors import UserError, shown
 from study.folder.instrument import Instrument
 from study.survey.answers import (
     attribute_items,
@@ -52,7 +53,8 @@ LONG = ("item_id", "value")
 
 @dataclass(frozen=True)
 class ImportResult:
-    participants: int     # rows imported (participant and occasion)
+    participants: int     # distinct participants
+    questionnaires: int   # rows imported (participant and occasion)
     answers: int          # non-missing answers
     missing: int          # empty cells stored as NULL (items of the instrument absent from the file included)
     entry_round: int
@@ -71,57 +73,65 @@ class SurveyRow:
     answers: dict
 
 
-def _read_text(path: Path) -> list[tuple[int, list[str]]]:
+def _read_text(path: Path, ignore: Sequence[str] = ()) -> list[tuple[int, list[str]]]:
+    """(line, fields) of the file's non-blank rows, the columns named in `ignore` left out."""
     text = csv_text(path, f"survey file {path} not found", "malformed CSV: ")
     reader = csv.reader(io.StringIO(text, newline=""), strict=True)
     try:
         rows = [(reader.line_num, r) for r in reader]
     except csv.Error as exc:
-        raise UserError(f"{path.name}: malformed CSV at line {reader.line_num}: {exc}") from None
-    return [(n, r) for n, r in rows if any(c.strip() for c in r)]  # blank lines carry nothing
+        raise UserError(f"{shown(path)}: malformed CSV at line {reader.line_num}: {exc}") from None
+    rows = [(n, r) for n, r in rows if any(c.strip() for c in r)]  # blank lines carry nothing
+    if not ignore or not rows:
+        return rows
+    header = [c.strip() for c in rows[0][1]]
+    kept = without_ignored(path, header, ignore)
+    # a row with more or fewer fields than the header keeps its count (refused below as malformed)
+    return [(n, [r[k] for k in kept] if len(r) == len(header) else r[:len(r) - len(ignore)]) for n, r in rows]
 
 
-def read_survey_rows(path: str | Path, ins: Instrument, study, double_entry: bool = False) -> list[SurveyRow]:
+def read_survey_rows(path: str | Path, ins: Instrument, study, double_entry: bool = False,
+                     ignore: Sequence[str] = ()) -> list[SurveyRow]:
     """Parse and validate a survey CSV (wide or long, with or without an occasion/condition column) for instrument
     `ins` of `study` (a StudyDefinition). Checks the structure, the ids against the study's pattern and every value
-    against the codebook (not the store, nor the occasions); `double_entry` refuses attribute items. Raises
-    UserError."""
+    against the codebook (not the store, nor the occasions); `double_entry` refuses attribute items; the columns
+    named in `ignore` are left out. Raises UserError."""
     path = Path(path)
-    rows = _read_text(path)
+    rows = _read_text(path, ignore)
     if not rows:
-        raise UserError(f"{path.name}: empty file (expected a header participant_id,"
+        raise UserError(f"{shown(path)}: empty file (expected a header participant_id,"
                         f"{','.join(response_items(ins)[:2])},...)")
     header = [c.strip() for c in rows[0][1]]
     if header[0] != "participant_id":
-        raise UserError(f"{path.name}: malformed CSV: the first column must be participant_id, not {header[0]!r}")
+        raise UserError(f"{shown(path)}: malformed CSV: the first column must be participant_id, not {header[0]!r}")
     dup = sorted({c for c in header if header.count(c) > 1})
     if dup:
-        raise UserError(f"{path.name}: duplicate column(s) {', '.join(dup)}")
+        raise UserError(f"{shown(path)}: duplicate column(s) {', '.join(dup)}")
     which = [c for c in header if c in WHICH and c not in ins.items.index]
     if len(which) > 1:
-        raise UserError(f"{path.name}: give either an occasion or a condition column, not both")
+        raise UserError(f"{shown(path)}: give either an occasion or a condition column, not both")
     wcol = header.index(which[0]) if which else None
     long = all(c in header and c not in ins.items.index for c in LONG)
     items = [c for k, c in enumerate(header[1:], start=1) if k != wcol]
     if long:
         extra = [c for c in items if c not in LONG]
         if extra:
-            raise UserError(f"{path.name}: a long survey file has the columns participant_id, [occasion or "
+            raise UserError(f"{shown(path)}: a long survey file has the columns participant_id, [occasion or "
                             f"condition,] item_id, value; not {', '.join(extra)}")
         return _long_rows(path, rows, header, wcol, ins, study, double_entry)
     responses = response_items(ins)
     filled = attribute_items(ins)
     unknown = [c for c in items if c not in ins.items.index]
     if unknown:
-        raise UserError(f"{path.name}: unknown item column(s) {', '.join(unknown)} for instrument {ins.name}")
+        raise UserError(f"{shown(path)}: unknown item column(s) {', '.join(unknown)} for instrument {ins.name}")
     attr_cols = [c for c in items if c in filled]
     if double_entry and attr_cols:
-        raise UserError(f"{path.name}: column(s) {', '.join(attr_cols)} fill participant attributes, which a double "
+        raise UserError(f"{shown(path)}: column(s) {', '.join(attr_cols)} fill participant attributes, which a double "
                         f"entry does not compare; record them on the participant record (pedas-study participant "
                         f"add ID --attr NAME=VALUE) or import the file as a single entry")
     required = [i for i in ins.required_items if i in responses and i not in items]
     if required:
-        raise UserError(f"{path.name}: required item column(s) missing: {', '.join(required)}")
+        raise UserError(f"{shown(path)}: required item column(s) missing: {', '.join(required)}")
 
     problems: list[str] = []
     seen: dict[tuple, int] = {}
@@ -141,7 +151,7 @@ def read_survey_rows(path: str | Path, ins: Instrument, study, double_entry: boo
         out.append(SurveyRow(line, pid, occ, answers))
     _raise_first(path, problems)
     if not out:
-        raise UserError(f"{path.name}: no participant rows")
+        raise UserError(f"{shown(path)}: no participant rows")
     return out
 
 
@@ -205,7 +215,7 @@ def _long_rows(path: Path, rows, header, wcol, ins: Instrument, study, double_en
         groups[key].answers[item] = raw
     _raise_first(path, problems)
     if not groups:
-        raise UserError(f"{path.name}: no participant rows")
+        raise UserError(f"{shown(path)}: no participant rows")
     return list(groups.values())
 
 
@@ -219,12 +229,12 @@ def read_survey_csv(path: str | Path, ins: Instrument, study, double_entry: bool
 def _raise_first(path: Path, problems: list[str]) -> None:
     if problems:
         more = f" (and {len(problems) - 1} more problem{'s' if len(problems) > 2 else ''})" if len(problems) > 1 else ""
-        raise UserError(f"{path.name}: {problems[0]}{more}; nothing imported")
+        raise UserError(f"{shown(path)}: {problems[0]}{more}; nothing imported")
 
 
-def _file_column(path: Path) -> tuple[str | None, str | None]:
+def _file_column(path: Path, ignore: Sequence[str] = ()) -> tuple[str | None, str | None]:
     """(which column names the occasion: 'occasion' | 'condition' | None, its value on the first data row)."""
-    rows = _read_text(path)
+    rows = _read_text(path, ignore)
     if len(rows) < 2:
         return None, None
     header = [c.strip() for c in rows[0][1]]
@@ -235,7 +245,8 @@ def _file_column(path: Path) -> tuple[str | None, str | None]:
     return None, None
 
 
-def _instrument_for(st, path: Path, instrument: str | None, occasion: str | None) -> str | None:
+def _instrument_for(st, path: Path, instrument: str | None, occasion: str | None,
+                    ignore: Sequence[str] = ()) -> str | None:
     """The instrument a file answers when --instrument is not given: that of --occasion, or of the occasion (or
     the occasion rating the condition) on its first data row; None = the study's."""
     from study.folder.occasions import study_occasions
@@ -246,33 +257,34 @@ def _instrument_for(st, path: Path, instrument: str | None, occasion: str | None
     all_occ = study_occasions(definition(st))
     if occasion is not None:
         return next((o.instrument for o in all_occ if o.name == occasion), None)
-    col, first = _file_column(path)
+    col, first = _file_column(path, ignore)
     if col == "occasion":
         return next((o.instrument for o in all_occ if o.name == first), None)
     if col == "condition":
         found = sorted({o.instrument for o in all_occ if o.rates == first})
         if len(found) > 1:
-            raise UserError(f"{path.name}: condition {first} is rated by several instruments ({', '.join(found)}): "
+            raise UserError(f"{shown(path)}: condition {first} is rated by several instruments ({', '.join(found)}): "
                             f"name one with --instrument")
         return found[0] if found else None
     return None
 
 
-def _occasion_map(st, ins: Instrument, path: Path, rows: list[SurveyRow], occasion: str | None) -> list[str]:
+def _occasion_map(st, ins: Instrument, path: Path, rows: list[SurveyRow], occasion: str | None,
+                  ignore: Sequence[str] = ()) -> list[str]:
     """The occasion of each row: the file's occasion column, the occasion rating its condition column, or the one
     occasion of the whole file (:func:`study.survey.answers.target`)."""
     from study.survey.answers import occasions
 
     occ = occasions(st, ins.name)
     names = [o.name for o in occ]
-    col, _ = _file_column(path)
+    col, _ = _file_column(path, ignore)
     if col is None:
         try:
             return [target(st, ins.name, occasion)[1]] * len(rows)
         except UserError as exc:
-            raise UserError(f"{path.name}: {exc} or an occasion or condition column in the file") from None
+            raise UserError(f"{shown(path)}: {exc} or an occasion or condition column in the file") from None
     if occasion is not None:
-        raise UserError(f"{path.name}: the file names its occasions in its {col} column; drop --occasion")
+        raise UserError(f"{shown(path)}: the file names its occasions in its {col} column; drop --occasion")
     by_condition: dict[str, list[str]] = {}
     for o in occ:
         if o.rates:
@@ -297,10 +309,11 @@ def _occasion_map(st, ins: Instrument, path: Path, rows: list[SurveyRow], occasi
 
 
 def import_survey(st, path: str | Path, entry: int | None = None, instrument: str | None = None,
-                  occasion: str | None = None) -> ImportResult:
+                  occasion: str | None = None, ignore_columns: Sequence[str] = ()) -> ImportResult:
     """Import a survey CSV in ONE transaction for `instrument` (None = the instrument of `occasion` or of the file's
     occasions, else the study's) and `occasion` (a file without an occasion column; None = the instrument's only
-    one). See the module docstring for the layouts and checks."""
+    one). `ignore_columns`: columns of the file to leave out. See the module docstring for the layouts and
+    checks."""
     from study.store.studies import definition
 
     if entry not in (None, 1, 2):
@@ -310,15 +323,16 @@ def import_survey(st, path: str | Path, entry: int | None = None, instrument: st
     path = Path(path)
     if not path.is_file():
         raise UserError(f"survey file {path} not found")
-    ins = instrument_of(st, _instrument_for(st, path, instrument, occasion))
+    ignore = tuple(ignore_columns)
+    ins = instrument_of(st, _instrument_for(st, path, instrument, occasion, ignore))
     instrument = ins.name
     entry_round = entry or 1
     double = entry is not None
-    if _file_column(path)[0] is None:   # one occasion for the whole file: named before its rows are read
+    if _file_column(path, ignore)[0] is None:   # one occasion for the whole file: named before its rows are read
         _occasion_map(st, ins, path, [], occasion)
-    rows = read_survey_rows(path, ins, definition(st), double_entry=double)
-    occ = _occasion_map(st, ins, path, rows, occasion)
-    several = len(set(occ)) > 1 or _file_column(path)[0] is not None
+    rows = read_survey_rows(path, ins, definition(st), double_entry=double, ignore=ignore)
+    occ = _occasion_map(st, ins, path, rows, occasion, ignore)
+    several = len(set(occ)) > 1 or _file_column(path, ignore)[0] is not None
     known = set(st.df("SELECT participant_id FROM participants")["participant_id"])
     problems = []
     for r, o in zip(rows, occ):
@@ -347,7 +361,8 @@ def import_survey(st, path: str | Path, entry: int | None = None, instrument: st
                 save_entry(st, r.participant_id, entry_round, r.answers, instrument=instrument, double_entry=double,
                            source="import", occasion=o)
             except UserError as exc:
-                raise UserError(f"{path.name}: line {r.line}: {exc}; nothing imported") from None
+                raise UserError(f"{shown(path)}: line {r.line}: {exc}; nothing imported") from None
             answers += sum(1 for item, v in r.answers.items() if v.strip() and item not in filled)
-    return ImportResult(participants=len(rows), answers=answers, missing=len(rows) * n_items - answers,
+    return ImportResult(participants=len({r.participant_id for r in rows}), questionnaires=len(rows),
+                        answers=answers, missing=len(rows) * n_items - answers,
                         entry_round=entry_round, double_entry=double, occasions=tuple(dict.fromkeys(occ)))

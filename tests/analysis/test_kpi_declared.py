@@ -108,7 +108,7 @@ def test_analyze_drives_without_comparison_has_no_savings_or_bands(lk_store, cli
     # the paper's figures compare a treatment with a control: without a comparison they are not mentioned at all
     assert "fig" not in r.out and "## Figures" not in (tmp_path / "o" / "objective.md").read_text()
     kpis = pd.read_csv(tmp_path / "o" / "kpis.csv")
-    assert list(kpis.columns[5:]) == ["distance_m", "trip_time_s", "mean_speed_mps", "violation_distance_m",
+    assert list(kpis.columns[6:]) == ["distance_m", "trip_time_s", "mean_speed_mps", "violation_distance_m",
                                       "violation_share", "violation_events", "sdlp"]
 
 
@@ -297,4 +297,4 @@ def test_store_sql_kpis_reading_standard_columns(lk_store):
         assert o.loc[(pid, cond), "length"] == pytest.approx(log["pos_m"].iloc[-1] - log["pos_m"].iloc[0])
         assert o.loc[(pid, cond), "lat_max"] == pytest.approx(log["lat_pos_m"].max())
         assert o.loc[(pid, cond), "flat"] == 0.0
-    assert list(k.columns[5:]) == ["distance_m", "trip_time_s", "mean_speed_mps", "length", "flat", "lat_max"]
+    assert list(k.columns[6:]) == ["distance_m", "trip_time_s", "mean_speed_mps", "length", "flat", "lat_max"]

@@ -237,7 +237,7 @@ def test_label_and_unit_head_the_markdown_and_latex_tables(store, cli, tmp_path)
     assert "Takeover time (s) mean (SD)" in r.out
     # the CSV files keep the KPI names
     kpis = pd.read_csv(tmp_path / "o" / "kpis.csv")
-    assert list(kpis.columns[5:]) == ["distance_m", "trip_time_s", "mean_speed_mps", "sdlp", "takeover_query",
+    assert list(kpis.columns[6:]) == ["distance_m", "trip_time_s", "mean_speed_mps", "sdlp", "takeover_query",
                                       "departures", "takeover_time", "takeover_mean", "takeover_max", "requests",
                                       "warning_reaction"]
     table = pd.read_csv(tmp_path / "o" / "kpi_table.csv")
@@ -309,3 +309,18 @@ def test_query_and_event_forms_parse():
     assert parse(BASE + '[sql]\nx = "count(*)"\n[events]\nx = { from = "hands_on", to = "hands_on" }\n'
                  '[sql.y]\nsql = "count(*)"\nquery = "SELECT count(*) FROM samples"\n', probs) is None
     assert sorted(f for _, f, _ in probs) == ["events.x", "sql.y"]
+
+
+def test_kpis_are_shown_with_the_decimals_of_their_unit_and_stored_in_full():
+    """For reading, a time in s has 2 decimals (2.200000000000003 s reads 2.20), a distance in m 1, a share 3, a
+    count none; the CSV files keep the full value."""
+    from analysis.drives.tables import _summary_cells
+    from study.folder.kpi_spec import KpiSpec
+
+    spec = KpiSpec(builtins=("distance", "violations"))
+    t = pd.DataFrame({"condition": ["hud"], "n": [3], "distance_m_mean": [2250.6715463999994],
+                      "distance_m_sd": [14.18], "trip_time_s_mean": [2.200000000000003], "trip_time_s_sd": [0.0],
+                      "violation_share_mean": [0.01234], "violation_share_sd": [0.0],
+                      "violation_events_mean": [2.0], "violation_events_sd": [1.0]})
+    _, rows = _summary_cells(t, spec)
+    assert rows[0][2:] == ["2250.7 (14.2)", "2.20 (0.00)", "0.012 (0.000)", "2 (1)"]

@@ -10,7 +10,9 @@ missing): the case of the mixed model. ``boundary.csv`` is a hand-made case whos
 (:func:`boundary_case`). ``items.csv`` holds the answers as ticked, ``scores.csv`` the scores computed from them.
 
 ``within_reference.R`` computes the reference statistics with aov(), afex::aov_ez, friedman.test, t.test,
-wilcox.test, p.adjust and lme4::lmer, and writes ``within_reference.json`` (committed; R is needed only to
+wilcox.test, p.adjust and lme4::lmer, and writes ``within_reference.json``; ``rank_reference.R`` runs friedman.test
+and wilcox.test on the scores as whole numbers of their steps (every tie the data have) into
+``rank_reference.json``, which the rank tests are compared with (committed; R is needed only to
 recompute it, which :func:`test_stored_reference_is_what_r_gives` does when Rscript is installed).
 """
 from __future__ import annotations
@@ -27,6 +29,9 @@ SEED = 20240614
 CONDITIONS = ("none", "visual", "audiovisual")
 ORDERS = (("none", "visual", "audiovisual"), ("visual", "audiovisual", "none"), ("audiovisual", "none", "visual"))
 SUS_ITEMS = tuple(f"sus{i}" for i in range(1, 11))
+#: the step of each score (its declaration's, study.folder.scores.score_resolution): SUS 2.5, a mean of six TLX
+#: subscales in steps of 5, a mean of six 1-7 items
+RESOLUTION = {"sus": 2.5, "tlx": 5 / 6, "trust": 1 / 6}
 TLX_ITEMS = tuple(f"tlx_{s}" for s in ("mental", "physical", "temporal", "performance", "effort", "frustration"))
 TRUST_ITEMS = tuple(f"trust{i}" for i in range(1, 7))
 TRUST_REVERSED = ("trust2", "trust5")
@@ -144,10 +149,10 @@ TOLERANCES = {
     "p (aov)": (1e-8, False), "SS, SS error (aov)": (1e-8, True), "partial eta2 (afex pes)": (1e-8, False),
     "generalised eta2 (afex ges)": (1e-8, False), "Mauchly W": (1e-8, False), "Mauchly p": (1e-8, False),
     "GG epsilon": (1e-8, False), "GG p": (1e-8, False), "HF epsilon (capped at 1)": (1e-8, False),
-    "HF p": (1e-8, False), "Friedman chi2": (1e-8, False), "Friedman df": (1e-8, False), "Friedman p": (1e-8, False),
-    "Kendall W": (1e-8, False), "paired t": (1e-8, False), "paired t df": (1e-8, False), "paired t p": (1e-8, False),
-    "paired t p Holm": (1e-8, False), "Wilcoxon W": (1e-8, False), "Wilcoxon p": (1e-8, False),
-    "Wilcoxon p Holm": (1e-8, False), "mean difference": (1e-10, False), "dz": (1e-10, False),
+    "HF p": (1e-8, False), "Friedman chi2": (1e-12, False), "Friedman df": (1e-8, False),
+    "Friedman p": (1e-12, False), "Kendall W": (1e-12, False), "paired t": (1e-8, False), "paired t df": (1e-8, False), "paired t p": (1e-8, False),
+    "paired t p Holm": (1e-8, False), "Wilcoxon V": (1e-12, False), "Wilcoxon p": (1e-12, False),
+    "Wilcoxon p Holm": (1e-12, False), "mean difference": (1e-10, False), "dz": (1e-10, False),
     "lmer coef (complete)": (1e-6, False), "lmer SE (complete)": (1e-6, False), "lmer t = z (complete)": (1e-6, False),
     "lmer coef (incomplete)": (1e-6, False), "lmer SE (incomplete)": (2e-3, False),
     "lmer variances": (1e-6, True), "REML criterion": (1e-8, False),
@@ -174,8 +179,9 @@ def _lmer(ours, fit, reference) -> tuple[float, float, float, float, float]:
             _max(f["reml_criterion"], reference["reml_criterion"]))
 
 
-def differences(results: dict, complete: dict, boundary, reference: dict) -> pd.DataFrame:
-    """quantity, max_abs_diff (relative where TOLERANCES says so), tolerance: ours against R over SUS, TLX, trust."""
+def differences(results: dict, complete: dict, boundary, reference: dict, ranked: dict) -> pd.DataFrame:
+    """quantity, max_abs_diff (relative where TOLERANCES says so), tolerance: ours against R over SUS, TLX, trust
+    (the rank tests against R's on the scores at their resolution, `ranked`: rank_reference.json)."""
     found: dict[str, list[float]] = {}
 
     def add(name, value):
@@ -199,9 +205,9 @@ def differences(results: dict, complete: dict, boundary, reference: dict) -> pd.
         add("GG p", _max(a["p_gg"], afex["gg_p"]))
         add("HF epsilon (capped at 1)", _max(a["eps_hf"], min(1.0, afex["hf_eps"])))
         add("HF p", _max(a["p_hf"], afex["hf_p"]))
-        fr, rfr = r.friedman.iloc[0], ref["friedman"]
+        fr, rfr = r.friedman.iloc[0], ranked[v]["friedman"]
         add("Friedman chi2", _max(fr["chi2"], rfr["chi2"]))
-        add("Friedman df", _max(fr["df"], rfr["df"]))
+        add("Friedman df", _max(fr["df"], ref["friedman"]["df"]))
         add("Friedman p", _max(fr["p"], rfr["p"]))
         add("Kendall W", _max(fr["kendall_w"], rfr["kendall_w"]))
         pairs = pd.DataFrame(ref["pairs"])
@@ -213,11 +219,12 @@ def differences(results: dict, complete: dict, boundary, reference: dict) -> pd.
         add("paired t df", _max(t["df"], pairs["df"]))
         add("paired t p", _max(t["p"], pairs["p_t"]))
         add("paired t p Holm", _max(t["p_holm"], pairs["p_t_holm"]))
-        # R's V is the rank sum of the positive differences a - b; pingouin's W the smaller of the two rank sums
-        total = pairs["n_nonzero"] * (pairs["n_nonzero"] + 1) / 2
-        add("Wilcoxon W", _max(w["statistic"], np.minimum(pairs["v"], total - pairs["v"])))
-        add("Wilcoxon p", _max(w["p"], pairs["p_w"]))
-        add("Wilcoxon p Holm", _max(w["p_holm"], pairs["p_w_holm"]))
+        # R's V, the rank sum of the positive differences a - b, on the scores at their resolution
+        rw = pd.DataFrame(ranked[v]["pairs"])
+        assert list(zip(w["a"], w["b"])) == list(zip(rw["a"], rw["b"]))
+        add("Wilcoxon V", _max(w["statistic"], rw["v"]))
+        add("Wilcoxon p", _max(w["p"], rw["p"]))
+        add("Wilcoxon p Holm", _max(w["p_holm"], rw["p_holm"]))
         add("mean difference", _max(pd.concat([t["mean_diff"], w["mean_diff"]]), pd.concat([pairs["mean_diff"]] * 2)))
         add("dz", _max(pd.concat([t["dz"], w["dz"]]), pd.concat([pairs["dz"]] * 2)))
         for label, res, key in (("complete", complete[v], "lmer_complete"), ("incomplete", r, "lmer_all")):
@@ -238,12 +245,18 @@ def differences(results: dict, complete: dict, boundary, reference: dict) -> pd.
 
 
 def analyse(scores: pd.DataFrame, variables=VARIABLES) -> dict:
-    return {v: compare_within(scores, dv=v, period="period", conditions=CONDITIONS) for v in variables}
+    return {v: compare_within(scores, dv=v, period="period", conditions=CONDITIONS, resolution=RESOLUTION[v])
+            for v in variables}
 
 
 @pytest.fixture(scope="module")
 def reference() -> dict:
     return json.loads((DATA / "within_reference.json").read_text())
+
+
+@pytest.fixture(scope="module")
+def ranked() -> dict:
+    return json.loads((DATA / "rank_reference.json").read_text())
 
 
 @pytest.fixture(scope="module")
@@ -267,8 +280,8 @@ def boundary():
 
 
 @pytest.fixture(scope="module")
-def diffs(results, complete, boundary, reference) -> pd.DataFrame:
-    return differences(results, complete, boundary, reference)
+def diffs(results, complete, boundary, reference, ranked) -> pd.DataFrame:
+    return differences(results, complete, boundary, reference, ranked)
 
 
 # -- the data ---------------------------------------------------------------------------------------------------

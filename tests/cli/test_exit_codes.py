@@ -37,7 +37,7 @@ BAD = [
     (["participant", "add", "X1"], "pedas-study: error: bad participant id 'X1'"),
     (["session", "status", "P999"], "pedas-study: error: unknown participant P999"),
     (["drive", "import", "P001", "baseline", "{d}/missing.csv"], "pedas-study: error: no such file"),
-    (["survey", "import", "{d}/afile.csv"], "pedas-study: error: afile.csv: empty file"),
+    (["survey", "import", "{d}/afile.csv"], "pedas-study: error: {d}/afile.csv: empty file"),
     (["export", "csv", "{d}/afile.csv"], "pedas-study: error: {d}/afile.csv exists and is not a directory"),
     (["survey", "final", "--out", "{d}/dir"], "pedas-study: error: [Errno 21] Is a directory"),
     (["kpi", "energy", "--trace", "{d}/missing.csv"], "pedas-study: error: trace file not found"),

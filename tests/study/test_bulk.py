@@ -96,7 +96,7 @@ def test_three_bad_rows_store_nothing_and_are_named_by_line(cli, lk_db, tmp_path
     r = cli("participant", "import", roster, db=lk_db)
     assert r.code == 2 and r.out == ""
     assert r.err.splitlines() == [
-        "pedas-study: error: roster.csv: 3 bad row(s)",
+        f"pedas-study: error: {roster}: 3 bad row(s)",
         "line 3: LK-2: bad participant id 'LK-2': study lane_keeping uses ids matching ^LK-[0-9]{2}$, e.g. LK-01",
         "line 5: LK-04: age must be between 18 and 90, not 17",
         "line 9: LK-01: participant LK-01 is also on line 2",
@@ -110,7 +110,7 @@ def test_a_roster_colliding_with_a_registered_id_stores_nothing(cli, lk_db, tmp_
     before = snapshot(lk_db)
     r = cli("participant", "import", write(tmp_path / "roster.csv", lk_roster(8)), db=lk_db)
     assert r.code == 2
-    assert r.err.splitlines() == ["pedas-study: error: roster.csv: 1 bad row(s)",
+    assert r.err.splitlines() == [f"pedas-study: error: {tmp_path}/roster.csv: 1 bad row(s)",
                                   "line 6: LK-05: participant LK-05 already exists"]
     assert snapshot(lk_db) == before
     assert listed(cli, lk_db)["participant_id"].tolist() == ["LK-05"]
@@ -137,7 +137,7 @@ def test_every_check_of_participant_add_applies_to_a_roster_row(cli, paper_db, t
         single = cli("participant", "add", pid, *attrs, *proto, db=paper_db)
         assert single.code == 2
         reasons[pid] = single.err.strip().removeprefix("pedas-study: error: ")
-    assert r.err.splitlines() == ["pedas-study: error: paper.csv: 4 bad row(s)"] + [
+    assert r.err.splitlines() == [f"pedas-study: error: {tmp_path}/paper.csv: 4 bad row(s)"] + [
         f"line {n}: {pid}: {reasons[pid]}" for n, pid in ((2, "P001"), (3, "P002"), (4, "P003"), (5, "P004"))]
     assert "license years impossible at this age" in reasons["P001"]
     assert snapshot(paper_db) == before
@@ -148,9 +148,10 @@ def test_every_check_of_participant_add_applies_to_a_roster_row(cli, paper_db, t
 
 @pytest.mark.parametrize("lines, message", [
     (["participant_id,age,shoe_size", "LK-01,30,44"],
-     "roster.csv: unknown column(s) shoe_size; the columns are participant_id, age, gender, km_per_year, protocol"),
+     "roster.csv: unknown column(s) shoe_size; the columns are participant_id, age, gender, km_per_year, protocol, "
+     "order (--ignore-columns shoe_size leaves them out)"),
     (["id,age", "LK-01,30"], "roster.csv: unknown column(s) id; the columns are participant_id, age, gender, "
-                             "km_per_year, protocol"),
+                             "km_per_year, protocol, order (--ignore-columns id leaves them out)"),
     (["participant_id,gender", "LK-01,male"], "roster.csv: no column for the required attribute(s) age"),
     (["participant_id,age,age", "LK-01,30,31"], "roster.csv: duplicate column(s) age"),
     (["participant_id,age"], "roster.csv: no rows below the header"),
@@ -159,15 +160,22 @@ def test_every_check_of_participant_add_applies_to_a_roster_row(cli, paper_db, t
 def test_a_roster_with_bad_columns_is_refused_in_one_line(cli, lk_db, tmp_path, lines, message):
     before = snapshot(lk_db)
     r = cli("participant", "import", write(tmp_path / "roster.csv", lines), db=lk_db)
-    assert (r.code, r.out, r.err) == (2, "", f"pedas-study: error: {message}\n")
+    assert (r.code, r.out, r.err) == (2, "", f"pedas-study: error: {tmp_path}/{message}\n")
     assert snapshot(lk_db) == before
+
+
+def test_a_roster_s_own_columns_are_left_out_with_ignore_columns(cli, lk_db, tmp_path):
+    roster = write(tmp_path / "roster.csv", ["participant_id,age,order_name,seat", "LK-01,30,A,1", "LK-02,31,B,2"])
+    r = cli("participant", "import", roster, "--ignore-columns", "order_name, seat", db=lk_db)
+    assert r.code == 0 and r.out.strip() == f"registered 2 participants from {roster}", r.err
+    assert listed(cli, lk_db)["participant_id"].tolist() == ["LK-01", "LK-02"]
 
 
 def test_rows_with_a_wrong_number_of_fields_are_named(cli, lk_db, tmp_path):
     roster = write(tmp_path / "roster.csv", ["participant_id,age", "LK-01,30", "LK-02,31,extra", "LK-03"])
     r = cli("participant", "import", roster, db=lk_db)
     assert r.code == 2
-    assert r.err.splitlines() == ["pedas-study: error: roster.csv: 2 bad row(s)",
+    assert r.err.splitlines() == [f"pedas-study: error: {roster}: 2 bad row(s)",
                                   "line 3: LK-02: 3 fields, the header has 2",
                                   "line 4: LK-03: 1 fields, the header has 2"]
     assert listed(cli, lk_db).empty
@@ -300,7 +308,7 @@ def test_one_out_of_order_phase_in_the_middle_stores_nothing(cli, paper_24, tmp_
     r = cli("session", "advance", "--from", events_csv(tmp_path / "events.csv", events), db=paper_24)
     assert r.code == 2 and r.out == ""
     assert r.err.splitlines() == [
-        "pedas-study: error: events.csv: 1 bad row(s)",
+        f"pedas-study: error: {tmp_path}/events.csv: 1 bad row(s)",
         f"line {line}: P012: phase out of order: P012 is at baseline_drive, next is pedas_intro, not practice",
     ] + [f"line {n}: P012: not checked: follows the bad line {line} of P012" for n in later]
     assert snapshot(paper_24) == before
@@ -326,7 +334,7 @@ def test_each_bad_event_is_named_with_the_single_commands_reason(cli, paper_24, 
     r = cli("session", "advance", "--from", write(tmp_path / "ev.csv", rows), db=paper_24)
     assert r.code == 2
     lines = r.err.splitlines()
-    assert lines[0] == "pedas-study: error: ev.csv: 10 bad row(s)"
+    assert lines[0] == f"pedas-study: error: {tmp_path}/ev.csv: 10 bad row(s)"
     assert lines[1:4] == ["line 3: P001: an abort needs a reason",
                           "line 4: P002: a reason goes with action abort, not advance (use note)",
                           "line 5: P003: action must be one of advance|complete|abort, not 'skip'"]
@@ -345,11 +353,11 @@ def test_each_bad_event_is_named_with_the_single_commands_reason(cli, paper_24, 
 def test_events_file_columns_and_the_usage_of_advance(cli, paper_24, tmp_path):
     r = cli("session", "advance", "--from", write(tmp_path / "ev.csv", ["participant_id,stage", "P001,x"]),
             db=paper_24)
-    assert r.err == ("pedas-study: error: ev.csv: unknown column(s) stage; the columns are participant_id, phase, "
-                     "action, at, note, reason\n")
+    assert r.err == (f"pedas-study: error: {tmp_path}/ev.csv: unknown column(s) stage; the columns are participant_id, "
+                     "phase, action, at, note, reason (--ignore-columns stage leaves them out)\n")
     r = cli("session", "advance", "--from", write(tmp_path / "ev2.csv", ["participant_id,at", "P001,"]),
             db=paper_24)
-    assert r.err == ("pedas-study: error: ev2.csv: column(s) phase missing; the columns are participant_id, phase, "
+    assert r.err == (f"pedas-study: error: {tmp_path}/ev2.csv: column(s) phase missing; the columns are participant_id, phase, "
                      "action, at, note, reason\n")
     r = cli("session", "advance", "P001", "--from", tmp_path / "ev.csv", db=paper_24)
     assert r.code == 2 and r.err.startswith("pedas-study session advance: error: --from takes every event from the "

@@ -237,3 +237,15 @@ def test_cli_import_messages(cli, paper_db, tmp_path):
     assert "unknown drive log format" in cli("drive", "import", "P001", "pedas", tmp_path / "d.xlsx").err
     r = cli("drive", "list", "--format", "csv")
     assert r.out.splitlines()[1].startswith("1,P001,baseline,import")
+
+
+def test_a_file_name_is_shown_as_given_with_its_control_characters_escaped(cli, paper_db, tmp_path):
+    """A stray CR from a file list (logs/P001.csv\\r) is shown, not hidden as a space, with the folder given."""
+    with Store.open(paper_db) as s:
+        add_participant(s, "P001")
+    path = tmp_path / "logs" / "P001_baseline.csv\r"
+    path.parent.mkdir()
+    path.write_text("x")
+    r = cli("drive", "import", "P001", "baseline", path)
+    assert r.code == 2 and r.err == (f"pedas-study: error: {tmp_path}/logs/P001_baseline.csv\\r: unknown drive log "
+                                     "format (use .csv, .parquet or SUMO FCD .xml, or --format)\n")

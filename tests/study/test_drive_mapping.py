@@ -6,6 +6,7 @@ The lab's log is generated here: a seeded 60 Hz drive over the lane-keeping stud
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import subprocess
 from functools import lru_cache
@@ -228,7 +229,7 @@ def test_kmh_read_as_ms_is_refused_with_one_line(cli, lk_db, tmp_path):
     assert r.code == 2
     lines = r.err.strip().splitlines()
     assert len(lines) == 1
-    assert lines[0].startswith("pedas-study: error: LK-01_hud.csv: channel v (column speed_kmh, m/s) row ")
+    assert lines[0].startswith(f"pedas-study: error: {lab_csv}: channel v (column speed_kmh, m/s) row ")
     assert "looks like a speed in km/h read as m/s" in lines[0] and "--force REASON" in lines[0]
     assert snapshot(lk_db) == before
     # a justified exception: imported, the reason and the overridden problem recorded
@@ -251,8 +252,9 @@ def test_kmh_canonical_log_on_the_urban_route_refused(paper_db, tmp_path):
     log.to_csv(path, index=False)
     add(paper_db, "P001")
     with Store.open(paper_db) as st:
-        with pytest.raises(UserError, match=r"^kmh\.csv: column v row \d+: the integral of v dt since row 1 is "
-                                            r".* m \(ratio 3\.6, .*looks like a speed in km/h read as m/s"):
+        with pytest.raises(UserError, match="^" + re.escape(str(path))
+                           + r": column v row \d+: the integral of v dt since row 1 is "
+                           r".* m \(ratio 3\.6, .*looks like a speed in km/h read as m/s"):
             import_drive_file(st, "P001", "baseline", path)
         assert st.one("SELECT count(*) FROM drives") == 0
         log.assign(v=v_ms).to_csv(path, index=False)
@@ -279,7 +281,7 @@ def test_bad_lab_logs_name_file_channel_and_row(lk_db, tmp_path, change, msg):
     path = tmp_path / "bad.csv"
     change(lab_log(1)).to_csv(path, index=False)
     before = snapshot(lk_db)
-    with Store.open(lk_db) as st, pytest.raises(UserError, match="^bad.csv: " + msg):
+    with Store.open(lk_db) as st, pytest.raises(UserError, match="^" + re.escape(str(path)) + ": " + msg):
         import_drive_file(st, "LK-01", "hud", path)
     assert snapshot(lk_db) == before
 
@@ -296,7 +298,7 @@ def test_log_without_position_integrates_v(lk_db, tmp_path):
     with Store.open(lk_db) as st:
         bad = tmp_path / "bad.toml"
         bad.write_text(text.replace('unit = "km/h"', 'unit = "m/s"'))
-        with pytest.raises(UserError, match=r"^nopos.csv: channel s \(integrated from v\) row \d+: position .* is "
+        with pytest.raises(UserError, match="^" + re.escape(str(log)) + r": channel s \(integrated from v\) row \d+: position .* is "
                                             r"outside route lk-5km"):
             import_drive_file(st, "LK-01", "hud", log, mapping=bad)
         r = import_drive_file(st, "LK-01", "hud", log, mapping=mp)

@@ -5,6 +5,7 @@ The reference is the whole-log path the same module keeps for mapped logs and fr
 `_prepare`, `import_drive_frame`); the chunk size is set small so that problems fall on chunk borders."""
 from __future__ import annotations
 
+import re
 import numpy as np
 import pandas as pd
 import pytest
@@ -199,7 +200,7 @@ def test_a_file_changed_between_the_two_reads_stores_nothing(st, tmp_path, monke
     with pytest.raises(UserError, match="log.csv changed while it was being imported: column v row 51: speed 99"):
         _store_drive(st, record)
     _write(make_drive(120), path, "csv")
-    with pytest.raises(UserError, match="^log.csv changed while it was being imported$"):
+    with pytest.raises(UserError, match=re.escape(str(path)) + " changed while it was being imported$"):
         _store_drive(st, record)
     assert st.counts() == before
 
@@ -211,5 +212,5 @@ def test_unreadable_file_is_one_line(cli, paper_db, tmp_path):
     bad = tmp_path / "log.parquet"
     bad.write_bytes(b"not parquet at all")
     r = cli("drive", "import", "P001", "baseline", bad)
-    assert r.code == 2 and r.err.startswith("pedas-study: error: cannot read log.parquet: ") and r.out == ""
+    assert r.code == 2 and r.err.startswith(f"pedas-study: error: cannot read {bad}: ") and r.out == ""
     assert len(r.err.strip().splitlines()) == 1 and snapshot(paper_db) == before

@@ -128,7 +128,7 @@ def test_fcd_of_another_network_refused_without_its_network(cli, paper_db, sumo_
     before = snapshot(paper_db)
     r = cli("drive", "import", "P001", "baseline", fcd, "--vehicle", "ego")
     assert r.code == 2 and r.out == ""
-    assert r.err.strip() == ("pedas-study: error: fcd.xml: column lane row 1: lane town_0 is not on route "
+    assert r.err.strip() == (f"pedas-study: error: {fcd}: column lane row 1: lane town_0 is not on route "
                              "study-13.2km (SUMO edges u01 ... h05, [log] route_edges of fcd_map.toml): the log is "
                              "from another route; give its network with --net FILE")
     assert snapshot(paper_db) == before
@@ -142,7 +142,7 @@ def test_wrong_network_and_misuse_of_net_refused(cli, paper_db, sumo_run, tmp_pa
     add(paper_db)
     before = snapshot(paper_db)
     r = cli("drive", "import", "P001", "baseline", fcd, "--vehicle", "ego", "--net", build_network())
-    assert r.code == 2 and r.err.strip() == ("pedas-study: error: fcd.xml: column lane row 1: lane town_0 is not in "
+    assert r.code == 2 and r.err.strip() == (f"pedas-study: error: {fcd}: column lane row 1: lane town_0 is not in "
                                              f"network {build_network().name}: the log is not from this network")
     r = cli("drive", "import", "P001", "baseline", fcd, "--vehicle", "ego", "--net", tmp_path / "none.net.xml")
     assert r.code == 2 and f"no such network file: {tmp_path / 'none.net.xml'}" in r.err
@@ -163,11 +163,11 @@ def test_unknown_vehicle_lists_every_id_sorted_and_the_ego(sumo_run):
     ids = "car1, car2, car3, car4, car5, car6, car7, car8, car9, car10, ego"
     with pytest.raises(UserError) as exc:
         read_fcd(fcd, "eg0")
-    assert str(exc.value) == (f"fcd.xml: no vehicle 'eg0' in this FCD file; it holds 11 vehicles ({ids}; likely "
+    assert str(exc.value) == (f"{fcd}: no vehicle 'eg0' in this FCD file; it holds 11 vehicles ({ids}; likely "
                               f"the ego: ego)")
     with pytest.raises(UserError) as exc:
         read_fcd(fcd)
-    assert str(exc.value) == (f"fcd.xml holds 11 vehicles ({ids}): name one with --vehicle (or [log] vehicle in the "
+    assert str(exc.value) == (f"{fcd} holds 11 vehicles ({ids}): name one with --vehicle (or [log] vehicle in the "
                               f"mapping); likely the ego: ego")
 
 

@@ -144,8 +144,9 @@ def test_study_check_refuses_bad_questionnaire_phases(tmp_path, change, message)
 def test_a_wide_file_with_a_condition_or_occasion_column_imports_every_occasion(tor, tmp_path, which):
     r = tor("survey", "import", _wide_file(tmp_path / "wide.csv", which))
     assert r.code == 0, r.err
-    assert r.out.strip() == ("imported 56 participants at 3 occasions (survey_after_none, survey_after_visual, "
-                             "survey_after_audiovisual) (1232 answers, 0 missing) as single electronic entry (final)")
+    assert r.out.strip() == ("imported 19 participants at 3 occasions (survey_after_none, survey_after_visual, "
+                             "survey_after_audiovisual; 56 questionnaires) (1232 answers, 0 missing) as single "
+                             "electronic entry (final)")
     out = tmp_path / "final.csv"
     r = tor("survey", "final", "--instrument", "post_drive", "--out", out)
     assert r.code == 0 and r.out.strip() == f"wrote 56 rows (19 participants) to {out}"
@@ -169,13 +170,26 @@ def test_a_wide_file_with_a_condition_or_occasion_column_imports_every_occasion(
     assert list(pd.read_csv(out).columns) == ["participant_id"] + ITEMS
 
 
+def test_a_survey_file_s_own_columns_are_left_out_with_ignore_columns(tor, tmp_path):
+    wide = pd.read_csv(_wide_file(tmp_path / "wide.csv"))
+    wide.insert(1, "position", range(len(wide)))      # the lab's own bookkeeping beside the items
+    wide.to_csv(tmp_path / "own.csv", index=False)
+    r = tor("survey", "import", tmp_path / "own.csv")
+    assert r.code == 2 and "unknown item column(s) position for instrument post_drive" in r.err
+    r = tor("survey", "import", tmp_path / "own.csv", "--ignore-columns", "position,seat")
+    assert r.code == 2 and r.err.strip().endswith("own.csv: --ignore-columns names no column of the file: seat "
+                                                  f"(the columns are {', '.join(wide.columns)})")
+    r = tor("survey", "import", tmp_path / "own.csv", "--ignore-columns", "position")
+    assert r.code == 0 and r.out.startswith("imported 19 participants at 3 occasions"), r.err
+
+
 def test_a_long_file_gives_the_same_answers_as_the_wide_one(tor, cli, tmp_path):
     wide = seed().rename(columns={"participant": "participant_id"})
     wide["occasion"] = "survey_after_" + wide["condition"]
     long = wide.melt(id_vars=["participant_id", "occasion"], value_vars=ITEMS, var_name="item_id")
     long.sample(frac=1.0, random_state=7).to_csv(tmp_path / "long.csv", index=False)   # any row order
     r = tor("survey", "import", tmp_path / "long.csv")
-    assert r.code == 0 and "imported 56 participants at 3 occasions" in r.out, r.err
+    assert r.code == 0 and "imported 19 participants at 3 occasions" in r.out, r.err
     r = tor("survey", "final", "--instrument", "post_drive", "--out", tmp_path / "f.csv")
     final = pd.read_csv(tmp_path / "f.csv").set_index(["participant_id", "occasion"])[ITEMS]
     assert final.sort_index().equals(wide.set_index(["participant_id", "occasion"])[ITEMS].sort_index())
@@ -201,7 +215,7 @@ def test_bad_occasion_columns_are_refused_in_one_line_and_nothing_is_stored(tor,
     edit(pd.read_csv(path)).to_csv(path, index=False)
     before = _counts(tmp_db)
     r = tor("survey", "import", path, "--instrument", "post_drive")
-    assert r.code == 2 and r.err.strip() == f"pedas-study: error: {message}"
+    assert r.code == 2 and r.err.strip() == f"pedas-study: error: {tmp_path}/{message}"
     assert _counts(tmp_db) == before
 
 
@@ -308,24 +322,34 @@ def test_a_familiarisation_drive_is_stored_outside_the_conditions(tor, tmp_db, t
                                              "familiarisation)")
 
 
-def test_a_log_for_another_condition_than_the_current_drive_is_refused_unless_forced(tor, tmp_db, tmp_path):
+def test_a_log_of_a_drive_entered_imports_after_the_fact_and_one_not_entered_is_refused_unless_forced(
+        tor, tmp_db, tmp_path):
     for phase in ("familiarisation", "drive_none", "survey_after_none", "drive_visual"):
         assert tor("session", "advance", "TOR-A01", phase).code == 0
-    log = _log(tmp_path / "none.csv", 2)
+    # the none drive is over and the participant is in the next drive: its log is copied afterwards
+    assert tor("drive", "import", "TOR-A01", "none", _log(tmp_path / "none.csv", 2)).code == 0
+    assert tor("drive", "import", "TOR-A01", "familiarisation", _log(tmp_path / "fam.csv", 4)).code == 0
+    # a second, different log of the same drive still needs --replace
+    r = tor("drive", "import", "TOR-A01", "none", _log(tmp_path / "none2.csv", 5))
+    assert r.code == 2 and "already has a none drive from none.csv with different content; use --replace" in r.err
+    assert tor("session", "abort", "TOR-A01", "--reason", "motion sickness").code == 0
+    log = _log(tmp_path / "av.csv", 6)
     before = _counts(tmp_db)
-    r = tor("drive", "import", "TOR-A01", "none", log)
+    r = tor("drive", "import", "TOR-A01", "audiovisual", log)
+    expected = ("TOR-A01 has not entered the drive of audiovisual (drive_audiovisual); phases entered: "
+                "familiarisation, drive_none, survey_after_none, drive_visual (aborted)")
     assert r.code == 2 and r.err.strip() == (
-        "pedas-study: error: TOR-A01's current drive phase is drive_visual (visual), the log is for none; import "
-        "with --force REASON to store it anyway")
+        f"pedas-study: error: {expected}; import with --force REASON to store it anyway")
     assert _counts(tmp_db) == before
-    r = tor("drive", "import", "TOR-A01", "none", log, "--force", "log copied from the none drive after the fact")
+    r = tor("drive", "import", "TOR-A01", "audiovisual", log, "--force", "log of a drive the protocol did not record")
     assert r.code == 0, r.err
-    assert "note: imported with --force despite: TOR-A01's current drive phase is drive_visual (visual)" in r.err
+    assert f"note: imported with --force despite: {expected}" in r.err
     with Store.open(tmp_db, read_only=True) as st:
-        new = json.loads(st.one("SELECT new FROM audit_log WHERE table_name = 'drives' AND action = 'insert'"))
-    forced = json.loads(new["meta"])["forced"]
-    assert forced == {"reason": "log copied from the none drive after the fact",
-                      "overridden": ["TOR-A01's current drive phase is drive_visual (visual), the log is for none"]}
+        new = [json.loads(n) for n in st.df("SELECT new FROM audit_log WHERE table_name = 'drives' "
+                                            "AND action = 'insert' ORDER BY audit_id")["new"]]
+    assert json.loads(new[-1]["meta"])["forced"] == {"reason": "log of a drive the protocol did not record",
+                                                     "overridden": [expected]}
+    # the drive aborted (entered) takes its log without --force
     assert tor("drive", "import", "TOR-A01", "visual", _log(tmp_path / "visual.csv", 3)).code == 0
 
 
@@ -385,3 +409,4 @@ def test_a_store_of_the_schema_before_occasions_keeps_its_answers(tmp_db, tmp_pa
         assert list(final.index) == ["P001", "P002"]
         assert final.loc["P002", "PU1"] == 3.0        # the resolution wins, as before
         assert final.loc["P001", scaled].tolist() == [float(1 + k % 5) for k in range(len(scaled))]
+

@@ -26,7 +26,7 @@ def test_add_and_list(paper_db):
         stored = st.df("SELECT * FROM participant_attributes WHERE participant_id = 'P002' ORDER BY attribute")
         versions = st.df("SELECT study_version FROM participants")["study_version"].tolist()
     assert df.columns.tolist() == ["participant_id", "age", "gender", "license_years", "style", "eco_familiarity",
-                                   "protocol", "phase", "phase_outcome", "excluded", "created_at"]
+                                   "protocol", "order", "phase", "phase_outcome", "excluded", "created_at"]
     assert df["participant_id"].tolist() == ["P001", "P002"]
     p2 = df.set_index("participant_id").loc["P002"]
     assert (p2["age"], p2["gender"], p2["license_years"], p2["style"], p2["eco_familiarity"]) == (
@@ -161,8 +161,8 @@ def test_cli_add_list_formats(cli, paper_db):
     assert (rows[0]["style"], rows[0]["age"], rows[1]["age"], rows[1]["protocol"]) == (
         "sporty", 30, 44, "counterbalanced_v1")
     r = cli("participant", "list", "--format", "csv")
-    assert r.out.splitlines()[0] == ("participant_id,age,gender,license_years,style,eco_familiarity,protocol,phase,"
-                                     "phase_outcome,excluded,created_at")
+    assert r.out.splitlines()[0] == ("participant_id,age,gender,license_years,style,eco_familiarity,protocol,order,"
+                                     "phase,phase_outcome,excluded,created_at")
     assert len(r.out.splitlines()) == 3
     r = cli("participant", "list")
     assert "P001" in r.out and "sporty" in r.out
@@ -208,6 +208,6 @@ def test_list_into_a_closed_pipe_is_quiet(paper_db):
     cmd = f"set -o pipefail; '{sys.executable}' -m pedas_study.cli --db='{paper_db}' participant list | head -1"
     p = subprocess.run(["bash", "-c", cmd], **REPO_ARGS)
     assert p.stdout.split() == ["participant_id", "age", "gender", "license_years", "style", "eco_familiarity",
-                                "protocol", "phase", "phase_outcome", "excluded", "created_at"]
+                                "protocol", "order", "phase", "phase_outcome", "excluded", "created_at"]
     assert p.stderr == "" and p.returncode == 0, p.stderr
     assert not re.search(r"(?i)broken pipe|errno 32", p.stderr)

@@ -96,7 +96,7 @@ def test_csv_import_refuses_an_answer_off_the_grid_and_stores_nothing(slider_db,
     capsys.readouterr()
     assert main([f"--db={slider_db}", "survey", "import", str(bad)]) == 2
     err = capsys.readouterr().err.strip()
-    assert err == ("pedas-study: error: bad.csv: line 3, TLX_MD: value 37 is not a step of 5 from 0 "
+    assert err == (f"pedas-study: error: {bad}: line 3, TLX_MD: value 37 is not a step of 5 from 0 "
                    "(nearest allowed: 35 or 40); nothing imported")
     st = Store.open(slider_db)
     assert st.counts() == before

@@ -98,7 +98,7 @@ def test_out_of_range_is_refused_in_one_line_and_changes_nothing(cli, lk, tmp_pa
     path = write_csv(tmp_path / "answers.csv", header, rows)
     before = counts(lk)
     r = cli("survey", "import", path)
-    assert r.code == 2 and r.err == f"pedas-study: error: {message}\n"
+    assert r.code == 2 and r.err == f"pedas-study: error: {path}{message.removeprefix(path.name)}\n"
     assert counts(lk) == before
 
 
