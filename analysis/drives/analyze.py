@@ -11,6 +11,7 @@ import pandas as pd
 from analysis.drives.band_diagnostics import band_diagnostics, diagnostics_markdown
 from analysis.drives.figures import write_figures
 from analysis.drives.kpis import energy_note
+from analysis.drives.paired import write_paired
 from analysis.drives.savings import ObjectiveResult, objective_results, reproduction_bands, study_published
 from analysis.drives.tables import (_summary_cells, _texts, bands_markdown, kpi_markdown, kpi_summary_table,
                                     style_cells, style_table, write_tables)
@@ -87,6 +88,8 @@ def analyze_drives(st, out_dir: str | Path, participant: str | None = None, para
         diag.to_csv(out / "band_diagnostics.csv", index=False, float_format="%.12g")
         files += [out / "bands.csv", out / "band_diagnostics.csv"]
     figures = write_figures(st, result, out / "figures", participant)
+    # paired tests, CIs and d_z of each compared KPI, the condition x group ANOVA, the paired plots
+    files += write_paired(result, out)
     for v in figures.values():
         if not isinstance(v, str):
             files.extend(v)
@@ -102,6 +105,8 @@ def analyze_drives(st, out_dir: str | Path, participant: str | None = None, para
               f"{', '.join(result.incomplete) or 'none'}.", "", (out / "style_table.md").read_text(encoding="utf-8")]
         if bands is not None:
             md += [bands_markdown(bands), diagnostics_markdown(diag)]
+        if (out / "paired.md").exists():
+            md += [(out / "paired.md").read_text(encoding="utf-8")]
     note = energy_note(result.energy_sources)
     if note:
         md += [note[0].upper() + note[1:] + ".", ""]
