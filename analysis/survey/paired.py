@@ -16,6 +16,8 @@ condition x group mixed ANOVA of such pairs.
 """
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pandas as pd
 from scipy import stats
@@ -172,7 +174,8 @@ def mixed_anova(data: pd.DataFrame, dv: str = "value", within: str = "condition"
 
     Rows: the between factor, the within factor and their interaction (pingouin ``mixed_anova``; R
     ``aov(dv ~ within * between + Error(subject / within))`` alike), with SS, df of the effect and of its error
-    term, F, p and partial eta^2. A between factor with fewer than two levels among the participants: ValueError.
+    term, F, p and partial eta^2. A between factor with fewer than two levels among the participants, or an error term
+    without variance (F not finite): ValueError.
 
     Examples
     --------
@@ -192,8 +195,13 @@ def mixed_anova(data: pd.DataFrame, dv: str = "value", within: str = "condition"
     d = d[d[subject].isin(counts.index[counts == k])]
     if d[between].nunique() < 2:
         raise ValueError(f"the mixed ANOVA needs two or more levels of {between} among complete participants")
-    t = pg.mixed_anova(data=d, dv=dv, within=within, between=between, subject=subject, effsize="np2",
-                       correction=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)   # F of an error term without variance: refused below
+        t = pg.mixed_anova(data=d, dv=dv, within=within, between=between, subject=subject, effsize="np2",
+                           correction=False)
+    if not np.isfinite(t["F"].to_numpy(float)).all():
+        raise ValueError(f"the mixed ANOVA of {dv} has an error term without variance (too few participants per "
+                         f"{between})")
     names = {between: between, within: within, "Interaction": f"{within} × {between}"}
     rows = []
     for _, r in t.iterrows():

@@ -69,3 +69,13 @@ def test_path_diagram_draws_each_predictor_of_each_models_last_step(written):
     h = res.hypotheses.set_index("hypothesis")
     for e in edges[edges["hypothesis"] != ""].itertuples():
         assert e.beta == pytest.approx(h.loc[e.hypothesis, "beta"])
+
+
+def test_mixed_anova_refuses_an_error_term_without_variance():
+    from analysis.survey.paired import mixed_anova
+
+    # the difference is 2 in group x and 3 in group y for everybody: no within-group error variance, F infinite
+    d = pd.DataFrame({"participant": list("aabbccdd"), "group": list("xxxxyyyy"), "condition": ["c", "t"] * 4,
+                      "value": [5, 3, 6, 4, 7, 4, 5, 2.0]})
+    with pytest.raises(ValueError, match="without variance"):
+        mixed_anova(d)
