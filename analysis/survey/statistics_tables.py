@@ -1,7 +1,7 @@
 """The survey statistics a journal reviewer asks for, as tables and a figure of the report's survey part:
 
 * ``fit_indices``: the CFA's global fit per stage with the RMSEA's 90 % interval, judged against Hu & Bentler (1999)
-  in the note (:mod:`analysis.survey.fit_report`);
+  in the note (:mod:`analysis.survey.fit_report`), with the final solution's admissibility problems beside it;
 * ``regression_diagnostics``: per model and step, Cohen's f^2 with its 95 % interval (noncentral F), Shapiro-Wilk,
   Breusch-Pagan, Cook's distance and the cases above 4/n, the largest VIF (:mod:`analysis.survey.diagnostics`);
 * ``regression_diagnostics_coefficients``: per step and predictor B, SE, beta with its 95 % interval, t, p, VIF;
@@ -45,7 +45,10 @@ def write_survey_statistics(res, out: str | Path, covariates: pd.DataFrame | Non
     paths = []
     fit = res.fit
     final = fit[fit["stage"] == "final"]
-    notes = ([fit_sentence(final.iloc[0])] if len(final) else []) + [
+    # the fit of an improper solution is read with its admissibility problems beside it
+    improper = [w.split(": ", 1)[1] for w in res.warnings if w.startswith("CFA final: ")]
+    notes = ([fit_sentence(final.iloc[0])] if len(final) else []) + (
+        [f"Problems of the final solution: {'; '.join(improper)}."] if improper else []) + [
         "RMSEA interval by lavaan's method (noncentral χ², N as in χ² = N F_ML). Cut-offs of Hu and Bentler (1999): "
         "CFI ≥ .95, TLI ≥ .95, RMSEA ≤ .06, SRMR ≤ .08."]
     paths += write_table(fit_indices_table(fit), out, "fit_indices",
