@@ -197,7 +197,7 @@ _TEX_SPECIALS_RE = re.compile("|".join(re.escape(k) for k in _TEX_SPECIALS))
 TEX_SYMBOLS = {"λ": r"$\lambda$", "α": r"$\alpha$", "β": r"$\beta$", "Δ": r"$\Delta$", "Σ": r"$\Sigma$",
                "²": r"$^2$", "¹": r"$^1$", "⁻": r"$^-$", "†": r"$^\dagger$", "–": "--", "->": r"$\rightarrow$",
                "√": r"$\surd$", "·": r"$\cdot$", "≈": r"$\approx$", "±": r"$\pm$", "≤": r"$\leq$", "≥": r"$\geq$",
-               "×": r"$\times$", "−": r"$-$"}
+               "×": r"$\times$", "−": r"$-$", "η": r"$\eta$", "χ": r"$\chi$", "³": r"$^3$"}
 
 
 def tex_escape(s: str) -> str:

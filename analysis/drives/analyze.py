@@ -12,6 +12,7 @@ from analysis.drives.band_diagnostics import band_diagnostics, diagnostics_markd
 from analysis.drives.figures import write_figures
 from analysis.drives.kpis import energy_note
 from analysis.drives.measure_tables import write_measure_tables
+from analysis.drives.paired import write_paired
 from analysis.drives.savings import ObjectiveResult, objective_results, reproduction_bands, study_published
 from analysis.drives.tables import (_summary_cells, _texts, bands_markdown, kpi_markdown, kpi_summary_table,
                                     style_cells, style_table, write_tables)
@@ -93,6 +94,8 @@ def analyze_drives(st, out_dir: str | Path, participant: str | None = None, para
         diag.to_csv(out / "band_diagnostics.csv", index=False, float_format="%.12g")
         files += [out / "bands.csv", out / "band_diagnostics.csv"]
     figures = write_figures(st, result, out / "figures", participant)
+    # paired tests, CIs and d_z of each compared KPI, the condition x group ANOVA, the paired plots
+    files += write_paired(result, out)
     for v in figures.values():
         if not isinstance(v, str):
             files.extend(v)
@@ -108,6 +111,8 @@ def analyze_drives(st, out_dir: str | Path, participant: str | None = None, para
               f"{', '.join(result.incomplete) or 'none'}.", "", (out / "style_table.md").read_text(encoding="utf-8")]
         if bands is not None:
             md += [bands_markdown(bands), diagnostics_markdown(diag)]
+        if (out / "paired.md").exists():
+            md += [(out / "paired.md").read_text(encoding="utf-8")]
     md += [p.read_text(encoding="utf-8") for p in measure_files if p.suffix == ".md"]
     note = energy_note(result.energy_sources)
     if note:

@@ -176,8 +176,17 @@ def survey_missing(st, study) -> str | None:
     return None
 
 
+def _covariates(st, study, index) -> pd.DataFrame:
+    """The covariate columns the study's regressions use, for the participants in `index` (none: no columns)."""
+    from analysis.survey.acceptance import attributes_from_store, covariate_frame, covariates_of
+
+    names = covariates_of(study)
+    return covariate_frame(attributes_from_store(st) if names else None, study, names, index)[0]
+
+
 def survey_step(cfg: ReportConfig) -> None:
     from analysis.survey.acceptance import analyze_store
+    from analysis.survey.statistics_tables import write_survey_statistics
     from study.store.studies import definition
 
     with _open_store(cfg, read_only=True) as st:
@@ -194,12 +203,15 @@ def survey_step(cfg: ReportConfig) -> None:
             # only the loadings differ, so no bootstrap, and the CFA fits are the ones above
             pca, _ = analyze_store(st, n_boot=0, seed=cfg.seed or 20240101, loadings="pca", reuse=res)
             ext, ext_reason = _extended_survey(st, definition(st), responses, cfg, res)
+            covariates = _covariates(st, definition(st), res.composites.index)
     with _fresh_dir(cfg.out / "survey") as out:
         if reason is not None:
             (out / SKIPPED).write_text(reason + "\n", encoding="utf-8")
             return
         res.write(out)
         responses.to_csv(out / "responses.csv", index=False)
+        # fit with the RMSEA interval, regression diagnostics, the path diagram (analysis.survey.statistics_tables)
+        write_survey_statistics(res, out, covariates)
         write_table3_pca(pca, out / "pca")
         # the extended statistics (docs/acceptance_statistics.md) in survey/extended/
         if ext is not None:

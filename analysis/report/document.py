@@ -329,7 +329,13 @@ FIGURES: dict[str, tuple[str, Callable[[Path, object], str | None] | None]] = {
     "power_map_fit": ("Fit of the battery power map of the vehicle model.", None),
     "dp_profile": ("Dynamic-programming speed profile on the study route (Fig. 5a).", None),
     "green_wave_space_time": ("Space-time diagram of the green wave on the study route (Fig. 5b).", None),
+    "path_diagram": ("Structural model of the model file: standardized coefficients β of the hierarchical regressions "
+                     "on the composites (at the step where each hypothesis is read) and R² of each dependent variable; "
+                     "* p < .05, ** p < .01, *** p < .001; dashed: p ≥ .05.", None),
 }
+#: the caption of every paired plot (figures paired_<kpi> of the drive analysis)
+PAIRED_CAPTION = ("Each participant's value in both compared conditions (joined by a line, coloured by group) and the "
+                  "condition means with their 95 % CIs.")
 SURVEY_FIGURES = ("likert_items",)
 FLOW_FIGURES = ("participant_flow",)
 CORE_FIGURES = ("aero_linearisation", "speed_correction", "power_map_fit", "dp_profile", "green_wave_space_time")
@@ -346,7 +352,8 @@ DRIVE_TABLES = ("drives_style_table", "drives_summary", "drives_bands", "drives_
 
 
 def _figure(out: Path, stem: str, study) -> str:
-    caption, reader = FIGURES.get(stem, (stem.replace("_", " ") + ".", None))
+    caption, reader = FIGURES.get(stem, (PAIRED_CAPTION if stem.startswith("paired_") else
+                                         stem.replace("_", " ") + ".", None))
     reading = None
     if reader is not None:
         try:

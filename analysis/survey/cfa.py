@@ -125,6 +125,89 @@ def fit_indices(S: np.ndarray, sigma: np.ndarray, n: int, n_params: int) -> dict
             "n_params": int(n_params)}
 
 
+#: Hu & Bentler (1999) cut-offs of good fit for continuous indicators under ML (their combination rules aside)
+HU_BENTLER = {"cfi": (">=", 0.95), "tli": (">=", 0.95), "rmsea": ("<=", 0.06), "srmr": ("<=", 0.08)}
+
+
+def rmsea_ci(chi2: float, df: int, n: int, level: float = 0.90) -> tuple[float, float]:
+    """Confidence interval of the RMSEA by lavaan's method (Browne & Cudeck 1993; lavaan ``lav_fit_rmsea_ci``).
+
+    The noncentrality lambda of a noncentral chi-square on `df` degrees of freedom is found where the observed
+    `chi2` is its (1 + level)/2 quantile (lower limit) and its (1 - level)/2 quantile (upper limit):
+    P(X <= chi2; df, lambda_L) = (1 + level)/2, P(X <= chi2; df, lambda_U) = (1 - level)/2; a limit whose equation
+    has no root at lambda >= 0 is 0. Each becomes an RMSEA as the point estimate does, sqrt(lambda / (df N)) with
+    lavaan's N for ``likelihood = "normal"`` ML (chi2 = N F_ML, not (N - 1) F_ML). lavaan searches the upper root
+    in [0, max(N, 4 chi2)] with ``uniroot``'s default tolerance (about 1e-4 on lambda); the roots here are found
+    to machine precision (Brent's method), so the limits can differ from lavaan's printout in the 5th decimal.
+
+    Parameters
+    ----------
+    chi2 : float
+        The model's chi-square (N F_ML).
+    df : int
+        Its degrees of freedom.
+    n : int
+        Sample size N.
+    level : float
+        Confidence level, default .90 (the RMSEA's customary interval).
+
+    Returns
+    -------
+    low, high : float
+        NaN for df < 1.
+
+    Examples
+    --------
+    chi2 = df: the point estimate is 0 and so is the lower limit; with chi2 = 2 df both limits are above 0 (lavaan
+    prints .000, .061 and .038, .103):
+
+    >>> from analysis.survey.cfa import rmsea_ci
+    >>> [round(x, 4) for x in rmsea_ci(20.0, 20, 200)]
+    [0.0, 0.0607]
+    >>> [round(x, 4) for x in rmsea_ci(40.0, 20, 200)]
+    [0.0379, 0.1025]
+    """
+    from scipy.optimize import brentq
+
+    if not df >= 1 or not np.isfinite(chi2) or n <= 0:
+        return float("nan"), float("nan")
+
+    def cdf_minus(target: float):
+        return lambda lam: float(stats.ncx2.cdf(chi2, df, lam)) - target
+
+    def limit(target: float, upper: float) -> float:
+        f = cdf_minus(target)
+        if f(0.0) < 0.0:        # even lambda = 0 puts chi2 above the quantile: the limit is 0
+            return 0.0
+        # the cdf falls in lambda; widen the bracket until it changes sign (lavaan's first bracket, then doubled)
+        hi = max(upper, 1.0)
+        while f(hi) > 0.0:
+            hi *= 2.0
+        lam = brentq(f, 0.0, hi, xtol=1e-14, rtol=4 * np.finfo(float).eps, maxiter=500)
+        return float(np.sqrt(lam / (df * n)))
+
+    a = (1.0 - level) / 2.0
+    return limit(1.0 - a, chi2), limit(a, max(n, 4.0 * chi2))
+
+
+def judge_fit(fit: dict, cutoffs: dict = HU_BENTLER) -> dict[str, bool]:
+    """Index -> whether `fit` meets its cut-off in `cutoffs` (default :data:`HU_BENTLER`); NaN never meets it.
+
+    Examples
+    --------
+    >>> from analysis.survey.cfa import judge_fit
+    >>> judge_fit({"cfi": 0.907, "tli": 0.883, "rmsea": 0.081, "srmr": 0.110})
+    {'cfi': False, 'tli': False, 'rmsea': False, 'srmr': False}
+    >>> judge_fit({"cfi": 0.96, "tli": 0.95, "rmsea": 0.05, "srmr": 0.08})
+    {'cfi': True, 'tli': True, 'rmsea': True, 'srmr': True}
+    """
+    out = {}
+    for k, (op, bound) in cutoffs.items():
+        x = float(fit.get(k, float("nan")))
+        out[k] = bool(np.isfinite(x) and (x >= bound if op == ">=" else x <= bound))
+    return out
+
+
 def srmr(S: np.ndarray, sigma: np.ndarray) -> float:
     """Standardized root mean square residual, lavaan's ``srmr_bentler`` (no mean structure).
 

@@ -121,7 +121,8 @@ def ols(y: np.ndarray, X: np.ndarray) -> dict:
     -------
     dict
         b, se, t, p (arrays of k + 1, the constant first; p two-tailed on df_resid), r2, adj_r2 =
-        1 - (1 - r2)(n - 1)/df_resid, df_resid = n - k - 1. Equal to statsmodels' OLS.
+        1 - (1 - r2)(n - 1)/df_resid, df_resid = n - k - 1; resid (y - X b) and inv ((X'X)^-1 of the design with
+        the constant, for leverages). Equal to statsmodels' OLS.
 
     Examples
     --------
@@ -154,7 +155,8 @@ def ols(y: np.ndarray, X: np.ndarray) -> dict:
     se = np.sqrt(sigma2 * np.diag(inv))
     t = b / se
     p = 2.0 * stats.t.sf(np.abs(t), df2)
-    return {"b": b, "se": se, "t": t, "p": p, "r2": r2, "adj_r2": 1.0 - (1.0 - r2) * (n - 1) / df2, "df_resid": df2}
+    return {"b": b, "se": se, "t": t, "p": p, "r2": r2, "adj_r2": 1.0 - (1.0 - r2) * (n - 1) / df2, "df_resid": df2,
+            "resid": resid, "inv": inv}
 
 
 def f_change(r2_new: float, r2_old: float, df1: int, df2: int) -> tuple[float, float]:

@@ -14,7 +14,9 @@ import pytest
 
 MODULES = ["analysis.survey.reliability", "analysis.survey.validity", "analysis.survey.regression", "analysis.survey.cfa",
            "analysis.survey.hypotheses", "analysis.survey.scoring", "analysis.survey.descriptives", "analysis.render",
-           "analysis.survey.acceptance", "analysis.survey.testing", "study.survey.scores"]
+           "analysis.survey.acceptance", "analysis.survey.testing", "analysis.survey.fit_report",
+           "analysis.survey.diagnostics", "analysis.survey.paired", "analysis.drives.paired",
+           "analysis.survey.path_diagram", "study.survey.scores"]
 
 
 def _flags(config) -> int:

@@ -97,6 +97,17 @@ def test_analyze_drives_writes_tables_figures_and_bands(cli, cohort_db, tmp_path
     assert per["red_stop_reduction_pct"].to_numpy() == pytest.approx(100.0)
     assert (per["tl_green_passes_baseline"] == 0).all() and (per["tl_green_passes_pedas"] == 1).all()
     assert per["violation_reduction_pct"].to_numpy() == pytest.approx(100.0)
+    # the paired comparison of each compared KPI: tables with words as headers, the paired plots
+    paired = pd.read_csv(out / "paired.csv").set_index("KPI")
+    assert {"n", "M_diff", "95 % CI LL", "95 % CI UL", "t", "df", "p (t)", "d_z", "W", "p (W)"} <= set(paired.columns)
+    assert paired.loc["Battery energy (Wh)", "M_diff"] > 0 and (paired["n"] == 5).all()
+    # red stops drop by exactly 1 for everybody: no variance of the differences, no test, said in the note
+    assert "Stops at red (count)" not in paired.index
+    assert "Stops at red (count)" in (out / "paired.md").read_text()
+    assert set(pd.read_csv(out / "paired_by_group.csv")["Effect"]) == {"Style", "Condition", "Condition × style"}
+    for stem in ("paired_energy_overall_wh", "paired_rms_jerk"):
+        assert (out / "figures" / f"{stem}.png").stat().st_size > 1000, stem
+    assert not (out / "figures" / "paired_tl_crossed.png").exists()   # the same in both drives
     tex = (out / "style_table.tex").read_text()
     assert r"\toprule" in tex and r"\bottomrule" in tex
     bands = pd.read_csv(out / "bands.csv")

@@ -88,10 +88,12 @@ def test_failure_names_the_step_and_keeps_earlier_outputs(tmp_path):
 EXPECTED_FIGURES = ["fig9a_savings", "fig9b_savings_urban_by_style", "fig9c_savings_highway_by_style",
                     "fig9d_savings_overall_by_style", "fig10_tl_green", "fig11_driving_behaviour",
                     "fig12_controller_switching", "participant_flow", "likert_items", "aero_linearisation",
-                    "speed_correction", "power_map_fit", "dp_profile", "green_wave_space_time"]
+                    "speed_correction", "power_map_fit", "dp_profile", "green_wave_space_time", "path_diagram",
+                    "paired_energy_overall_wh"]
 EXPECTED_TABLES = ["survey_table3", "survey_table4", "survey_table5", "survey_hypotheses", "survey_fit",
                    "survey_htmt", "participant_flow", "drives_style_table", "drives_participant_table",
-                   "drives_band_diagnostics", "paper_audit"]
+                   "drives_band_diagnostics", "paper_audit", "survey_fit_indices", "survey_regression_diagnostics",
+                   "survey_regression_diagnostics_coefficients", "drives_paired"]
 
 
 def _check_tables_parse(tables: Path) -> None:
