@@ -2,13 +2,10 @@
 a score after two drives), as R's ``t.test(paired = TRUE)`` and ``wilcox.test(paired = TRUE)`` report it, and the
 condition x group mixed ANOVA of such pairs.
 
-* :func:`wilcoxon_signed_rank`: the one Wilcoxon signed-rank test of the analyses. Differences are compared at their
-  resolution before ranking (:func:`at_resolution`: rounded to a grid of `resolution`, by default 1e-9 of the
-  largest |value| of the pair, so that float noise such as 7/6 computed two ways is no tie-breaker); zero differences
-  are dropped (R's default); V = sum of the ranks (average ranks for ties) of the positive differences; the exact
-  distribution only without ties and zeros and for fewer than 50 non-zero differences, otherwise the normal
-  approximation with continuity correction and the tie correction sum(t^3 - t)/48 of the variance -- R's
-  ``wilcox.test(x, y, paired = TRUE)`` defaults.
+* :func:`wilcoxon_signed_rank`: the Wilcoxon signed-rank test of the differences, as :mod:`analysis.ranks` computes it
+  for every rank test of the tool (values compared at their resolution, 1e-9 of the largest |value| by default, before
+  ranking; zero differences dropped; exact only without ties and zeros and for fewer than 50 differences, else the
+  normal approximation with continuity and tie correction -- R's ``wilcox.test(x, y, paired = TRUE)`` defaults).
 * :func:`paired_comparison`: n, both means and SDs, the mean difference a - b with its t-interval, the paired t-test,
   Cohen's d_z = mean(a - b) / sd(a - b), and the Wilcoxon test.
 * :func:`mixed_anova`: condition (within) x group (between) ANOVA (pingouin ``mixed_anova``; with two conditions the
@@ -22,54 +19,12 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-#: the default resolution of the values, relative to the largest |value| of the comparison
-RELATIVE_RESOLUTION = 1e-9
-
-
-def at_resolution(x, resolution: float) -> np.ndarray:
-    """`x` as integer multiples of `resolution` (the grid the values are compared on); `resolution` 0 keeps `x`.
-
-    Examples
-    --------
-    Two differences equal up to float noise become one value, so they tie:
-
-    >>> from analysis.survey.paired import at_resolution
-    >>> a, b = 0.1 + 0.2, 0.3
-    >>> bool(a == b), bool(at_resolution([a], 1e-9)[0] == at_resolution([b], 1e-9)[0])
-    (False, True)
-    """
-    x = np.asarray(x, dtype=float)
-    return x if resolution == 0 else np.round(x / resolution)
-
-
-def _signrank_cdf(v: float, n: int) -> float:
-    """P(V <= v) of the signed-rank statistic of n untied non-zero differences (R's ``psignrank``)."""
-    top = n * (n + 1) // 2
-    counts = np.zeros(top + 1)
-    counts[0] = 1.0
-    for r in range(1, n + 1):
-        counts[r:] = counts[r:] + counts[:-r].copy()
-    k = int(np.floor(v + 1e-7))
-    if k < 0:
-        return 0.0
-    return float(counts[:min(k, top) + 1].sum() / 2.0 ** n)
-
-
 def wilcoxon_signed_rank(diff, resolution: float | None = None) -> dict:
-    """Two-sided Wilcoxon signed-rank test of the paired differences `diff` (module docstring).
+    """Two-sided Wilcoxon signed-rank test of the paired differences `diff` (:func:`analysis.ranks.wilcoxon_signed_rank`
+    of diff against 0; `resolution` default: :data:`analysis.ranks.RELATIVE_RESOLUTION` x max |diff|).
 
-    Parameters
-    ----------
-    diff : array_like
-        The differences a - b, one per participant (NaN not allowed; drop incomplete pairs first).
-    resolution : float, optional
-        The grid the differences are compared on; default :data:`RELATIVE_RESOLUTION` x max |diff|.
-
-    Returns
-    -------
-    dict
-        v (sum of the positive ranks, R's V), n (non-zero differences), zeros, ties (bool), p, method
-        ("exact" or "normal"), z (the continuity-corrected normal deviate; NaN for the exact test).
+    Returns a dict: v (sum of the positive ranks, R's V), n (non-zero differences), zeros (their count), ties
+    (bool), p, method ("exact", "normal", or "" without a non-zero difference).
 
     Examples
     --------
@@ -86,33 +41,27 @@ def wilcoxon_signed_rank(diff, resolution: float | None = None) -> dict:
     >>> r["v"], r["n"], r["zeros"], r["method"], round(r["p"], 4)
     (12.0, 5, 1, 'normal', 0.2785)
     """
+    from analysis import ranks
+
     d = np.asarray(diff, dtype=float)
     if np.isnan(d).any():
         raise ValueError("the differences have missing values; drop the incomplete pairs first")
-    if resolution is None:
-        scale = float(np.max(np.abs(d))) if d.size else 0.0
-        resolution = RELATIVE_RESOLUTION * scale
-    g = at_resolution(d, resolution)
-    zeros = int((g == 0).sum())
+    zero = np.zeros_like(d)
+    res = ranks.resolution_of(d, resolution) if d.size else 1.0
+    zeros = int((ranks.on_grid(d, res, origin=0.0) == 0).sum())
+    r = ranks.wilcoxon_signed_rank(d, zero, res)
+    method = "" if r.n == 0 else ("exact" if "exact" in r.method else "normal")
+    ties = bool(r.n) and not _untied(d, res)
+    return {"v": r.statistic, "n": r.n, "zeros": zeros, "ties": ties, "p": r.p, "method": method}
+
+
+def _untied(d: np.ndarray, res: float) -> bool:
+    """No two non-zero differences of `d` tie at resolution `res`."""
+    from analysis import ranks
+
+    g = np.abs(ranks.on_grid(d, res, origin=0.0))
     g = g[g != 0]
-    n = int(g.size)
-    if n == 0:
-        return {"v": float("nan"), "n": 0, "zeros": zeros, "ties": False, "p": float("nan"), "method": "",
-                "z": float("nan")}
-    ranks = stats.rankdata(np.abs(g))
-    v = float(ranks[g > 0].sum())
-    _, counts = np.unique(np.abs(g), return_counts=True)
-    ties = bool((counts > 1).any())
-    if n < 50 and not ties and not zeros:
-        p = _signrank_cdf(v - 1, n) if v > n * (n + 1) / 4 else _signrank_cdf(v, n)
-        p = 1.0 - p if v > n * (n + 1) / 4 else p
-        return {"v": v, "n": n, "zeros": zeros, "ties": ties, "p": min(2.0 * p, 1.0), "method": "exact",
-                "z": float("nan")}
-    z = v - n * (n + 1) / 4.0
-    sigma = np.sqrt(n * (n + 1) * (2 * n + 1) / 24.0 - float((counts ** 3 - counts).sum()) / 48.0)
-    z = (z - np.sign(z) * 0.5) / sigma if sigma > 0 else float("nan")
-    p = float(2.0 * min(stats.norm.cdf(z), stats.norm.sf(z))) if np.isfinite(z) else float("nan")
-    return {"v": v, "n": n, "zeros": zeros, "ties": ties, "p": p, "method": "normal", "z": float(z)}
+    return len(np.unique(g)) == len(g)
 
 
 #: the columns of :func:`paired_comparison`'s result
@@ -152,10 +101,11 @@ def paired_comparison(a, b, level: float = 0.95, resolution: float | None = None
         p_t = float(2.0 * stats.t.sf(abs(t), n - 1))
     else:
         t = half = p_t = float("nan")
-    if resolution is None:
-        scale = float(np.max(np.abs(np.concatenate([a, b])))) if n else 0.0
-        resolution = RELATIVE_RESOLUTION * scale
-    w = wilcoxon_signed_rank(d, resolution) if n else wilcoxon_signed_rank([], 0.0)
+    if resolution is None and n:
+        from analysis.ranks import resolution_of
+
+        resolution = resolution_of(np.concatenate([a, b]))
+    w = wilcoxon_signed_rank(d, resolution)
     return {"n": n, "mean_a": float(a.mean()) if n else float("nan"), "sd_a": float(a.std(ddof=1)) if n > 1 else
             float("nan"), "mean_b": float(b.mean()) if n else float("nan"),
             "sd_b": float(b.std(ddof=1)) if n > 1 else float("nan"), "mean_diff": mean, "sd_diff": sd,
