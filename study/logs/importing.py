@@ -808,6 +808,11 @@ def import_drive_file(st, participant_id: str, condition: str, path: str | Path,
     if mismatch and not force:
         raise UserError(f"{mismatch}; import with --force REASON to store it anyway")
     name = client_file_name(original_name) if original_name else ""
+    if name and progress is not None:
+        saved, report = Path(path).name, progress
+
+        def progress(line: str) -> None:  # every step names the lab's file, not the saved one
+            report(line.replace(saved, name))
     try:
         log = read_log(study, path, mapping, fmt, vehicle, force, net, progress=progress)
     except UserError as exc:

@@ -236,6 +236,8 @@ def test_the_client_file_name_is_kept_with_the_drive_and_shown_while_the_disk_na
     the file on disk had a safe name in a fresh folder of its own; the store has no trace of that folder."""
     assert upload(console_client, sent).status_code == 303
     assert console_store.one("SELECT file_name FROM drives") == kept
+    with console_client.session_transaction() as sess:
+        assert f"read 200 rows from {kept};" in sess["_flashes"][0][1]
     disk = saved_paths[0]
     assert disk.name == upload_name(sent) and disk.parent.name.startswith("pedas-upload-")
     assert not disk.parent.exists()                                      # removed after the import
