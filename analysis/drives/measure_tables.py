@@ -55,7 +55,8 @@ def _cells(summary: pd.DataFrame, spec) -> tuple[list[str], list[list[str]]]:
         n, mean, sd = int(row[f"{m.name}_n"]), row[f"{m.name}_mean"], row[f"{m.name}_sd"]
         if not n:
             return "–"
-        return f"{mean:.3f} ({'–' if np.isnan(sd) else f'{sd:.3f}'}), {n}"
+        d = spec.decimals(m.name)  # rounded for reading; region_summary.csv keeps the full value
+        return f"{mean:.{d}f} ({'–' if np.isnan(sd) else f'{sd:.{d}f}'}), {n}"
 
     return header, [[r["region"], r["condition"]] + [cell(r, m) for m in spec.measures]
                      for _, r in summary.iterrows()]

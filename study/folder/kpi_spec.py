@@ -6,7 +6,8 @@
 
     [violations]  tolerance = "none" | "absolute" (km_h = 5) | "relative" (percent = 3) | "german"; min_event_s
     [stops]       v_stop, v_moving (m/s);  [red_stops] distance_m (m)
-    [sql]         name = "aggregate expression" or {sql = "...", per_segment = true, unit = "m", label = "..."}
+    [sql]         name = "aggregate expression" or {sql = "...", per_segment = true, unit = "m", label = "...",
+                  decimals = 2} (decimals: shown with, 0-10; default those of its unit)
                   or {query = "SELECT ... FROM samples ...", per_segment, unit, label}: a full read-only query
     [events]      name = {from = "condition", to = "condition", statistic = "first" | "mean" | "max" | "count",
                   per_segment, unit, label}: the time from a rising edge of `from` to the next sample where `to` holds
@@ -76,6 +77,7 @@ class SqlKpi:
     unit: str = ""
     label: str = ""
     query: bool = False
+    decimals: int | None = None    # shown with (None: those of its unit)
 
     @property
     def heading(self) -> str:
@@ -101,6 +103,7 @@ class EventKpi:
     per_segment: bool = False
     unit: str = "s"
     label: str = ""
+    decimals: int | None = None    # shown with (None: those of its unit)
 
     @property
     def heading(self) -> str:
@@ -119,6 +122,7 @@ class MeasureKpi:
     per_segment: bool = False
     unit: str = ""
     label: str = ""
+    decimals: int | None = None    # shown with (None: those of its unit)
 
     @property
     def heading(self) -> str:
@@ -200,6 +204,8 @@ class Comparison:
 #: store keep full precision. A unit not listed: 3. (A 20 Hz time is a multiple of 0.05 s: 2 decimals.)
 DECIMALS = {"m": 1, "km": 3, "s": 2, "min": 2, "m/s": 2, "km/h": 1, "m/s^2": 2, "m/s2": 2, "%": 1, "Wh": 1,
             "kWh": 3, "Wh/km": 1, "W": 0, "kW": 2, "N": 0, "deg": 1, "rad": 3, "1": 3, "": 3}
+#: the most decimals a KPI may declare (``decimals = ...`` of an [sql], [events] or [measures] entry)
+MAX_DECIMALS = 10
 #: the units of the built-in KPI columns by their name's ending
 _BUILTIN_UNITS = (("_pct", "%"), ("_mps", "m/s"), ("_kmh", "km/h"), ("_wh_per_km", "Wh/km"), ("_wh", "Wh"),
                   ("_m", "m"), ("_s", "s"))
@@ -251,9 +257,12 @@ class KpiSpec:
         return {k.name: k.heading for k in self.user_kpis}
 
     def decimals(self, column: str) -> int:
-        """Decimals `column` is shown with for reading (:data:`DECIMALS` of its unit: a declared KPI's ``unit``, a
-        built-in's from its name; counts without decimals)."""
-        unit = next((k.unit for k in self.user_kpis if k.name == column), None)
+        """Decimals `column` is shown with for reading: a declared KPI's own ``decimals``, else :data:`DECIMALS` of
+        its unit (a declared KPI's ``unit``, a built-in's from its name; counts without decimals)."""
+        kpi = next((k for k in self.user_kpis if k.name == column), None)
+        if kpi is not None and kpi.decimals is not None:
+            return kpi.decimals
+        unit = None if kpi is None else kpi.unit
         if unit is None:
             if column.endswith(("_events", "_stops", "n_intervals")):
                 return 0
@@ -426,8 +435,9 @@ def _entry_line(text: str, section: str, name: str, key: str | None = None) -> i
 
 
 def _common(raw: dict, name: str, line, fld: str, probs: KpiSpecProblems, known: tuple[str, ...],
-            taken: set[str]) -> bool:
-    """The checks every user KPI shares (its keys, name, per_segment, unit and label); True when it may be used."""
+            taken: set[str], text: str = "") -> bool:
+    """The checks every user KPI shares (its keys, name, per_segment, unit, label and decimals); True when it may be
+    used."""
     bad = set(raw) - set(known)
     if bad:
         probs.add(line, fld, f"unknown key(s) {', '.join(sorted(bad))} (known: {', '.join(known)})")
@@ -444,6 +454,12 @@ def _common(raw: dict, name: str, line, fld: str, probs: KpiSpecProblems, known:
         if key in raw and not isinstance(raw[key], str):
             probs.add(line, f"{fld}.{key}", "must be a text")
             return False
+    dec = raw.get("decimals", 0)
+    if isinstance(dec, bool) or not isinstance(dec, int) or not 0 <= dec <= MAX_DECIMALS:
+        section, _, entry = fld.partition(".")
+        probs.add(_entry_line(text, section, entry, "decimals") or line, f"{fld}.decimals",
+                  f"must be a whole number from 0 to {MAX_DECIMALS}, not {dec!r}")
+        return False
     return True
 
 
@@ -462,14 +478,14 @@ def _sql_kpis(tbl: dict, text: str, probs: KpiSpecProblems, channels: tuple[str,
         if not isinstance(raw[key], str) or not raw[key].strip():
             probs.add(line, fld, f"{key} must be a non-empty text")
             continue
-        if not _common(raw, name, line, fld, probs, (key, "per_segment", "unit", "label"), set()):
+        if not _common(raw, name, line, fld, probs, (key, "per_segment", "unit", "label", "decimals"), set(), text):
             continue
         error = check_query(raw["query"], channels) if key == "query" else check_sql(raw["sql"], channels)
         if error:
             probs.add(_entry_line(text, "sql", name, key) or line, fld, error)
             continue
         out.append(SqlKpi(name, raw[key].strip(), bool(raw.get("per_segment", False)), str(raw.get("unit", "")),
-                          str(raw.get("label", name)), query=key == "query"))
+                          str(raw.get("label", name)), query=key == "query", decimals=raw.get("decimals")))
     return out
 
 
@@ -482,8 +498,8 @@ def _event_kpis(tbl: dict, text: str, probs: KpiSpecProblems, channels: tuple[st
         if not isinstance(raw, dict):
             probs.add(line, fld, 'must be a table, e.g. {from = "takeover_request", to = "hands_on"}')
             continue
-        if not _common(raw, name, line, fld, probs, ("from", "to", "statistic", "per_segment", "unit", "label"),
-                       taken):
+        if not _common(raw, name, line, fld, probs,
+                       ("from", "to", "statistic", "per_segment", "unit", "label", "decimals"), taken, text):
             continue
         statistic = raw.get("statistic", "first")
         if statistic not in STATISTICS:
@@ -500,7 +516,8 @@ def _event_kpis(tbl: dict, text: str, probs: KpiSpecProblems, channels: tuple[st
         if ok:
             unit = raw.get("unit", "" if statistic == "count" else "s")
             out.append(EventKpi(name, raw["from"].strip(), raw["to"].strip(), statistic,
-                                bool(raw.get("per_segment", False)), str(unit), str(raw.get("label", name))))
+                                bool(raw.get("per_segment", False)), str(unit), str(raw.get("label", name)),
+                                raw.get("decimals")))
     return out
 
 
@@ -511,6 +528,10 @@ def _missing_channel(channel: str, mapped: tuple[str, set] | None) -> str | None
     if mapped is None or channel in ALWAYS_PRESENT or channel in mapped[1]:
         return None
     return f"needs channel {channel!r}, which the log mapping {mapped[0]} does not map"
+
+
+#: the keys of a [measures] entry beside ``measure`` that are no option of the measure
+_MEASURE_KEYS = ("per_segment", "label", "decimals")
 
 
 def _measures(tbl: dict, text: str, probs: KpiSpecProblems, mapped, taken: set[str]) -> list[MeasureKpi]:
@@ -528,11 +549,10 @@ def _measures(tbl: dict, text: str, probs: KpiSpecProblems, mapped, taken: set[s
             probs.add(_entry_line(text, "measures", name, "measure") or line, f"{fld}.measure",
                       f"{raw['measure']!r} is not a shipped measure ({', '.join(sorted(MEASURES))})")
             continue
-        common = {k: v for k, v in raw.items() if k in ("per_segment", "label")}
-        if not _common(common, name, line, fld, probs, ("per_segment", "label"), taken):
+        common = {k: v for k, v in raw.items() if k in _MEASURE_KEYS}
+        if not _common(common, name, line, fld, probs, _MEASURE_KEYS, taken, text):
             continue
-        opts, problems = resolve(measure, {k: v for k, v in raw.items() if k not in ("measure", "per_segment",
-                                                                                   "label")})
+        opts, problems = resolve(measure, {k: v for k, v in raw.items() if k not in ("measure", *_MEASURE_KEYS)})
         for key, reason in problems:
             probs.add(_entry_line(text, "measures", name, key) or line, f"{fld}.{key}", reason)
         missing = [r for r in (_missing_channel(c, mapped) for c in measure.channels_of(opts)) if r]
@@ -542,7 +562,7 @@ def _measures(tbl: dict, text: str, probs: KpiSpecProblems, mapped, taken: set[s
             continue
         taken.add(name)
         out.append(MeasureKpi(name, measure.name, tuple(sorted(opts.items())), bool(raw.get("per_segment", False)),
-                              measure.unit_of(opts), str(raw.get("label", measure.title))))
+                              measure.unit_of(opts), str(raw.get("label", measure.title)), raw.get("decimals")))
     return out
 
 

@@ -39,7 +39,7 @@ from typing import Any, Callable, Iterator
 import numpy as np
 import pandas as pd
 
-from study.common.errors import UserError, check_choice, shown
+from study.common.errors import UserError, check_choice, escaped, shown
 from study.common.file_checks import register_file_check
 from study.common.toml_lines import line_of
 from study.folder import logmap, route_file
@@ -758,10 +758,28 @@ def store_read_log(st, participant_id: str, condition: str | None, phase: str | 
         raise
 
 
+#: characters of a client's file name kept with an uploaded drive (``drives.file_name``): a file system's 255
+ORIGINAL_NAME_MAX = 255
+
+
+def client_file_name(name: str) -> str:
+    r"""A file name as a client sent it, kept as the drive's ``file_name`` and shown in messages, never used as a
+    path: its last part (after the last ``/`` or ``\``: a browser may send the client's folder, which names its
+    user), control and invisible format characters escaped (``\r``, ``\x07``, ``\u202e``: the name stays one line
+    and reads as it is), at most :data:`ORIGINAL_NAME_MAX` characters (a longer one cut, ending in "…")."""
+    import unicodedata
+
+    base = str(name).replace("\\", "/").rsplit("/", 1)[-1]
+    text = "".join(escaped(c) if unicodedata.category(c) == "Cc" else f"\\u{ord(c):04x}"
+                   if unicodedata.category(c) == "Cf" else c for c in base)
+    return text if len(text) <= ORIGINAL_NAME_MAX else text[:ORIGINAL_NAME_MAX - 1] + "…"
+
+
 def import_drive_file(st, participant_id: str, condition: str, path: str | Path, replace: bool = False,
                       route: str | None = None, progress: Callable[[str], None] | None = None,
                       mapping: Any = None, fmt: str | None = None, vehicle: str | None = None,
-                      force: str | None = None, net: str | Path | None = None) -> DriveImport:
+                      force: str | None = None, net: str | Path | None = None,
+                      original_name: str | None = None) -> DriveImport:
     """Read, map, check and import a drive log file (CSV, Parquet or SUMO FCD) for (participant, condition).
 
     `mapping`: None = the study's log mapping when it reads this format (else the file is a canonical log),
@@ -774,8 +792,12 @@ def import_drive_file(st, participant_id: str, condition: str, path: str | Path,
     study's route file's name). Checksum: sha256 of the file; of file, mapping and route when those were used.
     Every problem of the log is one line starting with the file name. A canonical CSV or Parquet log (no mapping) is
     read in chunks of :data:`CHUNK_ROWS` rows, twice (validated, then stored), so that its size does not bound the
-    memory; a mapped or SUMO FCD log is read whole (:func:`read_log`).
+    memory; a mapped or SUMO FCD log is read whole (:func:`read_log`). `original_name`: the name the file had on the
+    client (an upload saved under a name of the server's): stored as ``drives.file_name`` and named in messages
+    instead of `path`, as :func:`client_file_name` keeps it.
     """
+    from dataclasses import replace as replaced
+
     from study.store.studies import definition
 
     study = definition(st)  # first: parsing a stored study (its model file) is not part of the import's time
@@ -785,7 +807,20 @@ def import_drive_file(st, participant_id: str, condition: str, path: str | Path,
     mismatch = phase_mismatch(st, participant_id, condition, phase)
     if mismatch and not force:
         raise UserError(f"{mismatch}; import with --force REASON to store it anyway")
-    log = read_log(study, path, mapping, fmt, vehicle, force, net, progress=progress)
+    name = client_file_name(original_name) if original_name else ""
+    if name and progress is not None:
+        saved, report = Path(path).name, progress
+
+        def progress(line: str) -> None:  # every step names the lab's file, not the saved one
+            report(line.replace(saved, name))
+    try:
+        log = read_log(study, path, mapping, fmt, vehicle, force, net, progress=progress)
+    except UserError as exc:
+        if not name:
+            raise
+        raise UserError(str(exc).replace(shown(path), name)) from None
+    if name:
+        log = replaced(log, file_name=name)
     return store_read_log(st, participant_id, condition, phase, log, force, mismatch, replace, route, progress, t0)
 
 

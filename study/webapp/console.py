@@ -42,7 +42,7 @@ from study.webapp.researcher import actor, researcher
 
 bp = Blueprint("console", __name__, url_prefix="/r")
 DRIVE_UPLOAD_MAX = 512 * 1024 * 1024  # bytes of one uploaded drive log (a 2 h drive at 100 Hz is ~100 MB of CSV)
-UPLOAD_NAME_MAX = 100  # characters of an uploaded file's name as saved and stored (a file system allows 255 bytes)
+UPLOAD_NAME_MAX = 100  # characters of an uploaded file's name as saved (a file system allows 255 bytes)
 FLASH_MAX = 300    # characters of a flashed message: it travels in the session cookie (browsers keep <= 4 kB)
 REFILL_MAX = 200   # characters of a refused form's field shown again; a longer one comes back empty
 _PID = re.compile(r"[A-Za-z0-9_.-]{1,64}")  # a participant id a redirect may carry (the store allows 1-64 chars)
@@ -56,9 +56,10 @@ def large_uploads():
 
 
 def upload_name(filename: str) -> str:
-    """An uploaded file's name as it is saved (in a fresh temporary directory) and stored with the drive: only
-    ASCII letters, digits, ``._-`` (werkzeug's secure_filename: no directory part), at most UPLOAD_NAME_MAX
-    characters keeping the extension (which gives the format); "" when nothing is left."""
+    """An uploaded file's name as it is saved in a fresh temporary directory: only ASCII letters, digits, ``._-``
+    (werkzeug's secure_filename: no directory part), at most UPLOAD_NAME_MAX characters keeping the extension (which
+    gives the format); "" when nothing is left. The drive stores the client's name as sent
+    (:func:`study.logs.importing.client_file_name`), which is never a path."""
     name = secure_filename(filename)
     if len(name) > UPLOAD_NAME_MAX:
         stem, dot, ext = name.rpartition(".")
@@ -339,13 +340,14 @@ def upload_drive(pid: str):
         return _done("console.participant", error="choose a drive-log file to upload", pid=pid)
     steps: list[str] = []
     with tempfile.TemporaryDirectory(prefix="pedas-upload-") as tmp:
-        path = Path(tmp) / name  # the file's name, made safe and short: it sets the format, is stored with the drive
+        path = Path(tmp) / name  # made safe and short, it sets the format; the client's name is stored, never a path
         upload.save(path)
         try:
             with store(actor()) as s:
                 r = import_drive_file(s, pid, f.get("condition", ""), path, replace=bool(f.get("replace")),
                                       progress=steps.append, fmt=f.get("format") or None,
-                                      vehicle=f.get("vehicle") or None, force=f.get("force") or None)
+                                      vehicle=f.get("vehicle") or None, force=f.get("force") or None,
+                                      original_name=upload.filename)
         except UserError as exc:
             return _done("console.participant", error=str(exc), pid=pid)
     if r.status == "unchanged":

@@ -269,6 +269,11 @@ BASE = 'builtins = ["time"]\nchannels = ["lat_pos", "takeover_request", "hands_o
     ('[events.bad]\nfrom = "takeover_request"\nto = "(SELECT 1)"\n', "must be one condition per sample"),
     ('[events.bad]\nfrom = "takeover_request"\nto = "hands_on"\nstatistic = "median"\n',
      "'median' is not one of first|mean|max|count"),
+    ('[events.bad]\nfrom = "takeover_request"\nto = "hands_on"\ndecimals = 11\n',
+     "must be a whole number from 0 to 10, not 11"),
+    ('[sql.bad]\nsql = "count(*)"\ndecimals = 2.5\n', "must be a whole number from 0 to 10, not 2.5"),
+    ('[sql.bad]\nquery = "SELECT max(t) FROM samples"\ndecimals = -1\n', "must be a whole number from 0 to 10"),
+    ('[sql.bad]\nsql = "count(*)"\ndecimals = "2"\n', "must be a whole number from 0 to 10, not '2'"),
 ])
 def test_study_check_refuses_bad_query_and_event_kpis(cli, tmp_path, entry, reason):
     folder = takeover_folder(tmp_path, BASE + entry)
@@ -324,3 +329,37 @@ def test_kpis_are_shown_with_the_decimals_of_their_unit_and_stored_in_full():
                       "violation_events_mean": [2.0], "violation_events_sd": [1.0]})
     _, rows = _summary_cells(t, spec)
     assert rows[0][2:] == ["2250.7 (14.2)", "2.20 (0.00)", "0.012 (0.000)", "2 (1)"]
+
+
+def test_a_kpi_declares_its_own_decimals_over_those_of_its_unit():
+    """``decimals = 3`` on a KPI in s shows it with 3 (the unit's default: 2); a measure takes the key too (it is no
+    option of the measure); 0 is a declaration, not a missing one."""
+    from analysis.drives.tables import _summary_cells
+
+    spec = parse(BASE + '[events]\ntakeover_time = { from = "takeover_request", to = "hands_on", decimals = 3 }\n'
+                        'reaction = { from = "takeover_request", to = "hands_on" }\n'
+                        '[sql]\nsdlp = { sql = "stddev_samp(lat_pos)", unit = "m", decimals = 0 }\n'
+                        '[measures]\nsrr = { measure = "sdlp", decimals = 4 }\n')
+    assert spec is not None
+    assert [spec.decimals(k) for k in ("takeover_time", "reaction", "sdlp", "srr", "trip_time_s")] == [3, 2, 0, 4, 2]
+    t = pd.DataFrame({"condition": ["hud"], "n": [2], "takeover_time_mean": [1.3499999999999996],
+                      "takeover_time_sd": [0.0], "reaction_mean": [1.3499999999999996], "reaction_sd": [0.0],
+                      "sdlp_mean": [0.2849], "sdlp_sd": [0.01]})
+    _, rows = _summary_cells(t, spec)
+    assert rows[0][2:] == ["1.350 (0.000)", "1.35 (0.00)", "0 (0)"]
+
+
+def test_analyze_drives_prints_kpis_without_float_noise_and_the_csv_keeps_them(store, cli, tmp_path):
+    """The 20 Hz takeover time 11.35 s - 10.0 s is 1.3499999999999996 in binary: printed 1.35, stored in full."""
+    r = cli("analyze", "drives", "--out", tmp_path / "o", db=store)
+    assert r.code == 0, r.err
+    assert not re.search(r"\d\.\d{6,}", r.out), r.out
+    for md in (tmp_path / "o").glob("*.md"):
+        assert not re.search(r"\d\.\d{6,}", md.read_text()), md.name
+    row = next(ln for ln in r.out.splitlines() if ln.startswith("| hud | overall"))
+    heads = next(ln for ln in r.out.splitlines() if ln.startswith("| Condition")).split(" | ")
+    assert row.split(" | ")[heads.index("Takeover time (s) mean (SD)")].startswith("1.35 (")
+    kpis = pd.read_csv(tmp_path / "o" / "kpis.csv")
+    full = kpis[(kpis["participant_id"] == "LK-01") & (kpis["condition"] == "hud")
+                & (kpis["segment"] == "overall")]["takeover_time"].iloc[0]
+    assert full == 11.35 - 10.0 != 1.35                   # the CSV keeps the value as computed

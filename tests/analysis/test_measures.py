@@ -279,3 +279,16 @@ def test_measures_are_kpis_for_within_and_comparison(tmp_path, capsys):
     (folder / "study.toml").write_text((folder / "study.toml").read_text().replace('"brt", "srr"', '"brt", "nope"'))
     code = main(["study", "check", str(folder)])
     assert code == 2 and "within.kpis" in capsys.readouterr().out
+
+
+def test_region_summary_shows_each_measure_with_its_decimals():
+    """region_summary.md rounds by the measure's unit (SDLP in m: 1 decimal) or its declared ``decimals``."""
+    from analysis.drives.measure_tables import _cells
+
+    spec = parse('[measures]\nsdlp = { measure = "sdlp" }\nmlp = { measure = "lateral_position_mean", decimals = 4 }\n'
+                 '[regions]\nr = { s_from = 0, s_to = 10 }\n')
+    summary = pd.DataFrame({"region": ["r"], "condition": ["hud"], "sdlp_n": [2], "sdlp_mean": [0.30000000000000004],
+                            "sdlp_sd": [0.049999999999999996], "mlp_n": [2], "mlp_mean": [0.12345678],
+                            "mlp_sd": [float("nan")]})
+    _, rows = _cells(summary, spec)
+    assert rows == [["r", "hud", "0.3 (0.0), 2", "0.1235 (–), 2"]]

@@ -95,7 +95,7 @@ def test_upload_over_xhr_gets_json_and_imports_as_the_cli_does(store, client, tm
     assert r.status_code == 200 and r.get_json() == {"next": "/r/p/P001", "ok": True}
     assert re.match(r"P001 baseline: imported drive \d+, 500 samples", flashed(client)[0])
     row = store.df("SELECT n_samples, file_name, source FROM drives").iloc[0].tolist()
-    assert row == [500, "P001_baseline.csv", "import"]                 # the name made safe, no path
+    assert row == [500, "P001 baseline.csv", "import"]                 # the client's name, without its folder
     r = client.post("/r/p/P001/drive", data={"csrf": client.csrf, "condition": "baseline",
                                             "file": (io.BytesIO(buf.getvalue()), "P001_baseline.csv")},
                     content_type="multipart/form-data")

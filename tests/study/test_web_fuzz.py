@@ -202,7 +202,8 @@ def requests(draw, route, links):
         parts = [f'--{b}\r\nContent-Disposition: form-data; name="{k}"\r\n\r\n{v}\r\n' for k, v in form.items()
                  if '"' not in k and "\r" not in k and "\n" not in k]
         name = draw(st.sampled_from(["log.csv", "log.parquet", "", "../x.csv", "é.csv", "log", "a" * 300 + ".csv",
-                                     "é" * 200 + ".csv", "x." + "c" * 300, "/" * 300]))
+                                     "é" * 200 + ".csv", "x." + "c" * 300, "/" * 300,
+                                     "P001\t\x07\u202evsc.csv", "C:\\\\Users\\\\a\\\\log.csv"]))
         content = draw(st.sampled_from(["t_s,v_mps\n0,1\n", "", "\x00\x01", "a,b\n1"]))
         parts.append(f'--{b}\r\nContent-Disposition: form-data; name="file"; filename="{name}"\r\n'
                      f"Content-Type: text/csv\r\n\r\n{content}\r\n--{b}--\r\n")

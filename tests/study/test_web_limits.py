@@ -4,6 +4,7 @@ body or a long upload file name, or get a link token into the access log by spel
 server (werkzeug, threaded) over a socket on a real store."""
 from __future__ import annotations
 
+import html
 import io
 import json
 import logging
@@ -11,9 +12,11 @@ import socket
 import threading
 import urllib.parse
 from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
 
 import pytest
 
+from study.logs.importing import ORIGINAL_NAME_MAX
 from study.survey import answers as sv
 from study.webapp import SurveyServer, create_app, guard
 from study.webapp.console import UPLOAD_NAME_MAX, upload_name
@@ -36,6 +39,14 @@ def raw(srv, data: bytes, timeout: float = 30) -> tuple[int, dict, bytes]:
     lines = head.decode("latin-1").split("\r\n")
     heads = {k.strip().lower(): v.strip() for k, _, v in (line.partition(":") for line in lines[1:])}
     return int(lines[0].split()[1]), heads, body
+
+
+def answer(c: socket.socket) -> str:
+    """All the server sends until it closes (the status line and the body may come in two packets)."""
+    got = b""
+    while chunk := c.recv(65536):
+        got += chunk
+    return got.decode("latin-1")
 
 
 def post(path: str, body: bytes, ctype: str = "application/json", host: str = "127.0.0.1", length=None) -> bytes:
@@ -85,7 +96,7 @@ def test_a_stalled_body_is_answered_408_after_the_read_timeout(console_store, mo
     with SurveyServer(create_app(console_store, PASSWORD), quiet=True) as srv:
         c = slow_client(srv, token)
         c.settimeout(20)
-        head = c.recv(65536).decode("latin-1")
+        head = answer(c)
         c.close()
     assert head.startswith("HTTP/1.1 408") and "did not arrive in time" in head
     assert snapshot(console_store) == before
@@ -97,7 +108,7 @@ def test_a_body_shorter_than_announced_is_refused(served):
     with socket.create_connection((srv.host, srv.port), timeout=20) as c:
         c.sendall(post(f"/s/{tokens['P001']}/answer", b'{"item":"', length=100))
         c.shutdown(socket.SHUT_WR)            # the client is done: the body ends 91 bytes early
-        head = c.recv(65536).decode("latin-1")
+        head = answer(c)
     assert head.startswith("HTTP/1.1 400") and "ended before its announced length" in head
     assert snapshot(store) == before
 
@@ -186,14 +197,62 @@ def test_an_upload_name_is_saved_short_and_without_a_directory(name, saved):
     assert upload_name(name) == saved and len(saved) <= UPLOAD_NAME_MAX
 
 
-def test_a_300_byte_upload_file_name_is_imported_under_its_short_name(console_store, console_client):
+def upload(client, name: str, n: int = 200, pid: str = "P001", condition: str = "baseline"):
     buf = io.BytesIO()
-    make_drive(200).to_csv(buf, index=False)
-    r = console_client.post("/r/p/P001/drive", data={"csrf": console_client.csrf, "condition": "baseline",
-                                                    "file": (io.BytesIO(buf.getvalue()), "é" + "a" * 300 + ".csv")},
-                            content_type="multipart/form-data")
+    make_drive(n).to_csv(buf, index=False)
+    return client.post(f"/r/p/{pid}/drive", data={"csrf": client.csrf, "condition": condition,
+                                                   "file": (io.BytesIO(buf.getvalue()), name)},
+                       content_type="multipart/form-data")
+
+
+@pytest.fixture
+def saved_paths(monkeypatch):
+    """The paths the console hands to the importer (the file on the server's disk)."""
+    from study.logs import importing
+
+    paths, real = [], importing.import_drive_file
+    monkeypatch.setattr(importing, "import_drive_file", lambda st, pid, cond, path, **kw: (
+        paths.append(Path(path)), real(st, pid, cond, path, **kw))[1])
+    return paths
+
+
+def test_a_300_byte_upload_file_name_is_saved_short_and_kept_as_255_characters(console_store, console_client,
+                                                                              saved_paths):
+    name = "é" + "a" * 300 + ".csv"
+    assert upload(console_client, name).status_code == 303
+    assert saved_paths[0].name == "e" + "a" * (UPLOAD_NAME_MAX - 5) + ".csv"
+    assert console_store.one("SELECT file_name FROM drives") == name[:ORIGINAL_NAME_MAX - 1] + "…"
+
+
+@pytest.mark.parametrize("sent, kept", [
+    ("Fahrt 3 – Müller (Kopie).csv", "Fahrt 3 – Müller (Kopie).csv"),
+    ("/home/anna/Desktop/P001 baseline.csv", "P001 baseline.csv"),
+    ("../../etc/P001.csv", "P001.csv"),
+    ("P001\t<b>base\x07line\u202evsc.csv", "P001\\t<b>base\\x07line\\u202evsc.csv"),
+])
+def test_the_client_file_name_is_kept_with_the_drive_and_shown_while_the_disk_name_is_safe(
+        console_store, console_client, saved_paths, sent, kept):
+    """The name the lab uploaded is the drive's file_name and the participant page shows it (escaped as HTML);
+    the file on disk had a safe name in a fresh folder of its own; the store has no trace of that folder."""
+    assert upload(console_client, sent).status_code == 303
+    assert console_store.one("SELECT file_name FROM drives") == kept
+    with console_client.session_transaction() as sess:
+        assert f"read 200 rows from {kept};" in sess["_flashes"][0][1]
+    disk = saved_paths[0]
+    assert disk.name == upload_name(sent) and disk.parent.name.startswith("pedas-upload-")
+    assert not disk.parent.exists()                                      # removed after the import
+    page = console_client.get("/r/p/P001").get_data(as_text=True)
+    assert html.escape(kept, quote=False) in page and "<b>base" not in page
+    assert str(disk.parent) not in console_store.df("SELECT * FROM drives").to_csv()
+
+
+def test_a_refused_upload_names_the_client_file_not_the_server_path(console_store, console_client, saved_paths):
+    r = upload(console_client, "P001 kurz\t.csv", n=1)
     assert r.status_code == 303
-    assert console_store.one("SELECT file_name FROM drives") == "e" + "a" * (UPLOAD_NAME_MAX - 5) + ".csv"
+    with console_client.session_transaction() as sess:
+        message = " ".join(m for _, m in sess.get("_flashes", []))
+    assert message.startswith("P001 kurz\\t.csv") and str(saved_paths[0].parent) not in message
+    assert console_store.one("SELECT count(*) FROM drives") == 0
 
 
 # ---------------------------------------------------------------------------------------------- the access log
