@@ -225,6 +225,8 @@ class LiveServer:
     after which a UDP session ends; ``max_udp_sessions``: UDP sessions at once; ``announce``: called with a console
     line when a session says hello (its pairing code and HUD page) and when a session ends."""
 
+    hud_theme = "light"   # the HUD page's theme (pedas.hud_theme), set by `live serve --theme`
+
     def __init__(self, live: LiveRoute, host: str = "127.0.0.1", port: int = 8765,
                  logger_factory: LoggerFactory | None = None, on_ready: Callable[[int], None] | None = None,
                  announce: Announce | None = None, rate: float = RATE, burst: int = BURST,
@@ -298,7 +300,7 @@ class LiveServer:
 
         path = request.path.split("?")[0]
         if path in ("/", "/hud") and "upgrade" not in request.headers.get("Connection", "").lower():
-            body = hud_page().encode()
+            body = hud_page(theme=self.hud_theme).encode()
             return Response(200, "OK", Headers([("Content-Type", "text/html; charset=utf-8"),
                                                 ("Content-Length", str(len(body))),
                                                 ("Cache-Control", "no-store")]), body)

@@ -13,6 +13,12 @@ def _serve(args) -> None:
 
     from study.store.store import StoreHolder
 
+    from pedas.hud_theme import check_theme
+
+    try:
+        check_theme(args.theme)
+    except ValueError as exc:
+        raise UserError(str(exc)) from None
     for flag, value in (("--udp-idle", args.udp_idle), ("--max-rate", args.max_rate)):
         if not value > 0:   # also refuses nan
             raise UserError(f"{flag} must be a positive number, got {value:g}")
@@ -42,6 +48,7 @@ def _serve(args) -> None:
         server = LiveServer(live, args.host, args.port, logger_factory=None if st is None else drive_log,
                             on_ready=ready, announce=announce, rate=args.max_rate,
                             burst=max(1, round(args.max_rate / 2)), udp_idle=args.udp_idle)
+        server.hud_theme = args.theme
         try:
             server.run()
         except OSError as exc:   # address in use, no such interface: the operator's input
@@ -96,6 +103,8 @@ def register(cli) -> None:
     p.add_argument("--replace", action="store_true", help="a session may replace a stored drive")
     p.add_argument("--max-rate", dest="max_rate", type=float, default=RATE, metavar="HZ",
                    help=f"messages/s one client may send; faster ones are slowed (UDP: dropped) (default {RATE:g})")
+    p.add_argument("--theme", default="light", metavar="NAME",
+                   help="HUD page theme: light (opaque panel, default) or dark (black = see-through, projected HUD)")
     p.add_argument("--udp-idle", dest="udp_idle", type=float, default=UDP_IDLE, metavar="S",
                    help=f"seconds without a datagram after which a UDP session ends (default {UDP_IDLE:g})")
     p = g.command("drive", "reference client: a virtual participant drives in SUMO with advice from a live server",
