@@ -124,7 +124,7 @@ class LiveSession:
         if self.ctrl is None:
             self._reset()
         adv = self.ctrl.step(st.t, st.s, st.v, st.leader)
-        frame = hud_frame(st.v, adv)
+        frame = hud_frame(st.v, adv, st.leader)
         tl = self._next_light(st.s)
         spat_ok = None
         if st.spat is not None:

@@ -4,7 +4,8 @@
 //   {"speed": 45, "advice": 48, "limit": 50, "arrow": 1, "arrow_len": 0.3, "color": "green", "in_band": false,
 //    "countdown": 7, "light": "green", "icon": "green_wave", "warning": false}
 // speed/advice/limit km/h, arrow -1|0|1, arrow_len 0..1, countdown whole s (0..9) or null, light
-// green|yellow|red|null (the phase counted down, its lamp lit), icon green_wave|stop_sign|yield_sign|curve|null.
+// green|yellow|red|null (the phase counted down, its lamp lit), icon green_wave|stop_sign|yield_sign|curve|null,
+// brake true|false (the explicit brake state: "BRAKE" over the full red arrow).
 // The paper's three regions (Fig. 7a), left to right: 1. the current speed with the speed limit below it,
 // 2. the arrow, 3. additional information (icon and warning at the top, the light and its countdown below).
 // Three-digit speeds fit region 1: the digits are squeezed to its width when wider (textLength).
@@ -35,6 +36,7 @@
     <text id="limit-text" y="12" text-anchor="middle" font-size="34" font-weight="700" font-family="${FONT}"></text>
   </g>
   <path id="arrow" fill="none" stroke-linecap="round" stroke-linejoin="round"/>
+  <text id="brake" x="258" y="38" text-anchor="middle" font-size="22" font-weight="900" font-family="${FONT}">BRAKE</text>
   <g id="icon-green_wave" transform="translate(352 70) scale(.75)">
     <rect id="tile" x="-38" y="-38" width="76" height="76" rx="12"/>
     <text id="tile-text" y="21" text-anchor="middle" font-size="60" font-weight="700" font-family="${FONT}">G</text>
@@ -153,6 +155,9 @@
         arrow.style.display = "";
         arrow.dataset.length = len.toFixed(1);
       }
+      // the brake state (pedas.hud_frame.cut_in_advice): the full red arrow under the word BRAKE
+      this._el("brake").style.display = f.brake ? "" : "none";
+      this._el("brake").setAttribute("fill", t.red);
       this._el("countdown").style.display = f.countdown == null ? "none" : "";
       this._el("countdown-text").textContent = f.countdown == null ? "" : String(f.countdown);
       // the lamp of the counted-down phase is lit (Fig. 7h green, 7i red), the digits in its colour
@@ -171,7 +176,8 @@
       if (!this.isConnected) return;
       Object.assign(this.dataset, { tones: String(this._tones), arrow: String(f.arrow), color: f.color, countdown: String(f.countdown ?? ""),
                                     light: f.light ?? "", icon: f.icon ?? "", warning: String(!!f.warning),
-                                    speed: String(f.speed), limit: String(f.limit ?? "") });
+                                    speed: String(f.speed), limit: String(f.limit ?? ""),
+                                    brake: String(!!f.brake) });
     }
 
     _tone() {
