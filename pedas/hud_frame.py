@@ -88,10 +88,22 @@ def cut_in_advice(v: float, v_opt: float, leader: tuple[float, float] | None, al
     return max(v_opt, min(v, v_p)), False
 
 
-def hud_frame(v: float, advice, leader: tuple[float, float] | None = None) -> HudFrame:
+#: when the HUD sounds its tone: "unfollowed" = a slow-down advice not followed for warn_delay s (any situation);
+#: "margin" = that, and the safe distance violated (psi = d_rel - d_s < 0, eq. 11): "unsafe driving situations"
+TONE_RULES = ("unfollowed", "margin")
+
+
+def margin_violated(v: float, leader: tuple[float, float] | None) -> bool:
+    """psi = gap - (d_min + h_s v) < 0 with the car-following MPC's d_min (m) and h_s (s) (eq. 11's psi)."""
+    cf = CONTROLLER.cf_weights
+    return leader is not None and leader[0] - (cf.d_min + cf.h_s * v) < 0.0
+
+
+def hud_frame(v: float, advice, leader: tuple[float, float] | None = None, tone_rule: str = "unfollowed") -> HudFrame:
     """The frame for measured speed v (m/s), an advice with the fields of :class:`pedas.hud.HudAdvice` (v_opt or
     v_advice, hud_arrow, arrow_len, hud_in_band, warning, tl_countdown, icon, speed_limit, tl_phase, tone) and the
-    leader (gap m, speed m/s) or None; inside a too-short gap the shown advice is :func:`cut_in_advice`'s."""
+    leader (gap m, speed m/s) or None; inside a too-short gap the shown advice is :func:`cut_in_advice`'s; the tone
+    follows `tone_rule` (:data:`TONE_RULES`)."""
     v_opt = advice.v_opt if hasattr(advice, "v_opt") else advice.v_advice
     arrow, arrow_len, in_band = int(advice.hud_arrow), float(advice.arrow_len), bool(advice.hud_in_band)
     shown, brake = cut_in_advice(v, v_opt, leader, bool(getattr(advice, "warning", False)))
@@ -107,7 +119,8 @@ def hud_frame(v: float, advice, leader: tuple[float, float] | None = None) -> Hu
                     limit=display_kmh(getattr(advice, "speed_limit", None)),
                     arrow=arrow, arrow_len=round(arrow_len, 3), color=color,
                     in_band=in_band, countdown=cd, icon=advice.icon,
-                    warning=bool(getattr(advice, "tone", False)),
+                    warning=bool(getattr(advice, "tone", False)) and (tone_rule == "unfollowed"
+                                                                      or margin_violated(v, leader)),
                     light=None if cd is None else getattr(advice, "tl_phase", None), brake=brake)
 
 

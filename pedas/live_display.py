@@ -26,9 +26,10 @@ def pair_of(path: str) -> str:
     return "".join(code.split()).replace("-", "").upper()[:64]
 
 
-def hud_page(feed_path: str = "/display", theme: str = "light") -> str:
+def hud_page(feed_path: str = "/display", theme: str = "light", visual_warning: bool = True) -> str:
     """The full-screen HUD page: ``<pedas-hud sound theme=...>`` fed by the frames of the session whose code is in
-    the address (``/?pair=CODE``); a click enables the tone.
+    the address (``/?pair=CODE``); a click enables the tone; visual_warning=False draws no warning triangle and
+    blinking border (the tone alone).
 
     Its states (``data-state`` of ``<body>``), each but ``live`` a full-panel message in large text with the HUD
     hidden, so that no stale or empty frame reads as advice: ``waiting`` (no code yet: a field to type it),
@@ -53,7 +54,7 @@ body[data-state=ended] #status,body[data-state=wrong-code] #status{{background:#
 #pair{{font-size:2.4vw;margin-top:1.5em}}#pair input{{font:2.4vw monospace;width:10em;text-transform:uppercase}}
 #pair button{{font:2.4vw sans-serif}}</style>
 <script>{hud_script()}</script></head><body data-state="waiting">
-<pedas-hud id="hud" sound theme="{theme}"></pedas-hud>
+<pedas-hud id="hud" sound theme="{theme}"{"" if visual_warning else " no-visual-warning"}></pedas-hud>
 <div id="status"><div id="state">waiting</div><div id="detail"></div>
 <form id="pair" hidden>pairing code (the console shows it) <input name="pair" autocomplete="off"> <button>show</button></form></div>
 <script>

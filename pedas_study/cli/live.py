@@ -48,7 +48,8 @@ def _serve(args) -> None:
         server = LiveServer(live, args.host, args.port, logger_factory=None if st is None else drive_log,
                             on_ready=ready, announce=announce, rate=args.max_rate,
                             burst=max(1, round(args.max_rate / 2)), udp_idle=args.udp_idle)
-        server.hud_theme = args.theme
+        server.hud_theme, server.tone_rule = args.theme, args.tone
+        server.visual_warning = args.visual_warning == "on"
         try:
             server.run()
         except OSError as exc:   # address in use, no such interface: the operator's input
@@ -105,6 +106,11 @@ def register(cli) -> None:
                    help=f"messages/s one client may send; faster ones are slowed (UDP: dropped) (default {RATE:g})")
     p.add_argument("--theme", default="light", metavar="NAME",
                    help="HUD page theme: light (opaque panel, default) or dark (black = see-through, projected HUD)")
+    p.add_argument("--tone", default="unfollowed", choices=("unfollowed", "margin"),
+                   help="when the HUD sounds: unfollowed (a slow-down advice not followed for 2 s, default) or margin "
+                        "(that, and the safe distance violated; docs/hud.md)")
+    p.add_argument("--visual-warning", dest="visual_warning", choices=("on", "off"), default="on",
+                   help="the warning triangle and blinking border beside the tone (default on)")
     p.add_argument("--udp-idle", dest="udp_idle", type=float, default=UDP_IDLE, metavar="S",
                    help=f"seconds without a datagram after which a UDP session ends (default {UDP_IDLE:g})")
     p = g.command("drive", "reference client: a virtual participant drives in SUMO with advice from a live server",

@@ -125,3 +125,21 @@ def test_cut_in_advice_hand_worked():
     # no alert (psi >= 0) or no leader: the controller's advice as it is
     assert cut_in_advice(v, 0.0, (4.54, 119.59 * KMH), False) == (0.0, False)
     assert hud_frame(v, adv).advice == 0 and hud_frame(v, adv).arrow == -1
+
+
+def test_tone_rules():
+    """"unfollowed": the controller's tone as it is; "margin": only while psi = gap - (d_min + h_s v) < 0."""
+    from types import SimpleNamespace
+
+    from pedas.hud_frame import hud_frame
+    from pedas.params import CONTROLLER
+
+    cf = CONTROLLER.cf_weights
+    v = 20.0
+    d_s = cf.d_min + cf.h_s * v
+    adv = SimpleNamespace(v_advice=18.0, hud_arrow=-1, arrow_len=0.5, hud_in_band=False, warning=True,
+                          tl_countdown=None, icon=None, speed_limit=None, tl_phase=None, tone=True)
+    assert hud_frame(v, adv).warning and not hud_frame(v, adv, None, "margin").warning
+    assert not hud_frame(v, adv, (d_s + 0.1, 20.0), "margin").warning
+    assert hud_frame(v, adv, (d_s - 0.1, 20.0), "margin").warning
+    assert not hud_frame(v, SimpleNamespace(**{**vars(adv), "tone": False}), (1.0, 20.0), "margin").warning
