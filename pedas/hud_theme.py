@@ -34,7 +34,6 @@ THEMES: dict[str, dict[str, str]] = {
         "alarm_blink": "#5a1010", "page": "#000000",
     },
 }
-DEFAULT_THEME = "light"
 
 #: glyph -> (its colour's key, its background's key) in a theme
 GLYPHS: dict[str, tuple[str, str]] = {
@@ -51,10 +50,6 @@ GLYPHS: dict[str, tuple[str, str]] = {
     "countdown digits, yellow phase": ("lamp_yellow", "timer"),
     "countdown digits, green phase": ("lamp_green", "timer"),
 }
-
-
-def theme_names() -> tuple[str, ...]:
-    return tuple(THEMES)
 
 
 def check_theme(name: str) -> str:
