@@ -36,7 +36,7 @@
     <text id="limit-text" y="12" text-anchor="middle" font-size="34" font-weight="700" font-family="${FONT}"></text>
   </g>
   <path id="arrow" fill="none" stroke-linecap="round" stroke-linejoin="round"/>
-  <text id="brake" x="258" y="38" text-anchor="middle" font-size="22" font-weight="900" font-family="${FONT}">BRAKE</text>
+  <text id="brake" x="258" y="60" text-anchor="middle" font-size="20" font-weight="900" font-family="${FONT}">BRAKE</text>
   <g id="icon-green_wave" transform="translate(352 70) scale(.75)">
     <rect id="tile" x="-38" y="-38" width="76" height="76" rx="12"/>
     <text id="tile-text" y="21" text-anchor="middle" font-size="60" font-weight="700" font-family="${FONT}">G</text>
@@ -145,8 +145,9 @@
         arrow.setAttribute("d", "");
         arrow.style.display = "none";
       } else {
-        const len = ARROW_MIN + (ARROW_MAX - ARROW_MIN) * Math.min(Math.max(f.arrow_len, 0), 1);
-        const x = 258, mid = 135, dir = f.arrow > 0 ? -1 : 1;   // SVG y grows downwards
+        // in the brake state the full arrow is shortened and moved down, under the word BRAKE
+        const len = f.brake ? ARROW_MAX - 50 : ARROW_MIN + (ARROW_MAX - ARROW_MIN) * Math.min(Math.max(f.arrow_len, 0), 1);
+        const x = 258, mid = f.brake ? 160 : 135, dir = f.arrow > 0 ? -1 : 1;   // SVG y grows downwards
         const tail = mid - dir * len / 2, tip = mid + dir * len / 2;
         arrow.setAttribute("d", `M${x} ${tail} L${x} ${tip} M${x - 18} ${tip - dir * 18} L${x} ${tip} ` +
                                 `L${x + 18} ${tip - dir * 18}`);

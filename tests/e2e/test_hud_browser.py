@@ -224,3 +224,23 @@ def test_dark_theme_paints_its_colours_and_the_visual_warning_switches_off(page)
     light = hud.evaluate(fills)
     assert dark == {"panel": THEMES["dark"]["panel"], "speed": THEMES["dark"]["red"], "warning": True}
     assert off["warning"] is False and light["panel"] == THEMES["light"]["panel"]
+
+
+@pytest.mark.parametrize("theme", sorted(THEMES))
+def test_brake_state_fits_region_2_above_the_arrow(page, theme):
+    """The brake state: BRAKE inside region 2 (x 208..308) above the full red arrow, not touching it; screenshots
+    tests/output/hud/brake_state_<theme>.png."""
+    hud = page.locator("#hud")
+    hud.evaluate("(el, t) => el.setAttribute('theme', t)", theme)
+    frame = {"speed": 82, "advice": 0, "limit": 120, "arrow": -1, "arrow_len": 1.0, "color": "red", "in_band": False,
+             "countdown": None, "light": None, "icon": None, "warning": True, "brake": True}
+    hud.evaluate("(el, f) => { el.frame = f; }", frame)
+    b = hud.evaluate(REGION3.replace("shown[0]", "r.getElementById('brake')")
+                     .replace("r.getElementById('limit-text')", "r.getElementById('arrow')"))
+    brake, arrow = b["icon"], b["limit"]
+    assert hud.get_attribute("data-brake") == "true"
+    assert 208 + 4 <= brake[0] and brake[2] <= 308 - 4 and brake[3] + 4 <= arrow[1]
+    OUTPUT.mkdir(parents=True, exist_ok=True)
+    hud.screenshot(path=str(OUTPUT / f"brake_state_{theme}.png"), animations="disabled")
+    hud.evaluate("(el, f) => { el.removeAttribute('theme'); el.frame = {...f, brake: false, warning: false}; }", frame)
+    assert hud.get_attribute("data-brake") == "false"
