@@ -195,7 +195,9 @@
       const adv = v.d.advice[i] === null ? "no advice" : `advice ${v.d.advice[i].toFixed(1)} km/h`;
       const gap = v.d.gap[i] === null ? "no leader" : `gap ${v.d.gap[i].toFixed(1)} m`;
       v.readout.textContent = `t ${ti.toFixed(1)} s, s ${v.d.s[i].toFixed(0)} m, v ${v.d.v[i].toFixed(1)} km/h, ` +
-                              `${adv}, ${gap}, controller ${v.d.controller[i]}`;
+                              `${adv}, ${gap}, controller ${v.d.controller[i]}` +
+                              (v.d.advice[i] === null ? "" : `; HUD: ${f.brake ? "BRAKE" : f.arrow > 0 ? "speed up"
+                                : f.arrow < 0 ? "slow down" : "coast"}`);   // what the driver was told
       v.sec.dataset.index = String(i);
     }
   }
