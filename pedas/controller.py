@@ -517,6 +517,12 @@ class PedasController:
         self._last_arrow = hud.hud_arrow
         return hud
 
+    def _legal_limit(self, s: float) -> float:
+        """The legal limit in force at s (m/s): that of the last route grid point at or before s, the sign the car
+        has passed (never a value interpolated between two limits, which no sign shows)."""
+        i = int(np.searchsorted(self._s, s, side="right")) - 1
+        return float(self._limit[min(max(i, 0), self._limit.size - 1)])
+
     def _hud_context(self, s: float, v: float, pred: _Prediction, obj: _Objects, sol: _Solution) -> HudContext:
         """What the HUD shows besides the advice: the mode, the next light, stop sign and (slower) curve ahead."""
         curve_d = None
@@ -525,7 +531,7 @@ class PedasController:
             if j < self._curve_s.size and self._curve_v[j] < v:
                 curve_d = float(self._curve_s[j] - s)
         return HudContext(mode=sol.mode, tl_distance=obj.d_tl, tl_remaining=obj.tl_remaining, stop_distance=obj.d_ss,
-                          curve_distance=curve_d, psi=sol.psi, speed_limit=pred.limit,
+                          curve_distance=curve_d, psi=sol.psi, speed_limit=self._legal_limit(s),
                           tl_state=obj.tl.state_at(self._t_prev) if obj.tl_remaining is not None else None)
 
     # ------------------------------------------------------------------------------------------------------

@@ -305,7 +305,7 @@ def _loop(tr: Traffic, lights, human: HumanDriver, ctrl, guard: SafetyGuard, ali
         cols["hud_in_band"].append(adv.hud_in_band if adv is not None else None)
         cols["warning"].append(adv.warning if adv is not None else None)
         if "hud" in cols:   # the frame the driver saw: measured speed and this step's advice
-            cols["hud"].append(channel_values(hud_frame(v, adv)))
+            cols["hud"].append(channel_values(hud_frame(v, adv, None if lead is None or gap is None else (gap, lead.v))))
         steps += 1
         if steps % 50 == 0:
             max_veh = max(max_veh, tr.vehicle_count())

@@ -29,6 +29,7 @@ HUD_CHANNELS: tuple[tuple[str, str, str], ...] = (
     ("hud_light", "1", "phase of the counted-down light: 1 green, 2 yellow, 3 red (empty: none)"),
     ("hud_icon", "1", "icon shown: 0 none, 1 green wave (G), 2 stop sign, 3 yield sign, 4 curve"),
     ("hud_tone", "1", "warning tone sounding: 1 yes, 0 no"),
+    ("hud_arrow_shown", "1", "arrow shown: 1 up, 0 none (coast), -1 down, -2 the brake state (empty: hud_arrow)"),
 )
 LIGHT_CODES = {"green": 1.0, "yellow": 2.0, "red": 3.0}
 ICON_CODES = {None: 0.0, "green_wave": 1.0, "stop_sign": 2.0, "yield_sign": 3.0, "curve": 4.0}
@@ -42,7 +43,8 @@ def channel_values(frame: HudFrame) -> dict[str, float]:
     """The HUD channels of one frame (NaN where nothing is shown)."""
     return {"hud_speed": float(frame.speed), "hud_limit": _num(frame.limit), "hud_arrow_len": float(frame.arrow_len),
             "hud_countdown": _num(frame.countdown), "hud_light": _num(LIGHT_CODES.get(frame.light)),
-            "hud_icon": ICON_CODES[frame.icon], "hud_tone": 1.0 if frame.warning else 0.0}
+            "hud_icon": ICON_CODES[frame.icon], "hud_tone": 1.0 if frame.warning else 0.0,
+            "hud_arrow_shown": -2.0 if frame.brake else float(frame.arrow)}
 
 
 def frame_from_channels(ch: dict, advice_kmh: float | None, arrow: int, in_band: bool) -> HudFrame:
@@ -51,6 +53,10 @@ def frame_from_channels(ch: dict, advice_kmh: float | None, arrow: int, in_band:
     def whole(x):
         return None if x is None or x != x else int(round(x))
 
+    shown = ch.get("hud_arrow_shown")
+    brake = shown == -2.0
+    if shown is not None and shown == shown:   # the arrow the frame showed (cut_in_advice may differ from the log's)
+        arrow, in_band = (-1, False) if brake else (int(shown), shown == 0.0)
     lights = {v: k for k, v in LIGHT_CODES.items()}
     icons = {v: k for k, v in ICON_CODES.items()}
     color = "black" if in_band or arrow == 0 else ("green" if arrow > 0 else "red")
@@ -59,7 +65,7 @@ def frame_from_channels(ch: dict, advice_kmh: float | None, arrow: int, in_band:
                     arrow=int(arrow), arrow_len=float(ch.get("hud_arrow_len") or 0.0), color=color,
                     in_band=bool(in_band), countdown=cd, icon=icons.get(ch.get("hud_icon"), None),
                     warning=ch.get("hud_tone") == 1.0,
-                    light=None if cd is None else lights.get(ch.get("hud_light")))
+                    light=None if cd is None else lights.get(ch.get("hud_light")), brake=brake)
 
 
 def unfollowed_series(t: Sequence[float], v: Sequence[float], arrow: Sequence[int | None], *,

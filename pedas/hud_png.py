@@ -19,8 +19,11 @@ WIDTH = 480  # px of one PNG (16:9)
 
 
 def hud_script() -> str:
-    """The source of the ``<pedas-hud>`` web component (inlined by the pages that show the HUD)."""
-    return (WEB / "hud.js").read_text(encoding="utf-8")
+    """The source of the ``<pedas-hud>`` web component with its themes' colours (inlined by the pages that show
+    the HUD)."""
+    from pedas.hud_theme import THEMES
+
+    return f"window.PEDAS_HUD_THEMES = {json.dumps(THEMES)};\n" + (WEB / "hud.js").read_text(encoding="utf-8")
 
 
 def chromium_path() -> Path:
@@ -36,14 +39,20 @@ def launch(playwright):
     return playwright.chromium.launch(executable_path=str(chromium_path()), args=CHROMIUM_ARGS)
 
 
-def _page_html() -> str:
-    return (f"<!doctype html><html><head><meta charset='utf-8'><style>body{{margin:0;background:#fff}}</style>"
-            f"<script>{hud_script()}</script></head><body><pedas-hud id='hud' style='width:{WIDTH}px'></pedas-hud>"
-            f"</body></html>")
+def _page_html(theme: str) -> str:
+    from pedas.hud_theme import THEMES
+
+    return (f"<!doctype html><html><head><meta charset='utf-8'>"
+            f"<style>body{{margin:0;background:{THEMES[theme]['page']}}}</style><script>{hud_script()}</script></head>"
+            f"<body><pedas-hud id='hud' theme='{theme}' style='width:{WIDTH}px'></pedas-hud></body></html>")
 
 
-def render_png(frames: dict[str, HudFrame], out_dir: str | Path) -> dict[str, Path]:
-    """Draw each frame with ``<pedas-hud>`` and write ``<name>.png`` (WIDTH px wide) into out_dir; name -> path."""
+def render_png(frames: dict[str, HudFrame], out_dir: str | Path, theme: str = "light") -> dict[str, Path]:
+    """Draw each frame with ``<pedas-hud theme=...>`` and write ``<name>.png`` (WIDTH px wide) into out_dir;
+    name -> path."""
+    from pedas.hud_theme import check_theme
+
+    check_theme(theme)
     chromium_path()   # a missing browser is bad input (one line), found before anything is written
     try:
         from playwright.sync_api import sync_playwright
@@ -57,7 +66,7 @@ def render_png(frames: dict[str, HudFrame], out_dir: str | Path) -> dict[str, Pa
         browser = launch(p)
         try:
             page = browser.new_page(viewport={"width": WIDTH + 20, "height": 400})
-            page.set_content(_page_html())
+            page.set_content(_page_html(theme))
             hud = page.locator("#hud")
             for name, frame in frames.items():
                 hud.evaluate("(el, f) => { el.frame = f; }", frame.as_dict())
@@ -78,16 +87,16 @@ def panel_text(s) -> str:
             f"Frame: {json.dumps(s.frame().as_dict(), sort_keys=True)}\n")
 
 
-def write_fig7(out_dir: str | Path) -> dict[str, Path]:
-    """The nine Fig. 7 panels as ``fig7_<letter>.png``, beside each ``fig7_<letter>.txt`` (:func:`panel_text`),
-    plus ``fig7.html`` (the live component with the same texts); letter -> PNG path."""
+def write_fig7(out_dir: str | Path, theme: str = "light") -> dict[str, Path]:
+    """The nine Fig. 7 panels in a theme as ``fig7_<letter>.png``, beside each ``fig7_<letter>.txt``
+    (:func:`panel_text`), plus ``fig7.html`` (the live component with the same texts); letter -> PNG path."""
     out = Path(out_dir)
     frames = {s.key: s.frame() for s in FIG7}
-    pngs = render_png({f"fig7_{k}": f for k, f in frames.items()}, out)
+    pngs = render_png({f"fig7_{k}": f for k, f in frames.items()}, out, theme)
     for s in FIG7:
         (out / f"fig7_{s.key}.txt").write_text(panel_text(s), encoding="utf-8")
     cells = "".join(
-        f"<figure><pedas-hud frame='{html.escape(json.dumps(frames[s.key].as_dict()))}'></pedas-hud>"
+        f"<figure><pedas-hud theme='{theme}' frame='{html.escape(json.dumps(frames[s.key].as_dict()))}'></pedas-hud>"
         f"<figcaption><b>({s.key}) {html.escape(s.caption)}</b><br><i>{html.escape(s.sentence)}</i><br>"
         f"Our choice: {html.escape(s.choice)}<br><small>{html.escape(s.source())}</small></figcaption></figure>"
         for s in FIG7)

@@ -92,7 +92,8 @@ PANELS: tuple[Panel, ...] = (
           "regions on the HUD.",
           lambda r: _a(r).hud_arrow == 1 and _a(r).tl_countdown is not None and _a(r).icon is None and not _a(r).tone,
           lambda r: abs(_a(r).arrow_len - 0.5) + abs(_a(r).tl_countdown - 5.0) / 10,
-          "all three regions filled: an arrow up (region 2) and a countdown (region 3); arrow at half length"),
+          "all three regions filled: an arrow up (region 2) and a countdown (region 3); the arrow as near half "
+          "length as the drives offer (0.25 of full length in this step)"),
     Panel("b", "Green-wave speed advisory to cross the immediate TL signal at green phase",
           "An icon with a letter 'G' on a green background appears to indicate the driver that a green-wave is "
           "possible.",

@@ -69,6 +69,8 @@ class LiveSession:
     """One simulator's session: hello -> state* -> bye; :meth:`handle` maps each message text to its reply text.
     ``pair`` is the session's pairing code (its HUD page's key), fixed for the session's life and sent in ready."""
 
+    tone_rule = "unfollowed"   # when its HUD sounds (pedas.hud_frame.TONE_RULES)
+
     def __init__(self, live: LiveRoute, logger_factory: LoggerFactory | None = None, settings=None,
                  writers: dict | None = None, peer: str = "") -> None:
         from pedas.params import CONTROLLER
@@ -146,7 +148,7 @@ class LiveSession:
         if self.ctrl is None:
             self._reset()
         adv = self.ctrl.step(st.t, st.s, st.v, st.leader)
-        frame = hud_frame(st.v, adv)
+        frame = hud_frame(st.v, adv, st.leader, self.tone_rule)
         tl = self._next_light(st.s)
         spat_ok = None
         if st.spat is not None:
@@ -275,6 +277,10 @@ class LiveServer:
     connections, UDP peers); ``announce``: called with a console
     line when a session says hello (its pairing code and HUD page) and when a session ends."""
 
+    hud_theme = "light"        # the HUD page's theme (pedas.hud_theme), set by `live serve --theme`
+    tone_rule = "unfollowed"   # when the HUD sounds (pedas.hud_frame.TONE_RULES), set by `live serve --tone`
+    visual_warning = True      # the HUD page's warning triangle and blinking border, `live serve --visual-warning`
+
     def __init__(self, live: LiveRoute, host: str = "127.0.0.1", port: int = 8765,
                  logger_factory: LoggerFactory | None = None, on_ready: Callable[[int], None] | None = None,
                  announce: Announce | None = None, rate: float = RATE, burst: int = BURST,
@@ -337,6 +343,7 @@ class LiveServer:
         if key not in self.sessions:
             session = LiveSession(self.live, self.logger_factory, writers=self.writers,
                                   peer=f"{key[0]} {key[1]}:{key[2]}")
+            session.tone_rule = self.tone_rule
             session.throttle, session.last_seen = Throttle(self.rate, self.burst), time.monotonic()
             self.sessions[key] = session
             self.paired[session.pair] = session
@@ -391,7 +398,7 @@ class LiveServer:
 
         path = request.path.split("?")[0]
         if path in ("/", "/hud") and "upgrade" not in request.headers.get("Connection", "").lower():
-            body = hud_page().encode()
+            body = hud_page(theme=self.hud_theme, visual_warning=self.visual_warning).encode()
             return Response(200, "OK", Headers([("Content-Type", "text/html; charset=utf-8"),
                                                 ("Content-Length", str(len(body))),
                                                 ("Cache-Control", "no-store")]), body)

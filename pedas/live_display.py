@@ -26,43 +26,65 @@ def pair_of(path: str) -> str:
     return "".join(code.split()).replace("-", "").upper()[:64]
 
 
-def hud_page(feed_path: str = "/display") -> str:
-    """The full-screen HUD page: ``<pedas-hud sound>`` fed by the frames of the session whose code is in the
-    address (``/?pair=CODE``); without a code, a field to type it (a click enables the tone)."""
-    from pedas.hud_png import hud_script
+def hud_page(feed_path: str = "/display", theme: str = "light", visual_warning: bool = True) -> str:
+    """The full-screen HUD page: ``<pedas-hud sound theme=...>`` fed by the frames of the session whose code is in
+    the address (``/?pair=CODE``); a click enables the tone; visual_warning=False draws no warning triangle and
+    blinking border (the tone alone).
 
+    Its states (``data-state`` of ``<body>``), each but ``live`` a full-panel message in large text with the HUD
+    hidden, so that no stale or empty frame reads as advice: ``waiting`` (no code yet: a field to type it),
+    ``paired`` (the code is known, no frame yet), ``live`` (frames arrive), ``ended`` (the session ended, the last
+    frame is taken away), ``wrong-code`` (no session has this code: the field again), ``reconnecting`` (the
+    connection was lost; tried again each second). An empty data: favicon keeps the browser from asking the
+    WebSocket port for /favicon.ico."""
+    from pedas.hud_png import hud_script
+    from pedas.hud_theme import THEMES, check_theme
+
+    t = THEMES[check_theme(theme)]
     return f"""<!doctype html><html lang="en"><head><meta charset="utf-8"><title>pEDAS HUD</title>
-<style>html,body{{margin:0;height:100%;background:#000}}pedas-hud{{width:100vw;max-height:100vh;margin:auto}}
-pedas-hud[hidden]{{display:none}}
-#state{{position:fixed;bottom:4px;left:6px;color:#888;font:12px sans-serif}}
-#pair{{position:fixed;top:40%;width:100%;text-align:center;color:#ccc;font:24px sans-serif}}
-#pair input{{font:24px monospace;width:10em;text-transform:uppercase}}</style>
-<script>{hud_script()}</script></head><body><pedas-hud id="hud" sound></pedas-hud><div id="state">connecting</div>
+<link rel="icon" href="data:,">
+<style>html,body{{margin:0;height:100%;background:#000;overflow:hidden}}
+pedas-hud{{width:100vw;max-height:100vh;margin:auto}}
+body:not([data-state=live]) pedas-hud{{visibility:hidden}}
+#status{{position:fixed;inset:0;display:flex;flex-direction:column;align-items:center;justify-content:center;
+  background:{t['panel']};color:{t['black']};font:6vw sans-serif;text-align:center}}
+body[data-state=live] #status{{display:none}}
+body[data-state=ended] #status,body[data-state=wrong-code] #status{{background:#3a0d0d;color:#fff}}
+#state{{font-weight:700}}#detail{{font-size:2.4vw;max-width:80vw;margin-top:1em}}
+#pair{{font-size:2.4vw;margin-top:1.5em}}#pair input{{font:2.4vw monospace;width:10em;text-transform:uppercase}}
+#pair button{{font:2.4vw sans-serif}}</style>
+<script>{hud_script()}</script></head><body data-state="waiting">
+<pedas-hud id="hud" sound theme="{theme}"{"" if visual_warning else " no-visual-warning"}></pedas-hud>
+<div id="status"><div id="state">waiting</div><div id="detail"></div>
+<form id="pair" hidden>pairing code (the console shows it) <input name="pair" autocomplete="off"> <button>show</button></form></div>
 <script>
-const hud = document.getElementById("hud"), state = document.getElementById("state");
+const hud = document.getElementById("hud"), state = document.getElementById("state"),
+      detail = document.getElementById("detail"), form = document.getElementById("pair");
 const pair = (new URLSearchParams(location.search).get("pair") || "").trim();
-document.body.addEventListener("click", () => document.documentElement.requestFullscreen?.());
+function show(name, word, text = "") {{
+  document.body.dataset.state = name; state.textContent = word; detail.textContent = text;
+  form.hidden = !(name === "waiting" || name === "wrong-code");
+  if (!form.hidden) form.elements.pair.focus();
+}}
+document.body.addEventListener("click", e => {{ if (!form.contains(e.target)) document.documentElement.requestFullscreen?.().catch(() => {{}}); }});
 function connect() {{
   const ws = new WebSocket(`ws://${{location.host}}{feed_path}?pair=${{encodeURIComponent(pair)}}`);
-  let ended = false;
-  ws.onopen = () => {{ state.textContent = "live"; }};
+  let done = false;
+  ws.onopen = () => show("paired", "paired", `session ${{pair}}: waiting for the simulator's first state`);
   ws.onmessage = e => {{
     const m = JSON.parse(e.data);
-    if (m.type === "error") {{ ended = true; state.textContent = m.error; return; }}
+    if (m.type === "error") {{ done = true; show("wrong-code", "wrong pairing code", m.error); return; }}
     hud.frame = m.hud; hud.dataset.seq = String(m.seq);
+    if (document.body.dataset.state !== "live") show("live", "live");
   }};
   ws.onclose = e => {{
     // 1000: the session ended, 1008: the code is unknown; only a lost connection is tried again
-    if (ended) return;   // the error message stays on screen
-    if (e.code === 1000 || e.code === 1008) {{ state.textContent = e.reason || "closed"; return; }}
-    state.textContent = "reconnecting"; setTimeout(connect, 1000);
+    if (done) return;   // the error stays on screen
+    if (e.code === 1008) {{ show("wrong-code", "wrong pairing code", e.reason); return; }}
+    if (e.code === 1000) {{ show("ended", "session ended", "the simulator's session is over; the HUD shows no advice"); return; }}
+    show("reconnecting", "reconnecting", "the connection to the server was lost"); setTimeout(connect, 1000);
   }};
 }}
 if (pair) connect();
-else {{
-  state.textContent = "not paired";
-  hud.hidden = true;   // no session, no frame: a blank HUD would look like advice to stand still
-  document.body.insertAdjacentHTML("beforeend", '<form id="pair">pairing code (the console shows it) ' +
-    '<input name="pair" autofocus autocomplete="off"> <button>show</button></form>');
-}}
+else show("waiting", "waiting", "type the session's pairing code");
 </script></body></html>"""

@@ -193,7 +193,7 @@ def _signals(d: ReplayDrive) -> list[dict]:
     return out
 
 
-def page_data(participant_id: str, drives: list[ReplayDrive]) -> dict:
+def page_data(participant_id: str, drives: list[ReplayDrive], theme: str = "light") -> dict:
     """The JSON the page embeds: per drive the sample columns (km/h for speeds), the HUD frames and signals."""
     out = []
     for d in drives:
@@ -206,18 +206,21 @@ def page_data(participant_id: str, drives: list[ReplayDrive]) -> dict:
             "frames": {c: _col(fr[c]) for c in fr.columns},
             "signals": _signals(d),
         })
-    return {"participant": participant_id, "drives": out}
+    return {"participant": participant_id, "drives": out, "theme": theme}
 
 
-def replay_html(participant_id: str, drives: list[ReplayDrive]) -> str:
-    """The self-contained page (the HUD component, the page script and the data inline)."""
+def replay_html(participant_id: str, drives: list[ReplayDrive], theme: str = "light") -> str:
+    """The self-contained page (the HUD component in a theme of pedas.hud_theme, the page script and the data
+    inline). Laid out for a 1400 x 900 screen: per drive a column at most 680 px wide, the HUD (360 px) with the
+    timeline of what it showed right under it, so HUD and timeline share one screen for one or two drives."""
     import html
 
     from pedas.hud_png import WEB, hud_script
 
-    payload = json.dumps(page_data(participant_id, drives), separators=(",", ":"), sort_keys=True)
+    payload = json.dumps(page_data(participant_id, drives, theme), separators=(",", ":"), sort_keys=True)
     payload = payload.replace("<", "\\u003c")   # the JSON sits inside a <script> element: no "</script>", "<!--"
-    title = html.escape(f"Replay of {participant_id}: " + " | ".join(d.condition for d in drives))
+    names = {"pedas": "pEDAS"}
+    title = html.escape(f"Replay of {participant_id}: " + " | ".join(names.get(d.condition, d.condition) for d in drives))
     return f"""<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>{title}</title>
 <meta name="viewport" content="width=device-width, initial-scale=1">
@@ -226,11 +229,14 @@ body{{font-family:DejaVu Sans,Arial,sans-serif;margin:0 12px;}}
 header{{position:sticky;top:0;background:#fff;padding:8px 0;border-bottom:1px solid #ccc;display:flex;gap:10px;
 align-items:center;z-index:1}}
 #slider{{flex:1}}
-#drives{{display:grid;grid-template-columns:repeat({len(drives)},minmax(0,1fr));gap:18px}}
-pedas-hud{{width:min(100%,420px)}}
-.readout{{font-size:13px;min-height:2.6em}}
+#drives{{display:grid;grid-template-columns:repeat({len(drives)},minmax(0,680px));gap:18px}}
+pedas-hud{{width:min(100%,360px)}}
+.readout{{font-size:13px;min-height:2.6em;margin:4px 0}}
 .hud-source{{font-size:12px;color:#555;margin:0 0 6px}}
-h2{{margin:8px 0;text-transform:capitalize}}
+h2{{margin:6px 0;font-size:20px}}
+.legend{{font-size:12px;margin:0 0 8px;display:flex;flex-wrap:wrap;gap:4px 12px}}
+.legend i{{display:inline-block;width:14px;height:10px;margin-right:4px;vertical-align:middle}}
+.legend i.line,.legend i.dash{{height:0;border-top:2px solid}}.legend i.dash{{border-top-style:dashed}}
 </style>
 <script>{hud_script()}</script></head>
 <body>
@@ -246,11 +252,12 @@ h2{{margin:8px 0;text-transform:capitalize}}
 """
 
 
-def write_replay(st, participant_id: str, condition: str, out: str | Path, others: bool = True) -> Path:
+def write_replay(st, participant_id: str, condition: str, out: str | Path, others: bool = True,
+                 theme: str = "light") -> Path:
     """Write the replay page of a participant's drive (and, with others=True, the person's other drives beside
-    it) to `out`; the path."""
+    it) to `out` with the HUD in `theme`; the path."""
     out = Path(out)
-    text = replay_html(participant_id, replay_drives(st, participant_id, condition, others))
+    text = replay_html(participant_id, replay_drives(st, participant_id, condition, others), theme)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(text, encoding="utf-8")
     return out

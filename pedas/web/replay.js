@@ -1,7 +1,7 @@
 // The replay page of a participant's drives (analysis/replay.py embeds the data as JSON in #replay-data).
 // One time slider for all drives; per drive: the HUD as the driver saw it (<pedas-hud>), speed with advice and
-// limit, leader gap, controller, a timeline of what the HUD showed (arrow, band, countdown, icon, tone) and a
-// space-time strip with the signal states at the lights' stop lines. Under each drive's name: whether its HUD is the
+// right under it a timeline of what the HUD showed (arrow, band, countdown, icon, tone), then speed with advice
+// and limit, leader gap, controller and a space-time strip with the signal states at the lights' stop lines. Under each drive's name: whether its HUD is the
 // one stored with the drive (exactly what was shown) or rebuilt from its log.
 // Every chart has a cursor at the slider's time; the state shown is the last sample at or before that time.
 (() => {
@@ -78,7 +78,7 @@
     rebuilt: "HUD rebuilt from the drive log (no stored HUD channels: no green-wave or curve icon)",
   };
   function hudTimeline(parent, d) {
-    const h = 30 + 14 * LANES.length;
+    const h = PAD.t + PAD.b + 4 + 14 * LANES.length;   // every lane inside the box, where the cursor crosses it
     const c = chart(parent, "HUD shown", h, 0, 1, "arrow, band, countdown, icon, tone");
     c.svg.classList.add("hud-timeline");
     for (const tick of [...c.svg.querySelectorAll("text")]) if (tick.getAttribute("x") === String(PAD.l - 4)) tick.remove();   // no 0..1 ticks
@@ -103,27 +103,56 @@
     return c;
   }
 
+  // a legend under a chart: [colour, label, kind] with kind "line", "dash" or "box"
+  function legend(parent, items) {
+    const p = document.createElement("p");
+    p.className = "legend";
+    for (const [colour, label, kind = "box"] of items) {
+      const s = document.createElement("span");
+      const key = document.createElement("i");
+      key.className = kind;
+      key.style[kind === "box" ? "background" : "borderColor"] = colour;
+      s.append(key, label);
+      p.append(s);
+    }
+    parent.appendChild(p);
+  }
+  const NAMES = { pedas: "pEDAS", baseline: "baseline" };
+
   const views = data.drives.map(d => {
     const sec = document.createElement("section");
     sec.className = "drive";
     sec.dataset.condition = d.condition;
     sec.innerHTML = `<h2></h2><p class="hud-source"></p><pedas-hud></pedas-hud><p class="readout"></p>`;
-    sec.querySelector("h2").textContent = d.condition;   // a study's own condition name, shown as text
+    sec.querySelector("h2").textContent = NAMES[d.condition] || d.condition;   // a study's own name, as text
+    if (data.theme) sec.querySelector("pedas-hud").setAttribute("theme", data.theme);
+    const advised = d.advice.some(a => a !== null);
     // where the HUD comes from: the drive's stored HUD channels (exactly what was shown) or rebuilt from its log
     sec.dataset.hudSource = d.hud_source;
-    sec.querySelector(".hud-source").textContent = HUD_SOURCE[d.hud_source] ||
-      `HUD as shown (stored HUD channels) ${d.hud_source.replace(/^stored /, "")}, rebuilt from the log elsewhere`;
+    sec.querySelector(".hud-source").textContent = !advised
+      ? "no pEDAS HUD in this drive: the panel shows only the speed and the limit a speedometer would"
+      : HUD_SOURCE[d.hud_source] ||
+        `HUD as shown (stored HUD channels) ${d.hud_source.replace(/^stored /, "")}, rebuilt from the log elsewhere`;
     document.getElementById("drives").appendChild(sec);
+    // what the HUD showed over time, right under the HUD (one lane per element, a coloured span per run of equal
+    // values): the arrow (green up, red down), the band (black digits), the countdown (its phase's colour), the
+    // icon, the tone
+    const hudLanes = hudTimeline(sec, d);
+    legend(sec, [["#0a9d3c", "arrow up"], ["#d2161e", "arrow down / tone"], ["#111", "band (coast)"],
+                 [SIGNAL.green, "timer: green"], [SIGNAL.yellow, "yellow"], [SIGNAL.red, "red phase"],
+                 [ICON.green_wave, "icon G"], [ICON.curve, "curve"], [ICON.stop_sign, "STOP"],
+                 [ICON.yield_sign, "yield"]]);
     const vmax = Math.max(...finite(d.v), ...finite(d.limit), ...finite(d.advice), 10);
     const speed = chart(sec, "speed", 170, 0, vmax, "km/h");
     line(speed, d.t, d.limit, "#888", 1.2, "5 3");
     line(speed, d.t, d.advice, "#0a9d3c", 1.2);
     line(speed, d.t, d.v, "#111", 1.5);
+    legend(sec, [["#111", "speed", "line"], ["#0a9d3c", "advice", "line"], ["#888", "limit", "dash"]]);
     const gaps = finite(d.gap);
     const gap = chart(sec, "leader gap", 110, 0, Math.max(...gaps, 10), "m");
     line(gap, d.t, d.gap, "#4a77c9");
     // controller: one coloured band per run of equal values
-    const ctrl = chart(sec, "controller", 64, 0, 1, "rt blue, cf orange, none grey");
+    const ctrl = chart(sec, "controller", 64, 0, 1, "reference tracking, car following, none");
     for (let a = 0; a < d.t.length;) {
       let b = a;
       while (b + 1 < d.t.length && d.controller[b + 1] === d.controller[a]) b++;
@@ -133,9 +162,7 @@
       a = b + 1;
     }
     ctrl.svg.appendChild(ctrl.cursor);
-    // what the HUD showed over time (one lane per element, a coloured span per run of equal values): the arrow
-    // (green up, red down), the band (black digits), the countdown (its phase's colour), the icon, the tone
-    const hudLanes = hudTimeline(sec, d);
+    legend(sec, [[CTRL.rt, "reference tracking (rt)"], [CTRL.cf, "car following (cf)"], [CTRL.none, "none"]]);
     // space-time strip: the trajectory s(t) and, at each light's stop line, its state over time
     const sMax = Math.max(...d.s);
     const st = chart(sec, "space-time", 230, 0, sMax, "m");
@@ -168,7 +195,9 @@
       const adv = v.d.advice[i] === null ? "no advice" : `advice ${v.d.advice[i].toFixed(1)} km/h`;
       const gap = v.d.gap[i] === null ? "no leader" : `gap ${v.d.gap[i].toFixed(1)} m`;
       v.readout.textContent = `t ${ti.toFixed(1)} s, s ${v.d.s[i].toFixed(0)} m, v ${v.d.v[i].toFixed(1)} km/h, ` +
-                              `${adv}, ${gap}, controller ${v.d.controller[i]}`;
+                              `${adv}, ${gap}, controller ${v.d.controller[i]}` +
+                              (v.d.advice[i] === null ? "" : `; HUD: ${f.brake ? "BRAKE" : f.arrow > 0 ? "speed up"
+                                : f.arrow < 0 ? "slow down" : "coast"}`);   // what the driver was told
       v.sec.dataset.index = String(i);
     }
   }

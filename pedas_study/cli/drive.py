@@ -126,10 +126,15 @@ def _simulate(args) -> None:
 
 def _replay(args) -> None:
     from analysis.drives.replay import write_replay
+    from pedas.hud_theme import check_theme
 
+    try:
+        check_theme(args.theme)
+    except ValueError as exc:
+        raise UserError(str(exc)) from None
     with open_store(args, read_only=True) as st:
         out = args.out or f"replay_{args.id}_{args.condition}.html"
-        path = write_replay(st, args.id, args.condition, out, others=not args.only)
+        path = write_replay(st, args.id, args.condition, out, others=not args.only, theme=args.theme)
     print(f"{args.id} {args.condition}: replay written to {path}")
     if args.serve:
         from analysis.drives.replay import serve_file
@@ -183,6 +188,7 @@ def register(cli) -> None:
     p.add_argument("condition", metavar="CONDITION", help="the drive shown first")
     p.add_argument("--out", default=None, metavar="FILE", help="the page (default replay_<ID>_<CONDITION>.html)")
     p.add_argument("--only", action="store_true", help="this drive alone, without the person's other drives")
+    p.add_argument("--theme", default="light", metavar="NAME", help="HUD theme: light (default) or dark")
     p.add_argument("--serve", action="store_true", help="serve the page over HTTP until Ctrl-C")
     p.add_argument("--host", default="127.0.0.1", help="address to serve on (default 127.0.0.1)")
     p.add_argument("--port", type=int, default=8018, help="port to serve on (default 8018)")

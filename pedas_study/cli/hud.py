@@ -10,7 +10,14 @@ def _fig7(args) -> None:
     from pedas.hud_frame import FIG7
     from pedas.hud_png import write_fig7
 
-    paths = write_fig7(args.out)
+    from pedas.hud_theme import check_theme
+    from study.common.errors import UserError
+
+    try:
+        check_theme(args.theme)
+    except ValueError as exc:
+        raise UserError(str(exc)) from None
+    paths = write_fig7(args.out, args.theme)
     for s in FIG7:
         print(f"({s.key}) {paths[s.key]}  {s.caption}")
         print(f"    the paper: \"{s.sentence}\"")
@@ -53,6 +60,8 @@ def register(cli) -> None:
     g = cli.group("hud", "the head-up display")
     p = g.command("fig7", "draw the HUD in the nine panels of Fig. 7 (PNG + text + HTML, headless Chromium)", _fig7)
     p.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    p.add_argument("--theme", default="light", metavar="NAME",
+                   help="light (opaque panel, default) or dark (black = see-through, for a projected HUD)")
     p = g.command("search", "find a controller state for each Fig. 7 panel in the store's simulated pedas drives "
                             "(re-simulates them; writes the states pedas/hud_fig7.json holds)", _search)
     p.add_argument("--out", required=True, metavar="FILE", help="JSON file of the nine states")

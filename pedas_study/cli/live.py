@@ -13,6 +13,12 @@ def _serve(args) -> None:
 
     from study.store.store import StoreHolder
 
+    from pedas.hud_theme import check_theme
+
+    try:
+        check_theme(args.theme)
+    except ValueError as exc:
+        raise UserError(str(exc)) from None
     for flag, value in (("--udp-idle", args.udp_idle), ("--max-rate", args.max_rate),
                         ("--max-sessions", args.max_sessions)):
         if not value > 0:   # also refuses nan
@@ -46,6 +52,8 @@ def _serve(args) -> None:
                             on_ready=ready, announce=announce, rate=args.max_rate,
                             burst=max(1, round(args.max_rate / 2)), udp_idle=args.udp_idle,
                             max_sessions=args.max_sessions)
+        server.hud_theme, server.tone_rule = args.theme, args.tone
+        server.visual_warning = args.visual_warning == "on"
         try:
             server.run()
         except OSError as exc:   # address in use, no such interface: the operator's input
@@ -100,6 +108,13 @@ def register(cli) -> None:
     p.add_argument("--replace", action="store_true", help="a session may replace a stored drive")
     p.add_argument("--max-rate", dest="max_rate", type=float, default=RATE, metavar="HZ",
                    help=f"messages/s one client may send; faster ones are slowed (UDP: dropped) (default {RATE:g})")
+    p.add_argument("--theme", default="light", metavar="NAME",
+                   help="HUD page theme: light (opaque panel, default) or dark (black = see-through, projected HUD)")
+    p.add_argument("--tone", default="unfollowed", choices=("unfollowed", "margin"),
+                   help="when the HUD sounds: unfollowed (a slow-down advice not followed for 2 s, default) or margin "
+                        "(that, and the safe distance violated; docs/hud.md)")
+    p.add_argument("--visual-warning", dest="visual_warning", choices=("on", "off"), default="on",
+                   help="the warning triangle and blinking border beside the tone (default on)")
     p.add_argument("--udp-idle", dest="udp_idle", type=float, default=UDP_IDLE, metavar="S",
                    help=f"seconds without a datagram after which a UDP session ends (default {UDP_IDLE:g})")
     p.add_argument("--max-sessions", dest="max_sessions", type=int, default=MAX_SESSIONS, metavar="N",

@@ -21,7 +21,10 @@ from study.common.errors import UserError
 from study.common.numbers import column_floats
 
 #: allowed values of the coded channels (NaN = not shown is allowed everywhere)
-_CODES = {"hud_light": (1.0, 2.0, 3.0), "hud_icon": (0.0, 1.0, 2.0, 3.0, 4.0), "hud_tone": (0.0, 1.0)}
+_CODES = {"hud_light": (1.0, 2.0, 3.0), "hud_icon": (0.0, 1.0, 2.0, 3.0, 4.0), "hud_tone": (0.0, 1.0),
+          "hud_arrow_shown": (-2.0, -1.0, 0.0, 1.0)}
+#: channels a log may leave out even when it has the others (added later: logs written before keep importing)
+_OPTIONAL = ("hud_arrow_shown",)
 #: closed ranges of the others: the digits in km/h (up to the drive log's 70 m/s bound), the arrow as a fraction,
 #: the countdown in whole s
 _RANGES = {"hud_speed": (0.0, 252.0), "hud_limit": (0.0, 252.0), "hud_arrow_len": (0.0, 1.0),
@@ -51,16 +54,18 @@ def _values(s: pd.Series, name: str) -> np.ndarray:
 
 def hud_extras(df: pd.DataFrame) -> tuple[pd.DataFrame | None, tuple]:
     """(the HUD channels `df` carries as a float64 frame row for row with it, their Channels) — (None, ()) when it
-    carries none. A log carrying some but not all of them, a value that is not a number, infinite, outside its
+    carries none. A log carrying some but not all of them (the optional ones aside), a value that is not a number, infinite, outside its
     channel's codes or range, or a countdown that is not whole -> UserError (one line, column and 1-based row)."""
-    defs = hud_channel_defs()
-    have = [ch for ch in defs if ch.name in df.columns]
+    every = hud_channel_defs()
+    have = [ch for ch in every if ch.name in df.columns]
     if not have:
         return None, ()
-    if len(have) != len(defs):
-        missing = [ch.name for ch in defs if ch.name not in df.columns]
+    missing = [ch.name for ch in every if ch.name not in df.columns and ch.name not in _OPTIONAL]
+    if missing:
+        required = [ch.name for ch in every if ch.name not in _OPTIONAL]
         raise UserError(f"the log has HUD channels but not {', '.join(missing)}: a log keeps all of "
-                        f"{', '.join(ch.name for ch in defs)} or none")
+                        f"{', '.join(required)} or none")
+    defs = tuple(have)
     out = {}
     for ch in defs:
         x = _values(df[ch.name].reset_index(drop=True), ch.name)

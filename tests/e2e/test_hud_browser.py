@@ -7,6 +7,7 @@ import shutil
 import pytest
 
 from pedas.hud_frame import FIG7, fig7_frames
+from pedas.hud_theme import THEMES
 from tests.conftest import OUTPUT as OUTPUT_ROOT
 from tests.conftest import needs_chromium
 
@@ -43,10 +44,10 @@ SHOWN = """el => {
           limit: vis('limit') ? r.getElementById('limit-text').textContent : null,
           countdown: vis('countdown') ? r.getElementById('countdown-text').textContent : null,
           icons: ['green_wave', 'stop_sign', 'yield_sign', 'curve'].filter(i => vis('icon-' + i)),
-          lamps: ['red', 'yellow', 'green'].filter(l => r.getElementById('lamp-' + l).getAttribute('fill') !== '#4a4a4a'),
+          lamps: ['red', 'yellow', 'green'].filter(l => r.getElementById('lamp-' + l).getAttribute('fill') !== 'LAMP_OFF'),
           warning: vis('warning'), tones: Number(el.dataset.tones)};
-}"""
-COLOURS = {"black": "#111", "green": "#0a9d3c", "red": "#d2161e"}
+}""".replace("LAMP_OFF", THEMES["light"]["lamp_off"])
+COLOURS = {k: THEMES["light"][k] for k in ("black", "green", "red")}
 
 
 def draw(page, frame: dict) -> dict:
@@ -152,11 +153,94 @@ def test_cli_writes_the_nine_pngs(cli_proc, tmp_path):
     # green digits in (e), red in (f), black in (d): count pixels of each colour
     def count(im, rgb):
         return int((np.abs(np.asarray(im, int) - rgb) < 12).all(axis=2).sum())
-    assert count(images["e"], (10, 157, 60)) > 2000 and count(images["e"], (210, 22, 30)) < count(images["f"], (210, 22, 30))
-    assert count(images["d"], (10, 157, 60)) == 0
+    rgb = {k: tuple(int(v[i:i + 2], 16) for i in (1, 3, 5)) for k, v in THEMES["light"].items()}
+    assert count(images["e"], rgb["green"]) > 2000 and count(images["e"], rgb["red"]) < count(images["f"], rgb["red"])
+    assert count(images["d"], rgb["green"]) == 0
     # the lit lamp: green in (h), red in (i)
-    assert count(images["h"], (25, 179, 74)) > 200 and count(images["i"], (25, 179, 74)) == 0
-    assert count(images["i"], (224, 25, 31)) > 200 and count(images["h"], (224, 25, 31)) == 0
+    assert count(images["h"], rgb["lamp_green"]) > 200 and count(images["i"], rgb["lamp_green"]) == 0
+    assert count(images["i"], rgb["lamp_red"]) > 200 and count(images["h"], rgb["lamp_red"]) == 0
     OUTPUT.mkdir(parents=True, exist_ok=True)
     for k in "abcdefghi":
         shutil.copy(out / f"fig7_{k}.png", OUTPUT / f"fig7_{k}.png")
+
+
+REGION3 = """el => {
+  const r = el.shadowRoot, s = r.querySelector('svg').getBoundingClientRect(), k = 480 / s.width,
+        box = e => { const b = e.getBoundingClientRect();
+                     return [(b.left - s.left) * k, (b.top - s.top) * k, (b.right - s.left) * k, (b.bottom - s.top) * k]; };
+  const shown = ['icon-green_wave', 'icon-stop_sign', 'icon-yield_sign', 'icon-curve']
+                  .map(id => r.getElementById(id)).filter(e => e.style.display !== 'none');
+  return {icon: box(shown[0]), warning: box(r.getElementById('warning')),
+          limit: box(r.getElementById('limit-text')), disc: box(r.getElementById('limit-disc'))};
+}"""
+
+
+@pytest.mark.parametrize("theme", sorted(THEMES))
+@pytest.mark.parametrize("icon", ["green_wave", "stop_sign", "yield_sign", "curve"])
+def test_region_3_full_keeps_its_glyphs_apart(page, theme, icon):
+    """Region 3 full (an icon, the warning, a countdown): the icon starts >= 6 px right of the divider (x = 308),
+    the warning >= 6 px right of the icon and >= 6 px inside the panel's edge (x = 476, border 10 px while it
+    blinks); screenshots tests/output/hud/region3_<theme>_<icon>.png."""
+    hud = page.locator("#hud")
+    hud.evaluate("(el, t) => el.setAttribute('theme', t)", theme)
+    frame = {"speed": 82, "advice": 60, "limit": 100, "arrow": -1, "arrow_len": 1.0, "color": "red",
+             "in_band": False, "countdown": 3, "light": "yellow", "icon": icon, "warning": True}
+    hud.evaluate("(el, f) => { el.frame = f; }", frame)
+    b = hud.evaluate(REGION3)
+    assert b["icon"][0] >= 308 + 6 and b["warning"][0] >= b["icon"][2] + 6 and b["warning"][2] <= 476 - 10 - 6
+    OUTPUT.mkdir(parents=True, exist_ok=True)
+    hud.screenshot(path=str(OUTPUT / f"region3_{theme}_{icon}.png"), animations="disabled")
+    hud.evaluate("el => el.removeAttribute('theme')")
+
+
+@pytest.mark.parametrize("theme", sorted(THEMES))
+@pytest.mark.parametrize("limit", [30, 50, 100, 120])
+def test_limits_fit_inside_the_disc_with_a_margin(page, theme, limit):
+    """The limit's digits stay >= 8 px inside the disc's 84 px outer box (the ring is 9 px wide, so >= 3.5 px
+    from the ring's inner edge); screenshots tests/output/hud/limit_<theme>_<n>.png."""
+    hud = page.locator("#hud")
+    hud.evaluate("(el, t) => el.setAttribute('theme', t)", theme)
+    hud.evaluate("(el, f) => { el.frame = f; }", {"speed": 9, "advice": 9, "limit": limit, "arrow": 0, "arrow_len": 0,
+                                                  "color": "black", "in_band": True, "countdown": None,
+                                                  "light": None, "icon": None, "warning": False})
+    b = hud.evaluate(REGION3.replace("shown[0]", "r.getElementById('speed')"))
+    assert b["limit"][0] >= b["disc"][0] + 8 + 4.5 and b["limit"][2] <= b["disc"][2] - 8 - 4.5
+    OUTPUT.mkdir(parents=True, exist_ok=True)
+    hud.screenshot(path=str(OUTPUT / f"limit_{theme}_{limit}.png"), animations="disabled")
+    hud.evaluate("el => el.removeAttribute('theme')")
+
+
+def test_dark_theme_paints_its_colours_and_the_visual_warning_switches_off(page):
+    hud = page.locator("#hud")
+    frame = {**fig7_frames()["f"].as_dict(), "warning": True}
+    fills = "el => ({panel: el.shadowRoot.getElementById('panel').getAttribute('fill'), " \
+            "speed: el.shadowRoot.getElementById('speed').getAttribute('fill'), " \
+            "warning: el.shadowRoot.getElementById('warning').style.display !== 'none'})"
+    hud.evaluate("(el, f) => { el.setAttribute('theme', 'dark'); el.frame = f; }", frame)
+    dark = hud.evaluate(fills)
+    hud.evaluate("(el, f) => { el.setAttribute('no-visual-warning', ''); el.frame = f; }", frame)
+    off = hud.evaluate(fills)
+    hud.evaluate("el => { el.removeAttribute('theme'); el.removeAttribute('no-visual-warning'); }")
+    light = hud.evaluate(fills)
+    assert dark == {"panel": THEMES["dark"]["panel"], "speed": THEMES["dark"]["red"], "warning": True}
+    assert off["warning"] is False and light["panel"] == THEMES["light"]["panel"]
+
+
+@pytest.mark.parametrize("theme", sorted(THEMES))
+def test_brake_state_fits_region_2_above_the_arrow(page, theme):
+    """The brake state: BRAKE inside region 2 (x 208..308) above the full red arrow, not touching it; screenshots
+    tests/output/hud/brake_state_<theme>.png."""
+    hud = page.locator("#hud")
+    hud.evaluate("(el, t) => el.setAttribute('theme', t)", theme)
+    frame = {"speed": 82, "advice": 0, "limit": 120, "arrow": -1, "arrow_len": 1.0, "color": "red", "in_band": False,
+             "countdown": None, "light": None, "icon": None, "warning": True, "brake": True}
+    hud.evaluate("(el, f) => { el.frame = f; }", frame)
+    b = hud.evaluate(REGION3.replace("shown[0]", "r.getElementById('brake')")
+                     .replace("r.getElementById('limit-text')", "r.getElementById('arrow')"))
+    brake, arrow = b["icon"], b["limit"]
+    assert hud.get_attribute("data-brake") == "true"
+    assert 208 + 4 <= brake[0] and brake[2] <= 308 - 4 and brake[3] + 4 <= arrow[1]
+    OUTPUT.mkdir(parents=True, exist_ok=True)
+    hud.screenshot(path=str(OUTPUT / f"brake_state_{theme}.png"), animations="disabled")
+    hud.evaluate("(el, f) => { el.removeAttribute('theme'); el.frame = {...f, brake: false, warning: false}; }", frame)
+    assert hud.get_attribute("data-brake") == "false"

@@ -384,42 +384,62 @@ def test_a_drive_stored_by_another_writer_is_never_replaced(paper_db):
 
 @pytest.mark.browser
 @needs_chromium
-def test_hud_page_in_chromium_follows_the_advice():
+@pytest.mark.parametrize("theme", ["light", "dark"])
+def test_hud_page_in_chromium_follows_the_advice(theme):
     """The server's full-screen HUD page (/?pair=CODE, the code of the simulator's session) draws each frame the
-    simulator's states produce."""
+    simulator's states produce, and says in a full-panel message, the HUD hidden, when it is not live: waiting
+    (no code), paired (no frame yet), session ended, wrong code; no console error on the way (no favicon
+    request). Screenshots tests/output/live/hud_page_<theme>_<state>.png."""
     from playwright.sync_api import expect, sync_playwright
     from websockets.sync.client import connect
 
     from pedas.hud_png import launch
 
-    proc, port = start_server(None)
+    proc, port = start_server(None, "--theme", theme)
+    out = OUTPUT / "live"
+    out.mkdir(parents=True, exist_ok=True)
+    errors, requests = [], []
+
+    def shot(page, state):
+        expect(page.locator("body")).to_have_attribute("data-state", state, timeout=30_000)
+        assert page.locator("#hud").is_visible() == (state == "live")
+        page.screenshot(path=str(out / f"hud_page_{theme}_{state}.png"))
+
     try:
         with sync_playwright() as p:
             b = launch(p)
             page = b.new_page(viewport={"width": 960, "height": 540})
+            page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+            page.on("pageerror", lambda e: errors.append(str(e)))
+            page.on("request", lambda r: requests.append(r.url))
+            page.goto(f"http://127.0.0.1:{port}/")                       # no code: waiting, a field to type it
+            shot(page, "waiting")
+            expect(page.locator("#pair input[name=pair]")).to_be_visible()
             with connect(f"ws://127.0.0.1:{port}/") as ws:
                 ws.send('{"type":"hello"}')
                 code = json.loads(ws.recv(timeout=30))["pair"]
                 page.goto(f"http://127.0.0.1:{port}/?pair={code}")
-                expect(page.locator("#state")).to_have_text("live", timeout=30_000)
+                shot(page, "paired")
+                expect(page.locator("#detail")).to_contain_text(code)
                 for msg in states(3, v=13.0):
                     ws.send(json.dumps(msg))
                     reply = json.loads(ws.recv(timeout=30))
-            expect(page.locator("#hud")).to_have_attribute("data-seq", "2", timeout=30_000)
-            assert page.locator("#hud").get_attribute("data-speed") == str(reply["hud"]["speed"]) == "47"
-            (OUTPUT / "live").mkdir(parents=True, exist_ok=True)
-            page.screenshot(path=str(OUTPUT / "live" / "hud_page.png"))
-            # without a code the page asks for one; with a code no session has it says so and stays unpaired
-            page.goto(f"http://127.0.0.1:{port}/")
-            expect(page.locator("#state")).to_have_text("not paired", timeout=30_000)
-            expect(page.locator("#pair input[name=pair]")).to_be_visible()
-            page.screenshot(path=str(OUTPUT / "live" / "hud_page_unpaired.png"))
+                expect(page.locator("#hud")).to_have_attribute("data-seq", "2", timeout=30_000)
+                assert page.locator("#hud").get_attribute("data-speed") == str(reply["hud"]["speed"]) == "47"
+                assert page.locator("#hud").get_attribute("theme") == theme
+                shot(page, "live")
+                ws.send('{"type":"bye"}')
+            shot(page, "ended")                                         # the last frame is no longer shown
+            expect(page.locator("#state")).to_have_text("session ended")
             page.goto(f"http://127.0.0.1:{port}/?pair=AAAAAAAA")
-            expect(page.locator("#state")).to_contain_text("unknown pairing code 'AAAAAAAA'", timeout=30_000)
+            shot(page, "wrong-code")
+            expect(page.locator("#detail")).to_contain_text("unknown pairing code 'AAAAAAAA'")
+            expect(page.locator("#pair input[name=pair]")).to_be_visible()
             b.close()
     finally:
         proc.send_signal(signal.SIGINT)
         proc.wait(timeout=30)
+    assert errors == [] and not [u for u in requests if "favicon" in u]
 
 
 @pytest.mark.slow

@@ -278,6 +278,51 @@ def test_replay_page_in_chromium(browser, cli, two_drives, tmp_path):
     check_replay_page(browser, out, ["pedas", "baseline"], page_json(out), OUTPUT / "replay" / "synthetic.png")
 
 
+LAYOUT = """() => [...document.querySelectorAll('section.drive')].map(sec => {
+  const hud = sec.querySelector('pedas-hud').getBoundingClientRect(),
+        tl = sec.querySelector('svg.hud-timeline'), box = tl.querySelector('rect').getBBox();
+  const lanes = [...tl.querySelectorAll('rect[class^=lane-]')].map(r => r.getBBox());
+  return {name: sec.querySelector('h2').textContent, source: sec.querySelector('.hud-source').textContent,
+          hud_bottom: hud.bottom, hud_width: hud.width, timeline_bottom: tl.getBoundingClientRect().bottom,
+          lanes_inside: lanes.every(l => l.y >= box.y && l.y + l.height <= box.y + box.height),
+          n_lanes: lanes.length, legends: [...sec.querySelectorAll('.legend')].map(p => p.textContent)};
+})"""
+
+
+@pytest.mark.browser
+@needs_chromium
+@pytest.mark.parametrize("only", [True, False], ids=["one_drive", "two_drives"])
+def test_layout_at_1400_by_900(browser, cli, two_drives, tmp_path, only):
+    """At 1400 x 900 the HUD and the timeline of what it showed share the first screen (one drive and two side by
+    side); every lane lies inside the timeline's box; legends name the lanes, icon colours and the speed chart's
+    lines; the pEDAS drive is called so, the baseline says it had no pEDAS HUD. Screenshots
+    tests/output/replay/layout_<one|two>_drive(s).png, the dark theme for two drives."""
+    out = tmp_path / "replay.html"
+    r = cli("drive", "replay", "P001", "pedas", "--out", out, *(["--only"] if only else ["--theme", "dark"]),
+            db=two_drives)
+    assert r.code == 0, r.err
+    page = browser.new_page(viewport={"width": 1400, "height": 900})
+    errors = []
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    page.goto(out.as_uri())
+    slide(page, 20.0)
+    drives = page.evaluate(LAYOUT)
+    assert [d["name"] for d in drives] == (["pEDAS"] if only else ["pEDAS", "baseline"])
+    for d in drives:
+        assert d["hud_bottom"] <= 900 and d["timeline_bottom"] <= 900 and d["lanes_inside"]
+        assert any("arrow up" in x and "icon G" in x and "curve" in x and "STOP" in x and "yield" in x
+                   for x in d["legends"])
+        assert any(x == "speedadvicelimit" for x in d["legends"])
+    assert drives[0]["n_lanes"] > 0
+    if not only:
+        assert drives[1]["source"].startswith("no pEDAS HUD in this drive")
+        assert page.locator("pedas-hud").first.get_attribute("theme") == "dark"
+    (OUTPUT / "replay").mkdir(parents=True, exist_ok=True)
+    page.screenshot(path=str(OUTPUT / "replay" / f"layout_{'one_drive' if only else 'two_drives'}.png"))
+    assert errors == []
+    page.close()
+
+
 @pytest.mark.browser
 @needs_chromium
 def test_stored_hud_in_chromium(browser, cli, stored_hud, tmp_path):
@@ -293,7 +338,7 @@ def test_stored_hud_in_chromium(browser, cli, stored_hud, tmp_path):
     pedas, base = (page.locator(f"section.drive[data-condition='{c}']") for c in ("pedas", "baseline"))
     assert pedas.get_attribute("data-hud-source") == "stored" and base.get_attribute("data-hud-source") == "rebuilt"
     assert pedas.locator(".hud-source").inner_text() == "HUD as shown: the drive's stored HUD channels"
-    assert base.locator(".hud-source").inner_text().startswith("HUD rebuilt from the drive log")
+    assert base.locator(".hud-source").inner_text().startswith("no pEDAS HUD in this drive")
     hud = pedas.locator("pedas-hud")
     assert (hud.get_attribute("data-icon"), hud.get_attribute("data-countdown")) == ("green_wave", "9")
     slide(page, 7.0)                                                   # sample 35: the stored curve icon

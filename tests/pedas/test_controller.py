@@ -229,3 +229,17 @@ def test_tuning_the_fallback_and_the_hud_without_monkeypatching():
     assert PedasController(route).step(0.0, 180.0, 10.0, None).icon == "stop_sign"          # 120 m < 150 m
     near = dataclasses.replace(CONTROLLER, icon_range=100.0)
     assert PedasController(route, settings=near).step(0.0, 180.0, 10.0, None).icon is None
+
+
+def test_hud_limit_is_the_legal_limit_in_force_never_interpolated():
+    """A limit change 50 -> 100 km/h between grid points 300 and 310 m: between them the HUD shows 50 (the sign
+    passed), from 310 m on 100; the old linear interpolation showed 75 km/h at 305 m."""
+    import dataclasses as dc
+
+    from pedas.constants import KMH
+
+    base = Route.synthetic(length=800.0)
+    limit = np.where(base.s < 310.0, 50 * KMH, 100 * KMH)
+    route = dc.replace(base, speed_limit=limit)
+    shown = [PedasController(route).step(0.0, s, 13.0, None).speed_limit / KMH for s in (300.0, 305.0, 309.9, 310.0)]
+    assert shown == pytest.approx([50.0, 50.0, 50.0, 100.0])

@@ -98,3 +98,48 @@ def test_arrow_length_carried_through(v_opt, expected):
 
     frame = hud_frame(10.0, advisory(HudState(v=10.0), [v_opt], HudContext()))
     assert isinstance(frame, HudFrame) and frame.arrow_len == pytest.approx(expected)
+
+
+def test_cut_in_advice_hand_worked():
+    """P006 of the reference cohort at t = 767.2 s: 82.10 km/h, a car cut in 4.54 m ahead at 119.59 km/h, the
+    speed correction advised 0 km/h. The leader is faster: DRAC = 0, the shown advice is bounded by
+    min(v, v_p) = v: coast, no arrow. A leader at 60 km/h 10 m ahead: DRAC = (22.81 - 16.67)^2 / 20 = 1.88 m/s^2
+    <= 3.4, the advice is bounded by 60 km/h; 5 m ahead at 40 km/h: DRAC = (22.81 - 11.11)^2 / 10 =
+    13.7 m/s^2 > 3.4: the brake state."""
+    from types import SimpleNamespace
+
+    from pedas.constants import KMH
+    from pedas.hud_frame import cut_in_advice, hud_frame
+
+    v = 82.10 * KMH
+    adv = SimpleNamespace(v_advice=0.0, hud_arrow=-1, arrow_len=1.0, hud_in_band=False, warning=True,
+                          tl_countdown=None, icon=None, speed_limit=120 * KMH, tl_phase=None, tone=False)
+    assert cut_in_advice(v, 0.0, (4.54, 119.59 * KMH), True) == (v, False)
+    f = hud_frame(v, adv, (4.54, 119.59 * KMH))
+    assert (f.advice, f.arrow, f.color, f.in_band, f.brake) == (82, 0, "black", True, False)
+    assert cut_in_advice(v, 0.0, (10.0, 60 * KMH), True) == (pytest.approx(60 * KMH), False)
+    f = hud_frame(v, adv, (10.0, 60 * KMH))
+    assert (f.advice, f.arrow, f.color, f.brake) == (60, -1, "red", False)
+    f = hud_frame(v, adv, (5.0, 40 * KMH))
+    assert (f.advice, f.arrow, f.arrow_len, f.brake) == (0, -1, 1.0, True)
+    # no alert (psi >= 0) or no leader: the controller's advice as it is
+    assert cut_in_advice(v, 0.0, (4.54, 119.59 * KMH), False) == (0.0, False)
+    assert hud_frame(v, adv).advice == 0 and hud_frame(v, adv).arrow == -1
+
+
+def test_tone_rules():
+    """"unfollowed": the controller's tone as it is; "margin": only while psi = gap - (d_min + h_s v) < 0."""
+    from types import SimpleNamespace
+
+    from pedas.hud_frame import hud_frame
+    from pedas.params import CONTROLLER
+
+    cf = CONTROLLER.cf_weights
+    v = 20.0
+    d_s = cf.d_min + cf.h_s * v
+    adv = SimpleNamespace(v_advice=18.0, hud_arrow=-1, arrow_len=0.5, hud_in_band=False, warning=True,
+                          tl_countdown=None, icon=None, speed_limit=None, tl_phase=None, tone=True)
+    assert hud_frame(v, adv).warning and not hud_frame(v, adv, None, "margin").warning
+    assert not hud_frame(v, adv, (d_s + 0.1, 20.0), "margin").warning
+    assert hud_frame(v, adv, (d_s - 0.1, 20.0), "margin").warning
+    assert not hud_frame(v, SimpleNamespace(**{**vars(adv), "tone": False}), (1.0, 20.0), "margin").warning

@@ -27,6 +27,7 @@ def hud_log(n: int = 50) -> pd.DataFrame:
     df["hud_light"] = np.where(k < 10, 1.0, np.nan)
     df["hud_icon"] = np.select([k < 20, (k >= 30) & (k < 40)], [1.0, 4.0], 0.0)
     df["hud_tone"] = ((k >= 40) & (k < 45)).astype(float)
+    df["hud_arrow_shown"] = np.where(k < n // 2, 1.0, 0.0)
     return df
 
 
@@ -53,6 +54,9 @@ def test_import_keeps_the_hud_channels_with_their_units(paper_db):
         plain = import_drive_frame(st, "P002", "pedas", log(), source="import")
         assert r.status == "imported" and r.channels == tuple(NAMES) and r.ignored_columns == ()
         assert plain.channels == ()
+        _add(st, "P003")   # a log written before the shown arrow was kept: imported with the others
+        older = import_drive_frame(st, "P003", "pedas", hud_log().drop(columns="hud_arrow_shown"), source="import")
+        assert older.status == "imported" and older.channels == tuple(n for n in NAMES if n != "hud_arrow_shown")
         ch = list_channels(st).set_index("channel")
         assert ch.loc[NAMES, "unit"].tolist() == [unit for _, unit, _ in HUD_CHANNELS]
         assert ch.loc["hud_icon", "description"].startswith("icon shown: 0 none, 1 green wave")
