@@ -60,21 +60,21 @@ def test_latex_table_structure():
     assert tex.splitlines() == [
         r"\begin{table}[t]", r"\centering", r"\caption{Loadings (\%)}", r"\label{tab:l}",
         r"\begin{tabular}{lc}", r"\toprule", r"Item & $\lambda$ \\", r"\midrule",
-        r"PU1 & 0.800 \\", r"x\_y & \textbf{0.9} \\", r"\bottomrule", r"\end{tabular}",
+        r"PU1 & .800 \\", r"x\_y & \textbf{0.9} \\", r"\bottomrule", r"\end{tabular}",
         r"\par\smallskip\footnotesize N = 40. \\ * p < .05", r"\end{table}"]
     assert latex_table(["a", "b", "c"], [])[:200].count(r"\begin{tabular}{lrr}") == 1  # default alignment
 
 
 # ---------------------------------------------------------------------------------------------- Markdown
 def test_markdown_table_default():
-    md = markdown_table(["a", "b"], [["1", "x|y"]], title="T", notes=["n1", "n2"])
-    assert md == "### T\n\n| a | b |\n|---|---|\n| 1 | x\\|y |\n\n_n1_\n_n2_\n"
+    md = markdown_table(["a", "c"], [["1", "x|y"]], title="T", notes=["n1", "n2"])
+    assert md == "### T\n\n| a | c |\n|---|---|\n| 1 | x\\|y |\n\n_n1_\n_n2_\n"
 
 
 def test_markdown_table_options():
     md = markdown_table(["Style", "n", "mean"], [["all", "5", "1.00"]], title="KPIs", notes=["** p < .01", "last"],
                         align="lrc", title_style="bold", notes_style="plain")
-    assert md == ("**KPIs**\n\n| Style | n | mean |\n|---|---:|:---:|\n| all | 5 | 1.00 |\n\n"
+    assert md == ("**KPIs**\n\n| Style | n | M |\n|---|---:|:---:|\n| all | 5 | 1.00 |\n\n"
                   "** p < .01  \nlast\n")
     with pytest.raises(ValueError):
         markdown_table(["a", "b"], [], align="l")
