@@ -166,9 +166,11 @@ _TEX_SPECIALS = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", 
 _TEX_SPECIALS_RE = re.compile("|".join(re.escape(k) for k in _TEX_SPECIALS))
 # symbols the tables print, as LaTeX that compiles without a Unicode font set-up
 TEX_SYMBOLS = {"λ": r"$\lambda$", "α": r"$\alpha$", "β": r"$\beta$", "Δ": r"$\Delta$", "Σ": r"$\Sigma$",
-               "²": r"$^2$", "¹": r"$^1$", "⁻": r"$^-$", "†": r"$^\dagger$", "–": "--", "->": r"$\rightarrow$",
+               "²": r"$^2$", "¹": r"$^1$", "⁻": r"$^-$", "†": r"$^\dagger$", "‡": r"$^\ddagger$", "–": "--",
+               "->": r"$\rightarrow$",
                "√": r"$\surd$", "·": r"$\cdot$", "≈": r"$\approx$", "±": r"$\pm$", "≤": r"$\leq$", "≥": r"$\geq$",
-               "×": r"$\times$", "−": r"$-$"}
+               "×": r"$\times$", "−": r"$-$", "ω": r"$\omega$", "χ": r"$\chi$", "η": r"$\eta$",
+               "ε": r"$\varepsilon$"}
 
 
 def tex_escape(s: str) -> str:
