@@ -548,8 +548,11 @@ def _study_section(st, study, mode: str, store_name: str) -> list[str]:
     if has_drives:
         samples.append(f"{flow.objective_sample} in the drive analysis")
     parts = ["<h2 id=\"study\">Study</h2>"]
-    if study.description:
-        parts.append(f"<p>{esc(study.description)}</p>")
+    if study.summary:
+        parts.append(f"<p>{esc(study.summary)}</p>")
+    else:   # the participants' description is not a study description
+        parts.append("<p class=\"note\">The study declares no researcher-facing summary (<code>[study] summary"
+                     "</code> in study.toml).</p>")
     conds = "; ".join(f"<code>{esc(c.name)}</code> ({esc(c.label)})" for c in study.conditions)
     attrs = ", ".join(f"{esc(a.name)} ({esc(a.type)})" for a in study.attributes) or "none"
     excl = "; ".join(f"{int(r.n)} {esc(str(r.reason).replace('_', ' '))} ({esc(r.scope)})"
