@@ -368,7 +368,8 @@ TITLES = {
 MAIN = {
     "measurement": ("survey_table3", "survey_table4", "survey_fit*"),
     "structural": ("survey_table5", "survey_hypotheses", "survey_regression_diagnostics*", "path_diagram*"),
-    "objective": ("drives_style_table", "drives_bands", "drives_paired*", "fig9a_savings", "paired_*",
+    "objective": ("drives_style_table", "drives_kpi_table", "drives_bands", "drives_paired*", "fig9a_savings",
+                  "paired_*",
                   "fig10_tl_green"),
 }
 #: a table wider than this many columns goes to the appendix (the main text is never cut in a scroll box)
