@@ -207,9 +207,9 @@ def write_tables(result, out_dir: str | Path) -> list[Path]:
         for name, df in (("kpis.csv", result.kpis), ("summary.csv", result.summary)):
             df.to_csv(out / name, index=False)
             written.append(out / name)
-        kept, notes = informative_summary(result.summary)
+        kept, notes = informative_summary(result.summary)   # the CSV keeps every KPI, the rendering the informative
         summary = kpi_summary_table(kept)
-        table("kpi_table", summary, lambda t: _summary_cells(t, result.spec),
+        table("kpi_table", kpi_summary_table(result.summary), lambda _: _summary_cells(summary, result.spec),
               f"Objective KPIs per drive, mean (SD) (N = {result.n} participants)", "tab:kpis", notes,
               text_columns=list(summary.columns).index("n"))
         return written
