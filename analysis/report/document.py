@@ -664,6 +664,7 @@ def _methods_section(out: Path, st, study, ran: tuple[str, ...]) -> list[str]:
                        f"({esc(signs.get(h.sign, h.sign))})</li>" for h in model.hypotheses)
         if hyps:
             parts.append(f"<p><strong>Hypotheses</strong> at α = {esc(study.alpha)}:</p><ul>{hyps}</ul>")
+    parts += _procedure(study, st)
     src = st.df("SELECT source, count(*) AS n FROM drives GROUP BY source ORDER BY source")
     if not src.empty:
         what = ", ".join(f"{int(r.n)} {esc(r.source)}" for r in src.itertuples())
@@ -691,6 +692,47 @@ def _admissibility(out: Path) -> tuple[list[str], dict[str, str]]:
         elif w.startswith(("CFA final", "SEM:")) and apa.minus(w.replace("R^2", "R²")) not in glob:
             glob.append(apa.minus(w.replace("R^2", "R²")))
     return glob, per_path
+
+
+#: what each built-in KPI measures, with its unit (docs/kpis.md has the thresholds)
+BUILTIN_KPIS = {
+    "energy_wh": "battery energy used (Wh)", "distance_m": "distance driven (m)", "trip_time_s": "trip time (s)",
+    "mean_speed_mps": "mean speed (m/s)", "wh_per_km": "energy per distance (Wh/km)",
+    "violation_distance_m": "distance above the speed limit plus its tolerance (m)",
+    "violation_share": "share of the distance above the limit plus tolerance (0–1)",
+    "violation_events": "speeding episodes of at least the minimum duration (count)",
+    "tl_crossed": "traffic lights crossed (count)", "tl_crossed_green": "lights crossed in green (count)",
+    "tl_crossed_yellow": "lights crossed in yellow (count)", "tl_crossed_red": "lights crossed in red (count)",
+    "tl_green_passes": "lights passed in green without a stop (count)", "red_stops": "stops at a red light (count)",
+    "stops": "stops (count)", "rms_jerk": "root mean square of the jerk (m/s³)",
+    "mean_abs_a": "mean absolute acceleration (m/s²)",
+}
+
+
+def _procedure(study, st) -> list[str]:
+    """The drives as the protocol runs them (every phase, familiarisation included, and the order sequences) and
+    what each KPI measures with its unit; nothing for a study that stores no drives."""
+    from study.folder.protocol_file import protocol_orders
+
+    if not st.one("SELECT count(*) FROM drives"):
+        return []
+    out = []
+    for name, proto in study.protocols.items():
+        orders = protocol_orders(proto)
+        seq = "; ".join(f"{esc(o)}: {esc(' → '.join(ph))}" for o, ph in orders.items())
+        out.append(f"<p><strong>Procedure</strong> (protocol <code>{esc(name)}</code>): "
+                   + (f"{len(orders)} order sequences ({seq})" if len(orders) > 1 else f"phases {seq}") + ".</p>")
+    from study.folder.kpi_spec import EventKpi, study_spec
+
+    spec = study_spec(study)   # the stored study passed its check: its KPI file parses
+    kpis = [f"{esc(k)}: {esc(BUILTIN_KPIS[k])}" for k in spec.builtins if k in BUILTIN_KPIS]
+    for k in spec.user_kpis:
+        what = (f"{k.statistic} time from <code>{esc(k.start)}</code> to <code>{esc(k.end)}</code>"
+                if isinstance(k, EventKpi) else f"<code>{esc(k.sql)}</code>")
+        kpis.append(f"{esc(k.heading)}: {what}")
+    if kpis:
+        out.append("<p><strong>KPIs</strong> per drive (and per route segment): " + "; ".join(kpis) + ".</p>")
+    return out
 
 
 def _hypotheses_verdicts(out: Path, study, ex: Exhibits, used_tabs: set) -> str:
