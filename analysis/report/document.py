@@ -1,5 +1,5 @@
-"""The report as one readable HTML document (`index.html`) for any study: summary, participant flow, methods,
-results with every table and figure inline, the reproduction verdict, the files.
+"""The report as one readable HTML document (`index.html`) for any study, written as a manuscript's results: a main
+text (method and results with at most ~10 numbered tables and figures) and a numbered appendix with everything else.
 
 Everything is generated from what the report steps wrote beside it (tables as Markdown in `tables/`, figures as PNG
 in `figures/`, the survey analysis in `survey/`, the drive analysis in `drives/`, `reproduction.csv`), from the
@@ -9,9 +9,9 @@ hypothesis signs) and from the store's participants, protocol events and exclusi
 system), every text is HTML-escaped, and the bytes depend only on those inputs and the installed software's
 versions (no times, no absolute paths): an unchanged report renders the same file.
 
-Sections, in order (a part the study or its store does not have says why, e.g. a survey-only study has no drive
-KPIs): Study · Participant flow · Methods · Survey results · Drive results · Simulation core · Reproduction ·
-Steps and files.
+Sections, in order (docs/report.md): the data and verdicts box · Study · Method (with Participants) · Results
+(measurement model, structural model and hypotheses, within-subjects comparisons, objective measures) · Appendix.
+Every table and figure is numbered (Table 1 / Table A1) and listed in `exhibits.json` (analysis.report.exhibits).
 """
 from __future__ import annotations
 
@@ -725,7 +725,7 @@ def _procedure(study, st) -> list[str]:
     from study.folder.kpi_spec import EventKpi, study_spec
 
     spec = study_spec(study)   # the stored study passed its check: its KPI file parses
-    kpis = [f"{esc(k)}: {esc(BUILTIN_KPIS[k])}" for k in spec.builtins if k in BUILTIN_KPIS]
+    kpis = [f"{esc(k)}: {esc(BUILTIN_KPIS[k])}" for k in spec.columns if k in BUILTIN_KPIS]
     for k in spec.user_kpis:
         what = (f"{k.statistic} time from <code>{esc(k.start)}</code> to <code>{esc(k.end)}</code>"
                 if isinstance(k, EventKpi) else f"<code>{esc(k.sql)}</code>")
