@@ -358,7 +358,7 @@ TITLES = {
     "survey_extended_sem_r2": "Explained Variance of the Latent Structural Equation Model",
     "drives_bands": "Objective KPI Targets of the Paper: Published Band, Paper's Value and Ours",
     "drives_band_diagnostics": "Diagnostics of the Objective KPI Targets (Baseline and pEDAS Drives)",
-    "drives_summary": "Objective KPIs, Summary Statistics by Driving Style",
+    "drives_summary": "Objective KPIs, Summary Statistics by Group and Route Segment",
     "drives_per_participant": "Objective KPIs per Participant",
     "drives_kpis": "Objective KPIs per Drive",
     "paper_audit": "Audit of the Published Statistics",
@@ -804,7 +804,7 @@ def _survey_main(out: Path, study, skipped: dict, used_figs: set, used_tabs: set
     return parts
 
 
-def _within_section(out: Path, skipped: dict, ex: Exhibits) -> list[str]:
+def _within_section(out: Path, skipped: dict, used_tabs: set, ex: Exhibits) -> list[str]:
     """The within-subjects comparison (analysis.within): the generated methods and results sentences, the test
     tables and a figure of individual lines per variable in the main text; the order counts, mixed model,
     reliability and item tables in the appendix. Absent for a study without [within]."""
@@ -817,9 +817,12 @@ def _within_section(out: Path, skipped: dict, ex: Exhibits) -> list[str]:
         return parts + [_skipped(skipped["within"])]
     text = (d / "methods.md").read_text(encoding="utf-8")
     parts.append(markdown_to_html(text.split("\n", 1)[1], heading_offset=3))
+    used_tabs.update(f"within_{p.stem}" for p in d.glob("*.md"))   # the copies in tables/ are the same tables
+    if _within_summary(d):
+        parts.append(_exhibit_table(out, "within", "summary_table", ex, part="within"))
     for stem in ("descriptives", "anova", "posthoc"):
         if (d / f"{stem}.md").is_file() and len(pd.read_csv(d / f"{stem}.csv")):
-            parts.append(_exhibit_table(out, "within", stem, ex, part="within"))
+            ex.deferred.append((f"within_{stem}", lambda stem=stem: _within_table(out, stem, ex)))
     variables = pd.read_csv(d / "descriptives.csv")["variable"].drop_duplicates()
     for variable in variables:
         if (d / f"lines_{variable}.png").is_file():
@@ -828,9 +831,51 @@ def _within_section(out: Path, skipped: dict, ex: Exhibits) -> list[str]:
                 "One grey line per participant; the condition means with their 95 % confidence intervals in black."))
     for stem in ("orders", "friedman", "mixed", "mixed_fit", "reliability", "item_descriptives"):
         if (d / f"{stem}.md").is_file() and len(pd.read_csv(d / f"{stem}.csv")):
-            ex.deferred.append((f"within_{stem}", lambda stem=stem: _exhibit_table(out, "within", stem, ex,
-                                                                                  part="within")))
+            ex.deferred.append((f"within_{stem}", lambda stem=stem: _within_table(out, stem, ex)))
     return parts
+
+
+def _within_table(out: Path, stem: str, ex: Exhibits) -> str:
+    """A within-subjects table, from its copy in tables/ (stem ``within_<stem>``) where the collect step made one."""
+    if (out / "tables" / f"within_{stem}.md").is_file():
+        return _exhibit_table(out, "tables", f"within_{stem}", ex, part="within")
+    return _exhibit_table(out, "within", stem, ex, part="within")
+
+
+def _within_summary(d: Path) -> bool:
+    """Write `within/summary_table.{csv,md,tex}`: per variable, M (SD) under each condition and the
+    repeated-measures ANOVA (F with its df, p, partial η², Greenhouse–Geisser ε) in one APA table of the main text;
+    False when the comparison wrote no descriptives or ANOVA."""
+    from analysis.render import latex_table, markdown_table
+
+    desc, aov = _read_csv(d / "descriptives.csv"), _read_csv(d / "anova.csv")
+    if desc is None or aov is None or desc.empty or aov.empty:
+        return False
+    conds = list(dict.fromkeys(desc["condition"].astype(str)))
+    aov = aov.set_index("variable")
+    header = ["Variable"] + [f"{c} M (SD)" for c in conds] + ["df", "F", "p", "ηp²", "ε (GG)"]
+    rows, frame = [], []
+    for v, g in desc.groupby("variable", sort=False):
+        g = g.set_index(g["condition"].astype(str))
+        cells = [f"{apa.num(g.loc[c, 'mean'], 2)} ({apa.num(g.loc[c, 'sd'], 2)})" if c in g.index else "–"
+                 for c in conds]
+        a = aov.loc[v] if v in aov.index else None
+        test = ([f"{apa.df_text(a['df1'])}, {apa.df_text(a['df2'])}", apa.num(a["f"], 2), apa.p_value(a["p"]),
+                 apa.num(a["np2"], 2, bounded=True), apa.num(a["eps_gg"], 2, bounded=True)]
+                if a is not None else ["–"] * 5)
+        rows.append([str(v)] + cells + test)
+        frame.append(dict(zip(header, rows[-1])))
+    n = int(aov["n"].min()) if "n" in aov.columns else None
+    title = "Dependent Variables by Condition: Means, Standard Deviations and Repeated-Measures ANOVA"
+    notes = [(f"n = {n} participants with every condition in the ANOVA; " if n else "")
+             + "descriptives use every available value. ηp²: partial eta squared; ε (GG): Greenhouse–Geisser "
+             "epsilon (the corrected p is in the appendix table of the ANOVA)."]
+    pd.DataFrame(frame).to_csv(d / "summary_table.csv", index=False)
+    (d / "summary_table.md").write_text(markdown_table(header, rows, title, notes, title_style="bold"),
+                                        encoding="utf-8")
+    (d / "summary_table.tex").write_text(latex_table(header, rows, title, notes, label="tab:within_summary"),
+                                         encoding="utf-8")
+    return True
 
 
 def _drives_main(out: Path, study, skipped: dict, used_figs: set, used_tabs: set, ex: Exhibits) -> list[str]:
@@ -1045,7 +1090,7 @@ def render_document(out: Path, st, steps, skipped: dict[str, str], mode: str = "
     body.append("<h2 id=\"results\">Results</h2>")
     if "survey" not in absent:
         body += _survey_main(out, study, skipped, used_figs, used_tabs, ex)
-    body += _within_section(out, skipped, ex)
+    body += _within_section(out, skipped, used_tabs, ex)
     if (out / "drives").exists() or "drives" in skipped:
         body += _drives_main(out, study, skipped, used_figs, used_tabs, ex)
     body += _appendix(out, st, study, steps, skipped, used_figs, used_tabs, core, absent, ex)
