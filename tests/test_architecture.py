@@ -11,7 +11,7 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 PARTS = ("pedas", "study", "analysis", "pedas_study")   # each may import only the ones before it
-ROOMS = ("analysis.render", "analysis.survey", "analysis.paper", "analysis.drives", "analysis.within",
+ROOMS = ("analysis.apa", "analysis.render", "analysis.survey", "analysis.paper", "analysis.drives", "analysis.within",
          "analysis.sweep", "analysis.report")                              # docs/architecture.md, "Code layout": downwards only
 STUDY_ROOMS = ("study.common", "study.folder", "study.store", "study.people", "study.logs", "study.survey",
                "study.export", "study.webapp")                                  # the same, for study/
