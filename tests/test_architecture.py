@@ -152,7 +152,7 @@ def test_rooms_export_their_public_names_lazily():
     import subprocess
     import sys
 
-    for room in ROOMS[1:]:
+    for room in [r for r in ROOMS if r not in ("analysis.apa", "analysis.render")]:   # packages, not modules
         pkg = importlib.import_module(room)
         assert pkg.__all__, room
         for name in pkg.__all__:
