@@ -461,7 +461,7 @@ def _exhibit_table(out: Path, rel_dir: str, stem: str, ex: Exhibits, title: str 
     links = " · ".join(f"<a href=\"{esc(p)}\">{esc(k)}</a>" for k, p in files.items() if k != "md")
     return (f"<section class=\"exhibit\" id=\"x-{esc(stem)}\"><p class=\"xlabel\">{esc(label)}</p>"
             f"<p class=\"xtitle\">{esc(title)}</p>{body}"
-            + (f"<p class=\"note\"><em>Note.</em> {_inline(note, rel_dir)}</p>" if note else "")
+            + (f"<p class=\"note\"><em>Note.</em> {esc(note)}</p>" if note else "")
             + (f"<p class=\"note\">{links}</p>" if links else "") + "</section>")
 
 

@@ -56,9 +56,9 @@ def table4_rows(res) -> tuple[list[str], list[list[str]], list[str]]:
         for j, b in enumerate(cons):
             if j < i:
                 r = corr.get((b, a)) or corr.get((a, b))
-                row.append(f"{fmt_cell(r.r)}{apa.stars(r.p)}" if r is not None else "")
+                row.append(f"{apa.num(r.r, 3, bounded=True)}{apa.stars(r.p)}" if r is not None else "")
             elif j == i:
-                row.append(f"**{fmt_cell(sq[a])}**")
+                row.append(f"**{apa.num(sq[a], 3, bounded=True)}**")
             else:
                 row.append("")
         rows.append(row)
