@@ -70,17 +70,21 @@ def table4_rows(res) -> tuple[list[str], list[list[str]], list[str]]:
 def table5_rows(res) -> tuple[list[str], list[list[str]], list[str]]:
     reg = res.regressions
     header = ["Models", "R²", "Adj. R²", "ΔR²", "B", "SE B", "β", "95 % CI", "Bootstrap 95 % CI"]
+    idioms = res.settings.get("paper_idioms", False)
     rows = []
     for name, m in reg.groupby("model", sort=False):
         label = m["label"].iloc[0] or name
         rows.append([f"**{name}. {label}**", "", "", "", "", "", "", "", ""])
         for step, s in m.groupby("step", sort=True):
             top = s.iloc[0]
-            rows.append([f"Step {step}: Dependent Variable - {top['dv']}", fmt_cell(top["r2"]),
+            step_label = (f"Step {step}: Dependent Variable - {top['dv']}" if idioms
+                          else f"Step {step} (DV: {top['dv']})")
+            rows.append([step_label, fmt_cell(top["r2"]),
                          fmt_cell(top["adj_r2"]), fmt_cell(top["delta_r2"]) + ("*" if top["p_change"] < 0.05 else ""),
                          "", "", "", "", ""])
             for _, r in s[s["predictor"] != "(Constant)"].iterrows():
-                rows.append([f"Independent Variable - {r['predictor']}", "", "", "", fmt_cell(r["b"]),
+                rows.append([f"Independent Variable - {r['predictor']}" if idioms else f" {r['predictor']}",
+                             "", "", "", fmt_cell(r["b"]),
                              fmt_cell(r["se_b"]), fmt_cell(r["beta"]) + apa.stars(r["p"]),
                              apa.ci(r["ci_low"], r["ci_high"], 3), apa.ci(r["boot_ci_low"], r["boot_ci_high"], 3)])
     boot = res.settings.get("n_boot", 0)

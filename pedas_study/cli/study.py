@@ -171,6 +171,11 @@ def summary(study) -> str:
     if within is not None:
         parts.append(f"within-subjects: {len(within.scores) + len(within.kpis)} variables across "
                      f"{'|'.join(within.conditions)}")
+    labels = study.settings.get("analysis", {}).get("construct_labels") or {}
+    unlabelled = [c for c in (model.measurement if model is not None else ()) if c not in labels]
+    if unlabelled:
+        parts.append(f"constructs without a researcher-facing label ([analysis.construct_labels]): "
+                     f"{', '.join(unlabelled)}")
     if not study.summary:
         parts.append("no [study] summary (the report opens without a researcher-facing description)")
     return f"study {study.study_id} OK: " + ", ".join(parts)
