@@ -921,6 +921,7 @@ def _verdict_box(out: Path, st, study, mode: str) -> tuple[str, dict[str, str]]:
     objective KPI targets). Returns the box and the provenance sentence per part for the tables' notes."""
     items, prov = [], {}
     reference = mode == "reference study"
+    missed_band = False
     if study.instruments:
         n_resp = _read_csv(out / "survey" / "responses.csv")
         n_txt = f"{len(n_resp)} respondents" if n_resp is not None else "the stored answers"
@@ -961,6 +962,7 @@ def _verdict_box(out: Path, st, study, mode: str) -> tuple[str, dict[str, str]]:
     if bands is not None and {"band", "holds"} <= set(bands.columns) and len(bands):
         diag = _read_csv(out / "tables" / "drives_band_diagnostics.csv")
         held = bands["holds"].astype(str).str.lower().isin(("true", "1", "yes"))
+        missed_band = not held.all()
         met = "; ".join(esc(b) for b in bands.loc[held, "band"])
         miss = []
         for r in bands[~held].itertuples():
@@ -978,7 +980,7 @@ def _verdict_box(out: Path, st, study, mode: str) -> tuple[str, dict[str, str]]:
                      + f". Details: {Exhibits.ref('drives_bands')}.</li>")
     if not items:
         return "", prov
-    cls = "verdict mixed" if reference or (bands is not None and len(bands) and not held.all()) else "verdict"
+    cls = "verdict mixed" if reference or missed_band else "verdict"
     return f"<div class=\"{cls}\"><p><strong>Data and verdicts</strong></p><ul>{''.join(items)}</ul></div>", prov
 
 
