@@ -17,6 +17,8 @@ from typing import Sequence
 import numpy as np
 import pandas as pd
 
+from analysis import apa
+
 # metadata without a creation date or tool version keeps an unchanged figure byte-identical between runs
 PDF_METADATA = {"Creator": "pedas-study", "Producer": None, "CreationDate": None}
 PNG_METADATA = {"Software": None}
@@ -78,8 +80,8 @@ def fmt_cell(x, digits: int = 3, missing: str = "") -> str:
     >>> from analysis.render import fmt_cell
     >>> fmt_cell(0.12345), fmt_cell(3), fmt_cell(True), fmt_cell(float("nan")), fmt_cell("PU1")
     ('0.123', '3', 'yes', '', 'PU1')
-    >>> fmt_cell(-0.0004)                  # Python's format keeps the sign of a negative number
-    '-0.000'
+    >>> fmt_cell(-0.25), fmt_cell(-0.0004)  # a true minus sign; a value that rounds to zero has none
+    ('−0.250', '0.000')
     """
     if x is None or x is pd.NA or x is pd.NaT:
         return missing
@@ -90,13 +92,28 @@ def fmt_cell(x, digits: int = 3, missing: str = "") -> str:
     if isinstance(x, Integral):
         return str(int(x))
     if isinstance(x, Real):
-        return f"{x:.{digits}f}" if math.isfinite(x) else missing
+        return apa.num(x, digits) if math.isfinite(x) else missing
     return str(x)
 
 
 def frame_cells(df: pd.DataFrame, digits: int = 3) -> tuple[list[str], list[list[str]]]:
-    """Header and string cells of a tidy frame (floats to `digits` decimals, missing as empty)."""
-    return [str(c) for c in df.columns], [[fmt_cell(x, digits) for x in row] for row in df.itertuples(index=False)]
+    """Header and string cells of a tidy frame (floats to `digits` decimals, missing as empty); a pair of lower and
+    upper confidence limits (``ci_low``/``ci_high`` ...) becomes one ``[LL, UL]`` column in the lower one's place."""
+    pairs = {low: (high, head) for low, high, head in apa.ci_columns(df.columns)}
+    highs = {high for high, _ in pairs.values()}
+    header, cols = [], []
+    for c in df.columns:
+        if c in highs:
+            continue
+        if c in pairs:
+            high, head = pairs[c]
+            header.append(head)
+            cols.append([("" if fmt_cell(lo) == "" else apa.ci(lo, hi, digits))
+                         for lo, hi in zip(df[c], df[high])])
+        else:
+            header.append(str(c))
+            cols.append([fmt_cell(x, digits) for x in df[c]])
+    return header, [list(r) for r in zip(*cols)] if cols else []
 
 
 # ---------------------------------------------------------------------------------------------- Markdown
@@ -133,13 +150,14 @@ def markdown_table(header: Sequence[str], rows: Sequence[Sequence[str]], title: 
     <BLANKLINE>
     | Item | λ |
     |---|---|
-    | PU1 | 0.737 |
-    | ATT1 | 0.410* |
+    | PU1 | .737 |
+    | ATT1 | .410* |
     <BLANKLINE>
     * omitted item
     """
     if align is not None and len(align) != len(header):
         raise ValueError(f"align {align!r} has {len(align)} letters for {len(header)} columns")
+    header, rows = apa.table_cells(header, rows)
     out = []
     if title:
         out += [f"**{title}**" if title_style == "bold" else f"### {title}", ""]
@@ -195,9 +213,11 @@ _TEX_SPECIALS = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", 
 _TEX_SPECIALS_RE = re.compile("|".join(re.escape(k) for k in _TEX_SPECIALS))
 # symbols the tables print, as LaTeX that compiles without a Unicode font set-up
 TEX_SYMBOLS = {"λ": r"$\lambda$", "α": r"$\alpha$", "β": r"$\beta$", "Δ": r"$\Delta$", "Σ": r"$\Sigma$",
-               "²": r"$^2$", "¹": r"$^1$", "⁻": r"$^-$", "†": r"$^\dagger$", "–": "--", "->": r"$\rightarrow$",
+               "²": r"$^2$", "¹": r"$^1$", "⁻": r"$^-$", "†": r"$^\dagger$", "‡": r"$^\ddagger$", "–": "--",
+               "->": r"$\rightarrow$",
                "√": r"$\surd$", "·": r"$\cdot$", "≈": r"$\approx$", "±": r"$\pm$", "≤": r"$\leq$", "≥": r"$\geq$",
-               "×": r"$\times$", "−": r"$-$", "η": r"$\eta$", "χ": r"$\chi$", "³": r"$^3$"}
+               "×": r"$\times$", "−": r"$-$", "ω": r"$\omega$", "χ": r"$\chi$", "η": r"$\eta$",
+               "ε": r"$\varepsilon$", "³": r"$^3$"}
 
 
 def tex_escape(s: str) -> str:
@@ -401,6 +421,7 @@ def latex_table(header: Sequence[str], rows: Sequence[Sequence[str]], title: str
     \end{table}
     """
     align = align or "l" + "r" * (len(header) - 1)
+    header, rows = apa.table_cells(header, rows)
     if len(align) != len(header):
         raise ValueError(f"align {align!r} has {len(align)} letters for {len(header)} columns")
     columns = [_column(str(h), [str(r[j]) for r in rows], align[j]) for j, h in enumerate(header)]

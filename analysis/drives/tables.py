@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from analysis import apa
 from analysis.render import fmt_cell, latex_table, markdown_table
 
 
@@ -129,6 +130,45 @@ def kpi_summary_table(summary: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def informative_summary(summary: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
+    """The KPI summary without what says nothing, and a note line per left-out part: a KPI constant across every
+    drive (SD 0 in each group and one value throughout) and, on a route of one segment, that segment's rows (they
+    repeat the whole drive's).
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> from analysis.drives.tables import informative_summary
+    >>> s = pd.DataFrame({"condition": ["a"] * 4, "segment": ["overall", "overall", "motorway", "motorway"],
+    ...                   "metric": ["trip_time_s", "energy_wh"] * 2, "n": 5, "mean": [75.0, 9.0, 75.0, 9.0],
+    ...                   "sd": [0.0, 1.0, 0.0, 1.0], "min": [75.0, 8.0, 75.0, 8.0], "max": [75.0, 10.0, 75.0, 10.0]})
+    >>> kept, notes = informative_summary(s)
+    >>> list(kept["metric"]), notes[0]
+    (['energy_wh'], 'Constant across all drives and left out: trip time (s) = 75.000.')
+    """
+    notes = []
+    out = summary
+    if {"metric", "sd", "min", "max"} <= set(summary.columns):
+        constant = [m for m, g in summary.groupby("metric", sort=False)
+                    if (g["sd"].fillna(0) == 0).all() and g["min"].min() == g["max"].max()]
+        if constant:
+            vals = summary.drop_duplicates("metric").set_index("metric")["min"]
+            notes.append("Constant across all drives and left out: "
+                         + ", ".join(f"{apa.header(m)} = {_fmt(vals[m], 3)}" for m in constant) + ".")
+            out = out[~out["metric"].isin(constant)]
+    if "segment" in out.columns:
+        segments = [s for s in out["segment"].astype(str).unique() if s != "overall"]
+        if len(segments) == 1 and "overall" in set(out["segment"]):
+            keys = [c for c in out.columns[:list(out.columns).index("metric")] if c != "segment"] + ["metric"]
+            seg = out[out["segment"] == segments[0]].set_index(keys)["mean"]
+            whole = out[out["segment"] == "overall"].set_index(keys)["mean"].reindex(seg.index)
+            if len(seg) and np.allclose(seg.to_numpy(float), whole.to_numpy(float), equal_nan=True):
+                notes.append(f"The route has one segment ({segments[0]}): its rows repeat the whole drive's and are "
+                             "left out.")
+                out = out[out["segment"] != segments[0]]
+    return out.reset_index(drop=True), notes
+
+
 def _summary_cells(t: pd.DataFrame, spec=None) -> tuple[list[str], list[list[str]]]:
     """Header and cells of :func:`kpi_summary_table`: "mean (SD)" per KPI; a KPI the study declares itself is
     headed "Label (unit)" (``spec``: its :class:`study.folder.kpi_spec.KpiSpec`), a built-in by its column name."""
@@ -137,7 +177,7 @@ def _summary_cells(t: pd.DataFrame, spec=None) -> tuple[list[str], list[list[str
     headings = spec.headings if spec is not None else {}
     # rounded for reading by the KPI's unit (kpi_table.csv and summary.csv keep full precision)
     dec = {m: spec.decimals(m) if spec is not None else 3 for m in metrics}
-    header = [k.capitalize() for k in keys] + ["n"] + [f"{headings.get(m, m)} mean (SD)" for m in metrics]
+    header = [k.capitalize() for k in keys] + ["n"] + [f"{headings.get(m, apa.header(m))} mean (SD)" for m in metrics]
     rows = [[str(r[k]) for k in keys] + [str(int(r["n"]))]
             + [f"{_fmt(r[f'{m}_mean'], dec[m])} ({_fmt(r[f'{m}_sd'], dec[m])})" for m in metrics]
             for _, r in t.iterrows()]
@@ -171,9 +211,10 @@ def write_tables(result, out_dir: str | Path) -> list[Path]:
         for name, df in (("kpis.csv", result.kpis), ("summary.csv", result.summary)):
             df.to_csv(out / name, index=False)
             written.append(out / name)
-        summary = kpi_summary_table(result.summary)
-        table("kpi_table", summary, lambda t: _summary_cells(t, result.spec),
-              f"Objective KPIs per drive, mean (SD) (N = {result.n} participants)", "tab:kpis",
+        kept, notes = informative_summary(result.summary)   # the CSV keeps every KPI, the rendering the informative
+        summary = kpi_summary_table(kept)
+        table("kpi_table", kpi_summary_table(result.summary), lambda _: _summary_cells(summary, result.spec),
+              f"Objective KPIs per drive, mean (SD) (N = {result.n} participants)", "tab:kpis", notes,
               text_columns=list(summary.columns).index("n"))
         return written
     for name, df in (("kpis.csv", result.kpis), ("per_participant.csv", result.per_participant),

@@ -1,5 +1,5 @@
-"""The report as one readable HTML document (`index.html`) for any study: summary, participant flow, methods,
-results with every table and figure inline, the reproduction verdict, the files.
+"""The report as one readable HTML document (`index.html`) for any study, written as a manuscript's results: a main
+text (method and results with at most ~10 numbered tables and figures) and a numbered appendix with everything else.
 
 Everything is generated from what the report steps wrote beside it (tables as Markdown in `tables/`, figures as PNG
 in `figures/`, the survey analysis in `survey/`, the drive analysis in `drives/`, `reproduction.csv`), from the
@@ -9,9 +9,9 @@ hypothesis signs) and from the store's participants, protocol events and exclusi
 system), every text is HTML-escaped, and the bytes depend only on those inputs and the installed software's
 versions (no times, no absolute paths): an unchanged report renders the same file.
 
-Sections, in order (a part the study or its store does not have says why, e.g. a survey-only study has no drive
-KPIs): Study · Participant flow · Methods · Survey results · Drive results · Simulation core · Reproduction ·
-Steps and files.
+Sections, in order (docs/report.md): the data and verdicts box · Study · Method (with Participants) · Results
+(measurement model, structural model and hypotheses, within-subjects comparisons, objective measures) · Appendix.
+Every table and figure is numbered (Table 1 / Table A1) and listed in `exhibits.json` (analysis.report.exhibits).
 """
 from __future__ import annotations
 
@@ -25,9 +25,10 @@ from typing import Callable, Sequence
 
 import pandas as pd
 
+from analysis import apa
+
 #: section headings (h2) in document order
-SECTIONS = ("Study", "Participant flow", "Methods", "Survey results", "Drive results", "Simulation core",
-            "Reproduction", "Steps and files")
+SECTIONS = ("Study", "Method", "Results", "Appendix")
 #: software the methods name, as (label, distribution, the part of a run that uses it: None = every run, "survey" =
 #: the survey analysis, "simulation" = drives simulated by the report; the QP solver is the controller's backend)
 SOFTWARE = (("numpy", "numpy", None), ("pandas", "pandas", None), ("DuckDB", "duckdb", None),
@@ -41,14 +42,18 @@ CSS = ("body{font-family:system-ui,-apple-system,'Segoe UI',sans-serif;max-width
        "padding:0 1em;color:#222;line-height:1.45}"
        "h1{font-size:1.7em;margin-bottom:.2em}h2{border-bottom:2px solid #2b5d8a;padding-bottom:.15em;"
        "margin-top:2em}h3{margin-top:1.5em}"
-       "img{max-width:100%;height:auto;border:1px solid #ddd}figure{margin:1.2em 0}"
-       "figcaption{font-size:.92em;color:#333}figcaption .reading{display:block;color:#2b5d8a}"
+       "img{max-width:100%;height:auto}figure{margin:1.2em 0}"
+       "figcaption{font-size:.92em;color:#333}"
+       ".exhibit{margin:1.4em 0}.xlabel{font-weight:700;margin:0}.xtitle{font-style:italic;margin:0 0 .3em}"
        ".scroll{overflow-x:auto;max-width:100%;margin:.6em 0 1.2em}"
-       "table{border-collapse:collapse;font-size:.86em}td,th{border:1px solid #ccc;padding:.2em .5em;"
-       "vertical-align:top}th{background:#eef3f8}td.r,th.r{text-align:right}td.c,th.c{text-align:center}"
+       # APA tables: horizontal rules only (the booktabs look), no grid
+       "table{border-collapse:collapse;font-size:.86em;border-top:2px solid #222;border-bottom:2px solid #222;"
+       "margin:.3em 0}td,th{border:0;padding:.2em .6em;vertical-align:top}thead th{border-bottom:1px solid #222;"
+       "font-weight:600;text-align:left}td.r,th.r{text-align:right}td.c,th.c{text-align:center}"
        "caption{caption-side:top;text-align:left;font-weight:600;padding:.3em 0}"
        ".note{font-size:.85em;color:#444;margin:.2em 0}.skipped{background:#fbf3e6;border-left:4px solid #d08b1c;"
        "padding:.4em .8em}.verdict{background:#eef6ee;border-left:4px solid #3a7d3a;padding:.4em .8em}"
+       ".verdict.mixed{background:#fbf3e6;border-left-color:#d08b1c}.verdict ul{margin:.3em 0;padding-left:1.2em}"
        "code{background:#f4f4f4;padding:0 .2em}dl{display:grid;grid-template-columns:max-content 1fr;"
        "gap:.2em 1em}dt{font-weight:600}dd{margin:0}ul.files{columns:2;font-size:.88em}")
 
@@ -89,7 +94,7 @@ def _align(sep: str) -> str:
 
 
 def _table(lines: list[str], caption: str = "", base: str = "") -> str:
-    header = _cells(lines[0])
+    header, body = apa.table_cells(_cells(lines[0]), [_cells(ln) for ln in lines[2:]])
     aligns = [_align(c) for c in _cells(lines[1])] if len(lines) > 1 else []
     aligns += [""] * (len(header) - len(aligns))
 
@@ -101,8 +106,7 @@ def _table(lines: list[str], caption: str = "", base: str = "") -> str:
         out.append(f"<caption>{caption}</caption>")
     out.append("<thead><tr>" + "".join(f"<th{cls(k)}>{_inline(h, base)}</th>" for k, h in enumerate(header))
                + "</tr></thead><tbody>")
-    for ln in lines[2:]:
-        cells = _cells(ln)
+    for cells in body:
         out.append("<tr>" + "".join(f"<td{cls(k)}>{_inline(c, base)}</td>" for k, c in enumerate(cells)) + "</tr>")
     out.append("</tbody></table></div>")
     return "".join(out)
@@ -185,19 +189,8 @@ def markdown_to_html(text: str, base: str = "", heading_offset: int = 2) -> str:
 
 # ---------------------------------------------------------------------------------------------- numbers
 def _fmt(x, digits: int = 1) -> str:
-    try:
-        v = float(x)
-    except (TypeError, ValueError):
-        return str(x)
-    return f"{v:.{digits}f}" if v == v else "–"
-
-
-def _p(p) -> str:
-    try:
-        v = float(p)
-    except (TypeError, ValueError):
-        return "p = –"
-    return "p < 0.001" if v < 0.001 else f"p = {v:.3f}"
+    """A number of a sentence (analysis.apa: true minus sign, an en dash where missing)."""
+    return apa.num(x, digits)
 
 
 def _read_csv(path: Path) -> pd.DataFrame | None:
@@ -280,8 +273,8 @@ def _reading_flow(out: Path, _study) -> str | None:
     n = {r.stage: int(r.n) for r in df.itertuples() if not isinstance(r.reason, str)}
     if "enrolled" not in n:
         return None
-    return (f"{n['enrolled']} enrolled; {n.get('survey sample', 0)} in the survey sample and "
-            f"{n.get('drive sample', 0)} in the drive sample.")
+    drives = f" and {n['drive sample']} in the drive sample" if n.get("drive sample") else ""
+    return f"{n['enrolled']} enrolled; {n.get('survey sample', 0)} in the survey sample{drives}."
 
 
 def _reading_likert(out: Path, study) -> str | None:
@@ -351,7 +344,145 @@ DRIVE_TABLES = ("drives_style_table", "drives_summary", "drives_bands", "drives_
                 "sweep_bands", "sweep_indices", "sweep_region")
 
 
-def _figure(out: Path, stem: str, study) -> str:
+#: APA titles of the tables whose Markdown title is a file label ("survey: fit"); others keep their own title
+TITLES = {
+    "participant_flow": "Participants From Enrolment to the Analysed Samples",
+    "survey_fit": "Fit of the Confirmatory Factor Analysis (Initial and Final Items)",
+    "survey_hypotheses": "Hypotheses Tested in the Hierarchical Regressions",
+    "survey_item_flags": "Item-Deletion Diagnostics of the Initial Confirmatory Factor Analysis",
+    "survey_loadings": "Standardized Loadings of the Confirmatory Factor Analysis",
+    "survey_reliability": "Reliability per Construct: Cronbach's α, ω of a One-Factor Model per Construct, CR and AVE",
+    "survey_correlations": "Correlations of the Construct Composites",
+    "survey_htmt": "Heterotrait–Monotrait Ratios of the Constructs",
+    "survey_fornell_larcker": "Fornell–Larcker Criterion per Pair of Constructs",
+    "survey_regressions": "Hierarchical Regressions, Every Step and Predictor",
+    "survey_descriptives": "Descriptive Statistics of the Items",
+    "survey_extended_omega": "ω From the Joint Confirmatory Factor Analysis (semTools compRelSEM): ML and Ordinal "
+                             "Estimators",
+    "survey_extended_reliability_boot": "Bootstrap Confidence Intervals of the Reliability Estimates",
+    "survey_extended_sem_fit": "Fit of the Latent Structural Equation Model",
+    "survey_extended_sem_paths": "Standardized Paths of the Latent Structural Equation Model",
+    "survey_extended_sem_r2": "Explained Variance of the Latent Structural Equation Model",
+    "drives_bands": "Objective KPI Targets of the Paper: Published Band, Paper's Value and Ours",
+    "drives_band_diagnostics": "Diagnostics of the Objective KPI Targets (Baseline and pEDAS Drives)",
+    "drives_summary": "Objective KPIs, Summary Statistics by Group and Route Segment",
+    "drives_per_participant": "Objective KPIs per Participant",
+    "drives_kpis": "Objective KPIs per Drive",
+    "paper_audit": "Audit of the Published Statistics",
+}
+#: the main text's tables and figures by part of the Results, in reading order; a stem prefix ending in "*" takes
+#: every table/figure whose stem starts with it (so statistics added later slot in where they belong)
+MAIN = {
+    "measurement": ("survey_table3", "survey_table4", "survey_fit*"),
+    "structural": ("survey_table5", "survey_hypotheses", "survey_regression_diagnostics*", "path_diagram*"),
+    "objective": ("drives_style_table", "drives_kpi_table", "drives_bands", "drives_paired*", "fig9a_savings",
+                  "paired_*",
+                  "fig10_tl_green"),
+}
+#: a table wider than this many columns goes to the appendix (the main text is never cut in a scroll box)
+MAX_MAIN_COLUMNS = 9
+
+
+class Exhibits:
+    """The numbered tables and figures of the document as it is written: the part (main text or appendix) and
+    section they stand in, their numbers (Table 1 / Table A1), and a reference to an appendix item from the main
+    text before the appendix is numbered (:meth:`ref`, resolved by :meth:`resolve`)."""
+
+    def __init__(self, provenance: dict[str, str]):
+        self.part, self.section = "main", ""
+        self.items: list = []
+        self.labels: dict[str, str] = {}
+        self.deferred: list[tuple[str, Callable[[], str]]] = []   # (stem, render) for the appendix
+        self.provenance = provenance   # "survey" / "drives" -> a note sentence on where the data come from
+
+    def number(self, kind: str, stem: str, title: str, note: str, files: dict[str, str]) -> str:
+        from analysis.report.exhibits import Exhibit
+
+        prefix = "A" if self.part == "appendix" else ""
+        k = 1 + sum(e.kind == kind and e.part == self.part for e in self.items)
+        label = f"{'Table' if kind == 'table' else 'Figure'} {prefix}{k}"
+        self.items.append(Exhibit(kind, label, self.part, self.section, stem, title, note, files))
+        self.labels[stem] = label
+        return label
+
+    @staticmethod
+    def ref(stem: str) -> str:
+        return f"@@ref:{stem}@@"
+
+    def resolve(self, html_text: str) -> str:
+        return re.sub(r"@@ref:([\w.-]+)@@", lambda m: (
+            f"<a href=\"#x-{m.group(1)}\">{self.labels[m.group(1)]}</a>" if m.group(1) in self.labels
+            else "the files"), html_text)
+
+
+def _split_md(text: str) -> tuple[str, list[str], list[str]]:
+    """(title, table lines, note lines) of a Markdown table file the analysis wrote."""
+    lines = text.splitlines()
+    start = next((i for i, ln in enumerate(lines) if ln.strip().startswith("|")), len(lines))
+    end = next((i for i in range(start, len(lines)) if not lines[i].strip().startswith("|")), len(lines))
+    title = ""
+    for ln in lines[:start]:
+        m = re.match(r"^(?:#{1,6}\s+(.*)|\*\*(.+)\*\*)$", ln.strip())
+        if m:
+            title = m.group(1) or m.group(2)
+    notes = [re.sub(r"^_(.*)_$", r"\1", ln.strip()).rstrip() for ln in lines[end:] if ln.strip()]
+    return title, lines[start:end], notes
+
+
+def _note_text(notes: Sequence[str], cells: str, part: str, ex: Exhibits) -> str:
+    """The APA note of a table: its own notes, the significance convention where stars are printed without one,
+    and where the data come from."""
+    out = [n for n in notes]
+    if re.search(r"\d\*", cells) and not any("p <" in n or "level" in n for n in notes):
+        out.append(apa.stars_note())
+    if ex.provenance.get(part):
+        out.append(ex.provenance[part])
+    return " ".join(out)
+
+
+def _files(out: Path, rel_dir: str, stem: str, exts: Sequence[str]) -> dict[str, str]:
+    return {e: f"{rel_dir}/{stem}.{e}" for e in exts if (out / rel_dir / f"{stem}.{e}").is_file()}
+
+
+def _exhibit_table(out: Path, rel_dir: str, stem: str, ex: Exhibits, title: str = "",
+                   part: str = "") -> str:
+    """A table file (`<rel_dir>/<stem>.md`) as a numbered APA table: number, italic title, the table with
+    horizontal rules, the note; recorded in `ex`. A table too wide for the main text is moved to the appendix and
+    referred to from here."""
+    text = (out / rel_dir / f"{stem}.md").read_text(encoding="utf-8")
+    own_title, table, notes = _split_md(text)
+    if not table:
+        return ""
+    ncol = len(_cells(table[0]))
+    if ex.part == "main" and ncol > MAX_MAIN_COLUMNS:
+        ex.deferred.append((stem, lambda: _exhibit_table(out, rel_dir, stem, ex, title, part)))
+        return (f"<p class=\"note\">{esc(TITLES.get(stem, title or own_title or stem))}: "
+                f"{Exhibits.ref(stem)} in the appendix ({ncol} columns).</p>")
+    title = title or TITLES.get(stem) or own_title or stem.replace("_", " ")
+    note = _note_text(notes, "\n".join(table), part or stem.split("_")[0], ex)
+    files = _files(out, rel_dir, stem, ("md", "tex", "csv"))
+    label = ex.number("table", stem, title, note, files)
+    body = _table(table, base=rel_dir)
+    if ex.part == "main":
+        body = body.replace("<div class=\"scroll\">", "<div>", 1)
+    links = " · ".join(f"<a href=\"{esc(p)}\">{esc(k)}</a>" for k, p in files.items() if k != "md")
+    return (f"<section class=\"exhibit\" id=\"x-{esc(stem)}\"><p class=\"xlabel\">{esc(label)}</p>"
+            f"<p class=\"xtitle\">{esc(title)}</p>{body}"
+            + (f"<p class=\"note\"><em>Note.</em> {esc(note)}</p>" if note else "")
+            + (f"<p class=\"note\">{links}</p>" if links else "") + "</section>")
+
+
+def _exhibit_figure(out: Path, rel_dir: str, stem: str, ex: Exhibits, title: str, note: str = "") -> str:
+    """A figure file (`<rel_dir>/<stem>.png`) as a numbered APA figure: number, italic title, image, note."""
+    files = _files(out, rel_dir, stem, ("png", "svg", "pdf"))
+    label = ex.number("figure", stem, title, note, files)
+    links = " · ".join(f"<a href=\"{esc(p)}\">{esc(k)}</a>" for k, p in files.items() if k != "png")
+    return (f"<figure class=\"exhibit\" id=\"x-{esc(stem)}\"><p class=\"xlabel\">{esc(label)}</p>"
+            f"<p class=\"xtitle\">{esc(title)}</p><img src=\"{esc(rel_dir)}/{esc(stem)}.png\" alt=\"{esc(title)}\">"
+            f"<figcaption>" + (f"<em>Note.</em> {esc(note)} " if note else "") + links + "</figcaption></figure>")
+
+
+def _figure(out: Path, stem: str, study, ex: Exhibits) -> str:
     caption, reader = FIGURES.get(stem, (PAIRED_CAPTION if stem.startswith("paired_") else
                                          stem.replace("_", " ") + ".", None))
     reading = None
@@ -360,30 +491,52 @@ def _figure(out: Path, stem: str, study) -> str:
             reading = reader(out, study)
         except (KeyError, ValueError, TypeError, IndexError):
             reading = None  # a figure whose numbers are laid out differently keeps its caption only
-    pdf = f" · <a href=\"figures/{esc(stem)}.pdf\">pdf</a>" if (out / "figures" / f"{stem}.pdf").exists() else ""
-    read = f"<span class=\"reading\">{esc(reading)}</span>" if reading else ""
-    return (f"<figure id=\"fig-{esc(stem)}\"><img src=\"figures/{esc(stem)}.png\" alt=\"{esc(caption)}\">"
-            f"<figcaption><strong>{esc(stem)}</strong>: {esc(caption)}{pdf}{read}</figcaption></figure>")
+    return _exhibit_figure(out, "figures", stem, ex, caption.rstrip("."), reading or "")
 
 
-def _figures(out: Path, stems: Sequence[str], study, used: set[str]) -> list[str]:
+def _figures(out: Path, stems: Sequence[str], study, used: set[str], ex: Exhibits) -> list[str]:
     parts = []
     for stem in stems:
         if (out / "figures" / f"{stem}.png").exists() and stem not in used:
             used.add(stem)
-            parts.append(_figure(out, stem, study))
+            parts.append(_figure(out, stem, study, ex))
     return parts
 
 
-def _md_table(out: Path, stem: str, used: set[str]) -> str:
+def _md_table(out: Path, stem: str, used: set[str], ex: Exhibits) -> str:
     f = out / "tables" / f"{stem}.md"
     if not f.exists() or stem in used:
         return ""
     used.add(stem)
-    links = " · ".join(f"<a href=\"tables/{esc(stem)}{ext}\">{ext[1:]}</a>" for ext in (".csv", ".tex")
-                       if (out / "tables" / f"{stem}{ext}").exists())
-    body = markdown_to_html(f.read_text(encoding="utf-8"), base="tables", heading_offset=2)
-    return f"<section id=\"tab-{esc(stem)}\">{body}<p class=\"note\">{esc(stem)}: {links}</p></section>"
+    return _exhibit_table(out, "tables", stem, ex)
+
+
+def _expand(out: Path, patterns: Sequence[str], sub: str, ext: str) -> list[str]:
+    """Stems of `<out>/<sub>/*.<ext>` matching the patterns in order (a trailing * is a prefix)."""
+    have = sorted(p.stem for p in (out / sub).glob(f"*.{ext}")) if (out / sub).exists() else []
+    stems = []
+    for pat in patterns:
+        for st in ([h for h in have if h.startswith(pat[:-1])] if pat.endswith("*") else
+                   [pat] if pat in have else []):
+            if st not in stems:
+                stems.append(st)
+    return stems
+
+
+def _main_exhibits(out: Path, key: str, study, used_tabs: set, used_figs: set, ex: Exhibits) -> list[str]:
+    """The main text's tables and figures of one part of the Results (:data:`MAIN`), those present."""
+    pats = MAIN[key]
+    parts = []
+    tabs, figs = _expand(out, pats, "tables", "md"), _expand(out, pats, "figures", "png")
+    for pat in pats:
+        for stem in [t for t in tabs if t == pat or pat.endswith("*") and t.startswith(pat[:-1])]:
+            if stem == "survey_hypotheses":
+                parts.append(_hypotheses_verdicts(out, study, ex, used_tabs))
+            else:
+                parts.append(_md_table(out, stem, used_tabs, ex))
+        for stem in [f for f in figs if f == pat or pat.endswith("*") and f.startswith(pat[:-1])]:
+            parts += _figures(out, [stem], study, used_figs, ex)
+    return [p for p in parts if p]
 
 
 def _skipped(reason: str) -> str:
@@ -391,7 +544,7 @@ def _skipped(reason: str) -> str:
 
 
 # ---------------------------------------------------------------------------------------------- sections
-def _study_section(st, study, mode: str, store_name: str) -> list[str]:
+def _study_section(out: Path, st, study, mode: str, store_name: str) -> list[str]:
     from analysis.report.figures import participant_flow
     from study.store.studies import current
 
@@ -399,62 +552,74 @@ def _study_section(st, study, mode: str, store_name: str) -> list[str]:
     flow = participant_flow(st)
     excluded = st.df("SELECT scope, reason, count(*) AS n FROM exclusions GROUP BY scope, reason "
                      "ORDER BY scope, reason")
-    n_excl = int(st.one("SELECT count(DISTINCT participant_id) FROM exclusions") or 0)
-    drives = (f"{flow.objective_sample} in the drive analysis" if st.one("SELECT count(*) FROM drives")
-              else "no drives stored")
+    has_drives = bool(st.one("SELECT count(*) FROM drives"))
+    # counts per analysis that ran: the survey analysis (its respondents), the within-subjects tests (those with
+    # every condition), the drive analysis
+    resp = _read_csv(out / "survey" / "responses.csv")
+    samples = [f"{len(resp)} in the survey analysis"] if resp is not None else []
+    aov = _read_csv(out / "within" / "anova.csv")
+    if aov is not None and "n" in aov.columns and len(aov):
+        samples.append(f"{int(aov['n'].min())} with every condition in the within-subjects tests")
+    if has_drives:
+        samples.append(f"{flow.objective_sample} in the drive analysis")
     parts = ["<h2 id=\"study\">Study</h2>"]
-    if study.description:
-        parts.append(f"<p>{esc(study.description)}</p>")
+    if study.summary:
+        parts.append(f"<p>{esc(study.summary)}</p>")
+    else:   # the participants' description is not a study description
+        parts.append("<p class=\"note\">The study declares no researcher-facing summary (<code>[study] summary"
+                     "</code> in study.toml).</p>")
     conds = "; ".join(f"<code>{esc(c.name)}</code> ({esc(c.label)})" for c in study.conditions)
     attrs = ", ".join(f"{esc(a.name)} ({esc(a.type)})" for a in study.attributes) or "none"
+    excl = "; ".join(f"{int(r.n)} {esc(str(r.reason).replace('_', ' '))} ({esc(r.scope)})"
+                     for r in excluded.itertuples()) or "none"
     parts.append("<dl>"
                  f"<dt>Study</dt><dd><code>{esc(study.study_id)}</code>, version {esc(row.get('version', '–'))}, "
                  f"definition sha256 <code>{esc(study.hash[:12])}</code></dd>"
                  f"<dt>Conditions</dt><dd>{conds}</dd>"
                  f"<dt>Participant attributes</dt><dd>{attrs}</dd>"
-                 f"<dt>Protocols</dt><dd>{esc(', '.join(study.protocols))}</dd>"
-                 f"<dt>Participants</dt><dd>{flow.enrolled} registered; {flow.subjective_sample} included in the "
-                 f"survey analysis, {drives}; {n_excl} with an exclusion</dd>"
+                 f"<dt>Participants</dt><dd>{flow.enrolled} registered"
+                 + (f"; {', '.join(samples)}" if samples else "") + f"</dd><dt>Exclusions</dt><dd>{excl}</dd>"
                  f"<dt>Report</dt><dd>{esc(mode)}, store <code>{esc(store_name)}</code></dd></dl>")
-    if not excluded.empty:
-        rows = "".join(f"<tr><td>{esc(r.scope)}</td><td>{esc(str(r.reason).replace('_', ' '))}</td>"
-                       f"<td class=\"r\">{int(r.n)}</td></tr>" for r in excluded.itertuples())
-        parts.append("<div class=\"scroll\"><table><caption>Exclusions by scope and reason</caption><thead><tr>"
-                     "<th>scope</th><th>reason</th><th class=\"r\">n</th></tr></thead><tbody>" + rows +
-                     "</tbody></table></div>")
     return parts
 
 
-def _flow_section(out: Path, st, study, used_figs: set, used_tabs: set) -> list[str]:
-    parts = ["<h2 id=\"participant-flow\">Participant flow</h2>"]
+def _flow_main(out: Path, study, used_figs: set, used_tabs: set, ex: Exhibits) -> list[str]:
+    """The participant flow of the main text: the flow figure (the table of counts in the appendix)."""
+    parts = ["<h3 id=\"participant-flow\">Participants</h3>"]
+    figs = _figures(out, FLOW_FIGURES, study, used_figs, ex)
+    if (out / "tables" / "participant_flow.md").exists():
+        ex.deferred.append(("participant_flow", lambda: _md_table(out, "participant_flow", used_tabs, ex)))
+        parts.append(f"<p>Counts per stage: {Exhibits.ref('participant_flow')}; per protocol phase: "
+                     f"{Exhibits.ref('protocol_phases')}.</p>")
+    return parts + figs
+
+
+def _phases_table(st, study, ex: Exhibits) -> str:
+    """Participants per protocol phase (completed, aborted, in progress), a numbered appendix table."""
     ev = st.df("SELECT p.protocol, e.phase, e.outcome, count(*) AS n FROM phase_events e "
                "JOIN participants p USING (participant_id) GROUP BY ALL")
     if ev.empty:
-        parts.append("<p>No protocol phase has been recorded in the store.</p>")
-    else:
-        order: list[tuple[str, str]] = []
-        for name, proto in study.protocols.items():
-            order += [(name, ph) for ph in proto.phases]
-        known = set(order)
-        order += sorted({(r.protocol, r.phase) for r in ev.itertuples()} - known)
-        outcomes = ("completed", "aborted", "in_progress")
-        rows = []
-        for proto, phase in order:
-            sub = ev[(ev["protocol"] == proto) & (ev["phase"] == phase)]
-            if sub.empty and proto not in set(ev["protocol"]):
-                continue
-            counts = [int(sub.loc[sub["outcome"] == o, "n"].sum()) for o in outcomes]
-            rows.append(f"<tr><td>{esc(proto)}</td><td>{esc(phase)}</td>"
-                        + "".join(f"<td class=\"r\">{c}</td>" for c in counts) + "</tr>")
-        parts.append("<div class=\"scroll\"><table><caption>Participants per protocol phase</caption><thead><tr>"
-                     "<th>protocol</th><th>phase</th><th class=\"r\">completed</th><th class=\"r\">aborted</th>"
-                     "<th class=\"r\">in progress</th></tr></thead><tbody>" + "".join(rows) +
-                     "</tbody></table></div>")
-    parts += _figures(out, FLOW_FIGURES, study, used_figs)
-    tab = _md_table(out, "participant_flow", used_tabs)
-    if tab:
-        parts.append(tab)
-    return parts
+        return "<p>No protocol phase has been recorded in the store.</p>"
+    order: list[tuple[str, str]] = []
+    for name, proto in study.protocols.items():
+        order += [(name, ph) for ph in proto.phases]
+    order += sorted({(r.protocol, r.phase) for r in ev.itertuples()} - set(order))
+    outcomes = ("completed", "aborted", "in_progress")
+    rows = []
+    for proto, phase in order:
+        sub = ev[(ev["protocol"] == proto) & (ev["phase"] == phase)]
+        if sub.empty and proto not in set(ev["protocol"]):
+            continue
+        counts = [int(sub.loc[sub["outcome"] == o, "n"].sum()) for o in outcomes]
+        rows.append(f"<tr><td>{esc(proto)}</td><td>{esc(phase)}</td>"
+                    + "".join(f"<td class=\"r\">{c}</td>" for c in counts) + "</tr>")
+    title = "Participants per Protocol Phase"
+    label = ex.number("table", "protocol_phases", title, "Counts of phase events recorded in the store.", {})
+    return (f"<section class=\"exhibit\" id=\"x-protocol_phases\"><p class=\"xlabel\">{label}</p>"
+            f"<p class=\"xtitle\">{title}</p><div class=\"scroll\"><table><thead><tr>"
+            "<th>Protocol</th><th>Phase</th><th class=\"r\">Completed</th><th class=\"r\">Aborted</th>"
+            "<th class=\"r\">In progress</th></tr></thead><tbody>" + "".join(rows) + "</tbody></table></div>"
+            "<p class=\"note\"><em>Note.</em> Counts of phase events recorded in the store.</p></section>")
 
 
 def _scale_text(ins, item: str) -> str:
@@ -466,7 +631,7 @@ def _scale_text(ins, item: str) -> str:
 
 
 def _methods_section(out: Path, st, study, ran: tuple[str, ...]) -> list[str]:
-    parts = ["<h2 id=\"methods\">Methods</h2>"]
+    parts = ["<h2 id=\"methods\">Method</h2>"]
     sw = ", ".join(f"{esc(n)} {esc(v)}" for n, v in software_versions(ran))
     parts.append(f"<p><strong>Software.</strong> {sw}.</p>")
     settings = {}
@@ -475,11 +640,12 @@ def _methods_section(out: Path, st, study, ran: tuple[str, ...]) -> list[str]:
         settings = json.loads(sfile.read_text(encoding="utf-8"))
     if study.instruments:
         ins = study.instrument()
-        scales = sorted({_scale_text(ins, i) for i in ins.scaled_items})
+        scales = pd.Series([_scale_text(ins, i) for i in ins.scaled_items], dtype=object).value_counts()
+        by_type = ", ".join(f"{n} on {'a ' if 'slider' in k else ''}{k}{'' if 'slider' in k else ' scales'}"
+                            for k, n in sorted(scales.items(), key=lambda kv: (-kv[1], kv[0])))
         rev = ", ".join(ins.reverse_items) or "none"
-        parts.append(f"<p><strong>Instrument.</strong> <code>{esc(ins.name)}</code>: {len(ins.items)} items, "
-                     f"{len(ins.scaled_items)} on {esc(' and '.join(scales))} scales; reverse-scored: "
-                     f"{esc(rev)}.</p>")
+        parts.append(f"<p><strong>Instrument.</strong> <code>{esc(ins.name)}</code>: {len(ins.items)} items"
+                     + (f" ({esc(by_type)})" if by_type else "") + f"; reverse-scored: {esc(rev)}.</p>")
     model = study.model
     if model is not None:
         mm = "; ".join(f"{esc(c)} =~ {esc(' + '.join(items))}" for c, items in model.measurement.items())
@@ -512,6 +678,7 @@ def _methods_section(out: Path, st, study, ran: tuple[str, ...]) -> list[str]:
                        f"({esc(signs.get(h.sign, h.sign))})</li>" for h in model.hypotheses)
         if hyps:
             parts.append(f"<p><strong>Hypotheses</strong> at α = {esc(study.alpha)}:</p><ul>{hyps}</ul>")
+    parts += _procedure(study, st)
     src = st.df("SELECT source, count(*) AS n FROM drives GROUP BY source ORDER BY source")
     if not src.empty:
         parts += _measures_methods(study)
@@ -534,143 +701,367 @@ def _measures_methods(study) -> list[str]:
         if sentences else []
 
 
-def _hypotheses_verdicts(out: Path, study) -> str:
+def _admissibility(out: Path) -> tuple[list[str], dict[str, str]]:
+    """The warnings of the fits the hypotheses rest on: global ones (the final CFA, the latent SEM's matrix and
+    R²) and per path (a standardized SEM path with |β| >= 1), from the survey's warnings files."""
+    lines = []
+    for f in (out / "survey" / "warnings.txt", out / "survey" / "extended" / "warnings.txt"):
+        if f.is_file():
+            lines += [w for w in f.read_text(encoding="utf-8").splitlines() if w.strip()]
+    per_path: dict[str, str] = {}
+    glob = []
+    for w in lines:
+        m = re.match(r"SEM: standardized path (.+?) = (-?[\d.]+)", w)
+        if m:
+            per_path[m.group(1).strip()] = f"latent SEM path β = {apa.num(float(m.group(2)), 2)} (|β| ≥ 1, improper)"
+        elif w.startswith(("CFA final", "SEM:")) and apa.minus(w.replace("R^2", "R²")) not in glob:
+            glob.append(apa.minus(w.replace("R^2", "R²")))
+    return glob, per_path
+
+
+#: what each built-in KPI measures, with its unit (docs/kpis.md has the thresholds)
+BUILTIN_KPIS = {
+    "energy_wh": "battery energy used (Wh)", "distance_m": "distance driven (m)", "trip_time_s": "trip time (s)",
+    "mean_speed_mps": "mean speed (m/s)", "wh_per_km": "energy per distance (Wh/km)",
+    "violation_distance_m": "distance above the speed limit plus its tolerance (m)",
+    "violation_share": "share of the distance above the limit plus tolerance (0–1)",
+    "violation_events": "speeding episodes of at least the minimum duration (count)",
+    "tl_crossed": "traffic lights crossed (count)", "tl_crossed_green": "lights crossed in green (count)",
+    "tl_crossed_yellow": "lights crossed in yellow (count)", "tl_crossed_red": "lights crossed in red (count)",
+    "tl_green_passes": "lights passed in green without a stop (count)", "red_stops": "stops at a red light (count)",
+    "stops": "stops (count)", "rms_jerk": "root mean square of the jerk (m/s³)",
+    "mean_abs_a": "mean absolute acceleration (m/s²)",
+}
+
+
+def _procedure(study, st) -> list[str]:
+    """The drives as the protocol runs them (every phase, familiarisation included, and the order sequences) and
+    what each KPI measures with its unit; nothing for a study that stores no drives."""
+    from study.folder.protocol_file import protocol_orders
+
+    if not st.one("SELECT count(*) FROM drives"):
+        return []
+    out = []
+    for name, proto in study.protocols.items():
+        orders = protocol_orders(proto)
+        seq = "; ".join(f"{esc(o)}: {esc(' → '.join(ph))}" for o, ph in orders.items())
+        out.append(f"<p><strong>Procedure</strong> (protocol <code>{esc(name)}</code>): "
+                   + (f"{len(orders)} order sequences ({seq})" if len(orders) > 1 else f"phases {seq}") + ".</p>")
+    from study.folder.kpi_spec import EventKpi, study_spec
+
+    spec = study_spec(study)   # the stored study passed its check: its KPI file parses
+    kpis = [f"{esc(k)}: {esc(BUILTIN_KPIS[k])}" for k in spec.columns if k in BUILTIN_KPIS]
+    for k in spec.user_kpis:
+        what = (f"{k.statistic} time from <code>{esc(k.start)}</code> to <code>{esc(k.end)}</code>"
+                if isinstance(k, EventKpi) else f"<code>{esc(k.sql)}</code>")
+        kpis.append(f"{esc(k.heading)}: {what}")
+    if kpis:
+        out.append("<p><strong>KPIs</strong> per drive (and per route segment): " + "; ".join(kpis) + ".</p>")
+    return out
+
+
+def _hypotheses_verdicts(out: Path, study, ex: Exhibits, used_tabs: set) -> str:
     df = _read_csv(out / "survey" / "hypotheses.csv")
     if df is None or df.empty or study.model is None:
         return ""
+    used_tabs.add("survey_hypotheses")
     sign = {h.hypothesis: h.sign for h in study.model.hypotheses}
     expect = {">": "positive", "<": "negative", "!=": "non-zero"}
+    glob, per_path = _admissibility(out)
     rows = []
     for r in df.itertuples():
         ok = str(r.supported).strip().lower() in ("true", "1", "yes")
+        verdict = "supported" if ok else "not supported"
+        if r.path in per_path:
+            verdict += f", but {per_path[r.path]}"
         rows.append(f"<tr><td>{esc(r.hypothesis)}</td><td>{esc(r.path)}</td>"
-                    f"<td>{expect.get(sign.get(r.hypothesis, '!='), '')}</td><td class=\"r\">β = {_fmt(r.beta, 3)}"
-                    f"</td><td class=\"r\">{esc(_p(r.p))}</td><td>{'supported' if ok else 'not supported'}</td></tr>")
+                    f"<td>{expect.get(sign.get(r.hypothesis, '!='), '')}</td>"
+                    f"<td class=\"r\">{esc(apa.num(r.beta, 2, bounded=True))}</td>"
+                    f"<td class=\"r\">{esc(apa.p_value(r.p))}</td><td>{esc(verdict)}</td></tr>")
     n_ok = sum(str(x).strip().lower() in ("true", "1", "yes") for x in df["supported"])
-    return (f"<p class=\"verdict\">{n_ok} of {len(df)} hypotheses supported at α = {esc(study.alpha)}.</p>"
-            "<div class=\"scroll\"><table><caption>Hypotheses: verdicts</caption><thead><tr><th>hypothesis</th>"
-            "<th>path</th><th>expected</th><th class=\"r\">β</th><th class=\"r\">p</th><th>verdict</th></tr>"
-            "</thead><tbody>" + "".join(rows) + "</tbody></table></div>")
+    n = int(df["n"].iloc[0]) if "n" in df.columns else None
+    note = (f"{'N = ' + str(n) + '. ' if n else ''}β: standardized coefficient of the predictor in the step of the "
+            f"hierarchical OLS regression the hypothesis names; p two-sided; supported: expected sign and "
+            f"p < α = {apa.num(study.alpha, 2, bounded=True)}."
+            + (" The fits these estimates rest on are not admissible: " + "; ".join(glob) + "." if glob else ""))
+    title = "Hypotheses: Verdicts"
+    files = _files(out, "tables", "survey_hypotheses", ("md", "tex", "csv"))
+    label = ex.number("table", "survey_hypotheses", title, note, files)
+    box = (f"<p class=\"verdict{' mixed' if glob else ''}\">{n_ok} of {len(df)} hypotheses supported at "
+           f"α = {esc(apa.num(study.alpha, 2, bounded=True))}"
+           + (f", but the solutions they rest on are improper ({esc('; '.join(glob))})" if glob else "") + ".</p>")
+    return (box + f"<section class=\"exhibit\" id=\"x-survey_hypotheses\"><p class=\"xlabel\">{label}</p>"
+            f"<p class=\"xtitle\">{title}</p><div><table><thead><tr><th>Hypothesis</th>"
+            "<th>Path</th><th>Expected</th><th class=\"r\">β</th><th class=\"r\">p</th><th>Verdict</th></tr>"
+            "</thead><tbody>" + "".join(rows) + f"</tbody></table></div><p class=\"note\"><em>Note.</em> "
+            f"{esc(note)}</p></section>")
 
 
-def _survey_section(out: Path, study, skipped: dict, used_figs: set, used_tabs: set) -> list[str]:
-    parts = ["<h2 id=\"survey-results\">Survey results</h2>"]
+def _warnings_list(out: Path) -> list[str]:
+    parts = []
+    for title, f in (("Warnings of the analysis", out / "survey" / "warnings.txt"),
+                     ("Warnings of the extended statistics", out / "survey" / "extended" / "warnings.txt")):
+        if f.is_file() and f.read_text(encoding="utf-8").strip():
+            items = "".join(f"<li>{esc(apa.minus(w))}</li>" for w in f.read_text(encoding="utf-8").splitlines()
+                            if w)
+            parts.append(f"<p><strong>{title}</strong></p><ul>{items}</ul>")
+    return parts
+
+
+def _survey_main(out: Path, study, skipped: dict, used_figs: set, used_tabs: set, ex: Exhibits) -> list[str]:
+    """The measurement model, the structural model and hypotheses: the main text's survey results."""
     if "survey" in skipped:
-        return parts + [_skipped(skipped["survey"])]
+        return ["<h3 id=\"measurement-model\">Measurement model</h3>", _skipped(skipped["survey"])]
     if not (out / "survey").exists():
-        return parts + [_skipped("the survey step did not run")]
-    verdicts = _hypotheses_verdicts(out, study)
-    if verdicts:
-        parts.append(verdicts)
-    warnings = out / "survey" / "warnings.txt"
-    if warnings.is_file() and warnings.read_text(encoding="utf-8").strip():
-        items = "".join(f"<li>{esc(w)}</li>" for w in warnings.read_text(encoding="utf-8").splitlines() if w)
-        parts.append(f"<p><strong>Warnings of the analysis</strong></p><ul>{items}</ul>")
-    ext_warnings = out / "survey" / "extended" / "warnings.txt"
-    if ext_warnings.is_file() and ext_warnings.read_text(encoding="utf-8").strip():
-        items = "".join(f"<li>{esc(w)}</li>" for w in ext_warnings.read_text(encoding="utf-8").splitlines() if w)
-        parts.append(f"<p><strong>Warnings of the extended statistics</strong></p><ul>{items}</ul>")
-    parts += _figures(out, SURVEY_FIGURES, study, used_figs)
-    stems = [s for s in SURVEY_TABLES] + sorted(p.stem for p in (out / "tables").glob("survey_*.md"))
+        return ["<h3 id=\"measurement-model\">Measurement model</h3>", _skipped("the survey step did not run")]
+    ex.section = "Measurement model"
+    parts = ["<h3 id=\"measurement-model\">Measurement model</h3>"]
+    parts += _main_exhibits(out, "measurement", study, used_tabs, used_figs, ex)
+    parts += _warnings_list(out)
+    ex.section = "Structural model and hypotheses"
+    parts.append("<h3 id=\"structural-model\">Structural model and hypotheses</h3>")
     regressions = _read_csv(out / "survey" / "regressions.csv")
     if regressions is not None and regressions.empty:
         parts.append("<p>The analysis model declares no regressions: no regression table and no hypotheses.</p>")
-        stems = [s for s in stems if s not in NO_REGRESSION_TABLES]
-    parts += [t for t in (_md_table(out, s, used_tabs) for s in stems) if t]
+        used_tabs.update(NO_REGRESSION_TABLES)
+    else:
+        parts += _main_exhibits(out, "structural", study, used_tabs, used_figs, ex)
     return parts
 
 
-def _within_section(out: Path, skipped: dict, used_tabs: set) -> list[str]:
-    """The within-subjects comparison (analysis.within): the generated methods and results sentences, the order
-    counts, a figure of individual lines per variable and the test tables. Absent for a study without [within]."""
+def _within_section(out: Path, skipped: dict, used_tabs: set, ex: Exhibits) -> list[str]:
+    """The within-subjects comparison (analysis.within): the generated methods and results sentences, the test
+    tables and a figure of individual lines per variable in the main text; the order counts, mixed model,
+    reliability and item tables in the appendix. Absent for a study without [within]."""
     d = out / "within"
     if "within" not in skipped and not d.exists():
         return []
-    parts = ["<h2 id=\"within\">Within-subjects comparison</h2>"]
+    ex.section = "Within-subjects comparisons"
+    parts = ["<h3 id=\"within\">Within-subjects comparisons</h3>"]
     if "within" in skipped:
         return parts + [_skipped(skipped["within"])]
     text = (d / "methods.md").read_text(encoding="utf-8")
-    parts.append(markdown_to_html(text.split("\n", 1)[1], heading_offset=2))
-    for stem in ("orders", "descriptives", "anova", "friedman", "posthoc", "mixed", "mixed_fit", "reliability",
-                 "item_descriptives"):
-        md = d / f"{stem}.md"
-        if md.is_file() and len(pd.read_csv(d / f"{stem}.csv")):
-            used_tabs.add(f"within_{stem}")
-            parts.append(markdown_to_html(md.read_text(encoding="utf-8"), base="within/"))
-        if stem == "descriptives":
-            variables = pd.read_csv(d / "descriptives.csv")["variable"].drop_duplicates()
-            for variable in variables:
-                png = d / f"lines_{variable}.png"
-                if not png.is_file():
-                    continue
-                parts.append(f"<figure><img src=\"within/{esc(png.name)}\" alt=\"{esc(variable)} by condition\">"
-                             f"<figcaption>{esc(variable)} by condition: one grey line per participant, the "
-                             f"condition means with their 95 % confidence intervals in black.</figcaption></figure>")
+    parts.append(markdown_to_html(text.split("\n", 1)[1], heading_offset=3))
+    used_tabs.update(f"within_{p.stem}" for p in d.glob("*.md"))   # the copies in tables/ are the same tables
+    if _within_summary(d):
+        parts.append(_exhibit_table(out, "within", "summary_table", ex, part="within"))
+    for stem in ("descriptives", "anova", "posthoc"):
+        if (d / f"{stem}.md").is_file() and len(pd.read_csv(d / f"{stem}.csv")):
+            ex.deferred.append((f"within_{stem}", lambda stem=stem: _within_table(out, stem, ex)))
+    variables = pd.read_csv(d / "descriptives.csv")["variable"].drop_duplicates()
+    for variable in variables:
+        if (d / f"lines_{variable}.png").is_file():
+            parts.append(_exhibit_figure(
+                out, "within", f"lines_{variable}", ex, f"{variable} by Condition",
+                "One grey line per participant; the condition means with their 95 % confidence intervals in black."))
+    for stem in ("orders", "friedman", "mixed", "mixed_fit", "reliability", "item_descriptives"):
+        if (d / f"{stem}.md").is_file() and len(pd.read_csv(d / f"{stem}.csv")):
+            ex.deferred.append((f"within_{stem}", lambda stem=stem: _within_table(out, stem, ex)))
     return parts
 
 
-def _drives_section(out: Path, study, skipped: dict, used_figs: set, used_tabs: set) -> list[str]:
-    parts = ["<h2 id=\"drive-results\">Drive results</h2>"]
+def _within_table(out: Path, stem: str, ex: Exhibits) -> str:
+    """A within-subjects table, from its copy in tables/ (stem ``within_<stem>``) where the collect step made one."""
+    if (out / "tables" / f"within_{stem}.md").is_file():
+        return _exhibit_table(out, "tables", f"within_{stem}", ex, part="within")
+    return _exhibit_table(out, "within", stem, ex, part="within")
+
+
+def _within_summary(d: Path) -> bool:
+    """Write `within/summary_table.{csv,md,tex}`: per variable, M (SD) under each condition and the
+    repeated-measures ANOVA (F with its df, p, partial η², Greenhouse–Geisser ε) in one APA table of the main text;
+    False when the comparison wrote no descriptives or ANOVA."""
+    from analysis.render import latex_table, markdown_table
+
+    desc, aov = _read_csv(d / "descriptives.csv"), _read_csv(d / "anova.csv")
+    if desc is None or aov is None or desc.empty or aov.empty:
+        return False
+    conds = list(dict.fromkeys(desc["condition"].astype(str)))
+    aov = aov.set_index("variable")
+    header = ["Variable"] + [f"{c} M (SD)" for c in conds] + ["df", "F", "p", "ηp²", "ε (GG)"]
+    rows, frame = [], []
+    for v, g in desc.groupby("variable", sort=False):
+        g = g.set_index(g["condition"].astype(str))
+        cells = [f"{apa.num(g.loc[c, 'mean'], 2)} ({apa.num(g.loc[c, 'sd'], 2)})" if c in g.index else "–"
+                 for c in conds]
+        a = aov.loc[v] if v in aov.index else None
+        test = ([f"{apa.df_text(a['df1'])}, {apa.df_text(a['df2'])}", apa.num(a["f"], 2), apa.p_value(a["p"]),
+                 apa.num(a["np2"], 2, bounded=True), apa.num(a["eps_gg"], 2, bounded=True)]
+                if a is not None else ["–"] * 5)
+        rows.append([str(v)] + cells + test)
+        frame.append(dict(zip(header, rows[-1])))
+    n = int(aov["n"].min()) if "n" in aov.columns else None
+    title = "Dependent Variables by Condition: Means, Standard Deviations and Repeated-Measures ANOVA"
+    notes = [(f"n = {n} participants with every condition in the ANOVA; " if n else "")
+             + "descriptives use every available value. ηp²: partial eta squared; ε (GG): Greenhouse–Geisser "
+             "epsilon (the corrected p is in the appendix table of the ANOVA)."]
+    pd.DataFrame(frame).to_csv(d / "summary_table.csv", index=False)
+    (d / "summary_table.md").write_text(markdown_table(header, rows, title, notes, title_style="bold"),
+                                        encoding="utf-8")
+    (d / "summary_table.tex").write_text(latex_table(header, rows, title, notes, label="tab:within_summary"),
+                                         encoding="utf-8")
+    return True
+
+
+def _drives_main(out: Path, study, skipped: dict, used_figs: set, used_tabs: set, ex: Exhibits) -> list[str]:
+    ex.section = "Objective measures"
+    parts = ["<h3 id=\"drive-results\">Objective measures</h3>"]
     if "drives" in skipped:
         return parts + [_skipped(skipped["drives"])]
     if not (out / "drives").exists():
         return parts + [_skipped("the drives step did not run")]
-    known = list(FIGURES)  # the paper's figure order (9a-d, 10, 11, 12), then any other figure by name
-    drive_figs = sorted((p.stem for p in (out / "drives" / "figures").glob("*.png")),
-                        key=lambda stem: (known.index(stem) if stem in known else len(known), stem)) \
-        if (out / "drives" / "figures").exists() else []
-    stems = [s for s in DRIVE_TABLES] + sorted(p.stem for p in (out / "tables").glob("drives_*.md"))
-    parts += [t for t in (_md_table(out, s, used_tabs) for s in stems[:3]) if t]
-    parts += _figures(out, drive_figs, study, used_figs)
+    parts += _main_exhibits(out, "objective", study, used_tabs, used_figs, ex)
     for replay in sorted((out / "drives").glob("replay_*.html")):
         who = replay.stem.removeprefix("replay_")
         parts.append(f"<p>Replay of {esc(who)}'s drives (time slider, the HUD as the driver saw it): "
                      f"<a href=\"drives/{esc(replay.name)}\">{esc(replay.name)}</a></p>")
-    parts += [t for t in (_md_table(out, s, used_tabs) for s in stems[3:]) if t]
-    return parts + _figures(out, ("sweep_indices",), study, used_figs)
+    return parts
 
 
-def _core_section(out: Path, study, skipped: dict, used_figs: set, core: bool) -> list[str]:
-    if not core:
-        return []
-    parts = ["<h2 id=\"simulation-core\">Simulation core</h2>"]
-    if "core figures" in skipped:
-        return parts + [_skipped(skipped["core figures"])]
-    figs = _figures(out, CORE_FIGURES, study, used_figs)
-    return parts + (["<p>Figures of the vehicle model and the controller of the simulator.</p>"] + figs
-                    if figs else [_skipped("the core figures step did not run")])
-
-
-def _reproduction_section(out: Path, skipped: dict, used_tabs: set) -> list[str]:
-    parts = ["<h2 id=\"reproduction\">Reproduction</h2>"]
+def _reproduction_section(out: Path, skipped: dict, used_tabs: set, ex: Exhibits) -> list[str]:
+    ex.section = "Reproduction of the published values"
+    parts = ["<h3 id=\"reproduction\">Reproduction of the published values</h3>"]
     if "reproduction" in skipped:
         return parts + [_skipped(skipped["reproduction"])]
     df = _read_csv(out / "reproduction.csv")
     if df is None or "status" not in df.columns:
         return parts + [_skipped("the reproduction step wrote no reproduction.csv")]
     counts = df["status"].value_counts()
-    n = len(df)
-    # "match (PCA)" / "within tolerance (PCA)": met under the paper's procedure (principal-component loadings)
-    ok = int(sum(v for k, v in counts.items() if str(k).startswith(("match", "within tolerance"))))
-    audit = int(sum(v for k, v in counts.items() if str(k).startswith("audit finding")))
-    miss = int(counts.get("miss", 0))
-    verdict = ("every published value is met or explained" if miss == 0 else f"{miss} published value(s) missed")
-    parts.append(f"<p class=\"verdict\">Verdict: {verdict}. Of {n} published values, {ok} match or lie within "
-                 f"tolerance, {audit} contradict other published values (audit findings) and {miss} are missed. "
-                 "Details: <a href=\"reproduction.md\">reproduction.md</a> · "
-                 "<a href=\"reproduction.csv\">reproduction.csv</a>.</p>")
-    rows = "".join(f"<tr><td>{esc(k)}</td><td class=\"r\">{int(v)}</td></tr>" for k, v in sorted(counts.items()))
-    parts.append("<div class=\"scroll\"><table><caption>Published values by status</caption><thead><tr>"
-                 "<th>status</th><th class=\"r\">count</th></tr></thead><tbody>" + rows + "</tbody></table></div>")
-    tab = _md_table(out, "paper_audit", used_tabs)
-    if tab:
-        parts.append("<h3>Audit of the published statistics</h3>"
-                     "<p>Details: <a href=\"paper/audit.md\">paper/audit.md</a>.</p>" + tab)
-    return parts
+    parts.append("<p>Every published value, its status: " + "; ".join(
+        f"{esc(k)}: {int(v)}" for k, v in sorted(counts.items())) + ". Details: <a href=\"reproduction.md\">"
+        "reproduction.md</a> · <a href=\"reproduction.csv\">reproduction.csv</a> · "
+        "<a href=\"paper/audit.md\">paper/audit.md</a>.</p>")
+    tab = _md_table(out, "paper_audit", used_tabs, ex)
+    return parts + ([tab] if tab else [])
 
 
-def _files_section(out: Path, steps, skipped: dict, used_figs: set, used_tabs: set, study) -> list[str]:
-    parts = ["<h2 id=\"files\">Steps and files</h2>"]
+def _verdict_box(out: Path, st, study, mode: str) -> tuple[str, dict[str, str]]:
+    """The first screen: where the data of each part come from, and separate verdicts (published survey values,
+    objective KPI targets). Returns the box and the provenance sentence per part for the tables' notes."""
+    items, prov = [], {}
+    reference = mode == "reference study"
+    missed_band = False
+    if study.instruments:
+        n_resp = _read_csv(out / "survey" / "responses.csv")
+        n_txt = f"{len(n_resp)} respondents" if n_resp is not None else "the stored answers"
+        if reference:
+            prov["survey"] = ("Data: reconstructed survey answers fitted to the published tables "
+                              "(data/reference/README.md), not the original participants' answers.")
+            items.append(f"<li><strong>Survey data</strong>: a <em>reconstruction</em> ({n_txt}) fitted to the "
+                         "paper's published Tables 3–5 (<code>data/reference/README.md</code>), not the study's "
+                         "raw answers, which were never published: agreement with those tables is largely by "
+                         "construction.</li>")
+        else:
+            items.append(f"<li><strong>Survey data</strong>: {n_txt} as entered or imported into the store.</li>")
+    src = st.df("SELECT source, count(*) AS n FROM drives GROUP BY source ORDER BY source")
+    if not src.empty:
+        sim = int(src.loc[src["source"] == "simulation", "n"].sum())
+        rec = int(src["n"].sum()) - sim
+        what = []
+        if sim:
+            what.append(f"{sim} drives <em>simulated</em> by the simulation core (virtual participants in SUMO "
+                        "traffic), not recorded from people")
+            prov["drives"] = "Data: drives simulated by the simulation core (virtual participants)."
+        if rec:
+            what.append(f"{rec} drive logs recorded in the simulator and imported")
+        items.append(f"<li><strong>Drive data</strong>: {'; '.join(what)}.</li>")
+    rep = _read_csv(out / "reproduction.csv")
+    if rep is not None and "status" in rep.columns and len(rep):
+        status = rep["status"].astype(str)
+        met = int(status.str.startswith(("match", "within tolerance")).sum())
+        explained = int(status.str.startswith("audit finding").sum())
+        missed = int((status == "miss").sum())
+        tables = ", ".join(sorted({str(t).replace("table", "Table ") for t in rep["table"].dropna().unique()}))
+        items.append(f"<li><strong>Published survey values</strong> ({esc(tables)}, {len(rep)} values): {met} met "
+                     f"(match or within tolerance), {explained} explained by audit findings (contradicted by other "
+                     f"published values), {missed} missed"
+                     + (" — on the reconstructed data, so this checks the analysis code, not the study's result"
+                        if reference else "") + ".</li>")
+    bands = _read_csv(out / "tables" / "drives_bands.csv")
+    if bands is not None and {"band", "holds"} <= set(bands.columns) and len(bands):
+        diag = _read_csv(out / "tables" / "drives_band_diagnostics.csv")
+        held = bands["holds"].astype(str).str.lower().isin(("true", "1", "yes"))
+        missed_band = not held.all()
+        met = "; ".join(esc(b) for b in bands.loc[held, "band"])
+        miss = []
+        for r in bands[~held].itertuples():
+            why = ""
+            if diag is not None and "band" in diag.columns:
+                d = diag[diag["band"] == r.band]
+                if len(d):
+                    q = d.iloc[0]
+                    why = (f"; {q['quantity']}: {apa.num(q['baseline'], 1)} baseline vs "
+                           f"{apa.num(q['pedas'], 1)} pEDAS {q['unit']}")
+            miss.append(f"{esc(r.band)} (ours {esc(apa.num(r.our_value, 1))}, paper {esc(apa.num(r.paper_value, 1))}"
+                        f"{esc(why)})")
+        items.append(f"<li><strong>Objective KPI targets</strong>: {int(held.sum())} of {len(bands)} bands met"
+                     + (f" — met: {met}" if met else "") + (f"; missed: {'; '.join(miss)}" if miss else "")
+                     + f". Details: {Exhibits.ref('drives_bands')}.</li>")
+    if not items:
+        return "", prov
+    cls = "verdict mixed" if reference or missed_band else "verdict"
+    return f"<div class=\"{cls}\"><p><strong>Data and verdicts</strong></p><ul>{''.join(items)}</ul></div>", prov
+
+
+def _appendix(out: Path, st, study, steps, skipped: dict, used_figs: set, used_tabs: set, core: bool,
+              absent: set[str], ex: Exhibits) -> list[str]:
+    """Everything the main text does not show, numbered Table A1…/Figure A1…: the tables moved out of the main
+    text, the remaining survey and drive tables and figures, the simulation core, the audit, the files."""
+    ex.part = "appendix"
+    parts = ["<h2 id=\"appendix\">Appendix</h2>",
+             "<p>Tables and figures not shown in the main text, numbered A1, A2, … in the order the main text "
+             "refers to them, then by part.</p>"]
+    ex.section = "Sample"
+    parts.append("<h3>Sample</h3>")
+    for stem, render in [d for d in ex.deferred if d[0] == "participant_flow"]:
+        parts.append(render())
+    parts.append(_phases_table(st, study, ex))
+    ex.section = "Moved from the main text"
+    moved = [d for d in ex.deferred if d[0] != "participant_flow"]
+    if moved:
+        parts.append("<h3>Tables moved from the main text</h3>")
+        parts += [render() for _, render in moved]
+    if "survey" not in absent and (out / "survey").exists() and "survey" not in skipped:
+        ex.section = "Survey"
+        parts.append("<h3>Survey</h3>")
+        parts += _figures(out, SURVEY_FIGURES, study, used_figs, ex)
+        stems = list(SURVEY_TABLES) + sorted(p.stem for p in (out / "tables").glob("survey_*.md"))
+        parts += [t for t in (_md_table(out, s, used_tabs, ex) for s in stems) if t]
+    if (out / "drives").exists() and "drives" not in skipped:
+        ex.section = "Drives"
+        parts.append("<h3>Drives</h3>")
+        known = list(FIGURES)
+        drive_figs = sorted((p.stem for p in (out / "drives" / "figures").glob("*.png")),
+                            key=lambda stem: (known.index(stem) if stem in known else len(known), stem)) \
+            if (out / "drives" / "figures").exists() else []
+        stems = list(DRIVE_TABLES) + sorted(p.stem for p in (out / "tables").glob("drives_*.md"))
+        parts += [t for t in (_md_table(out, s, used_tabs, ex) for s in stems) if t]
+        parts += _figures(out, drive_figs + ["sweep_indices"], study, used_figs, ex)
+    if core:
+        ex.section = "Simulation core"
+        parts.append("<h3 id=\"simulation-core\">Simulation core</h3>")
+        if "core figures" in skipped:
+            parts.append(_skipped(skipped["core figures"]))
+        else:
+            figs = _figures(out, CORE_FIGURES, study, used_figs, ex)
+            parts += (["<p>Figures of the vehicle model and the controller of the simulator.</p>"] + figs
+                      if figs else [_skipped("the core figures step did not run")])
+    if "reproduction" not in absent:
+        parts += _reproduction_section(out, skipped, used_tabs, ex)
+    rest_tabs = [p.stem for p in sorted((out / "tables").glob("*.md")) if p.stem not in used_tabs] \
+        if (out / "tables").exists() else []
+    rest_figs = [p.stem for p in sorted((out / "figures").glob("*.png")) if p.stem not in used_figs] \
+        if (out / "figures").exists() else []
+    if rest_tabs or rest_figs:
+        ex.section = "Other tables and figures"
+        parts.append("<h3>Other tables and figures</h3>")
+        parts += [t for t in (_md_table(out, s, used_tabs, ex) for s in rest_tabs) if t]
+        parts += _figures(out, rest_figs, study, used_figs, ex)
+    return parts + _files_section(out, steps, skipped)
+
+
+def _files_section(out: Path, steps, skipped: dict) -> list[str]:
+    parts = ["<h3 id=\"files\">Steps and files</h3>"]
     rows = []
     for s in steps:
         reason = skipped.get(s.name)
@@ -680,15 +1071,6 @@ def _files_section(out: Path, steps, skipped: dict, used_figs: set, used_tabs: s
             rows.append(f"<tr><td>{esc(part)}</td><td>skipped: {esc(reason)}</td></tr>")
     parts.append("<div class=\"scroll\"><table><caption>Steps</caption><thead><tr><th>step</th><th>outcome</th>"
                  "</tr></thead><tbody>" + "".join(rows) + "</tbody></table></div>")
-    # anything written that the sections above did not show
-    rest_tabs = [p.stem for p in sorted((out / "tables").glob("*.md")) if p.stem not in used_tabs] \
-        if (out / "tables").exists() else []
-    rest_figs = [p.stem for p in sorted((out / "figures").glob("*.png")) if p.stem not in used_figs] \
-        if (out / "figures").exists() else []
-    if rest_tabs or rest_figs:
-        parts.append("<h3>Other tables and figures</h3>")
-        parts += [t for t in (_md_table(out, s, used_tabs) for s in rest_tabs) if t]
-        parts += _figures(out, rest_figs, study, used_figs)
     for title, sub in (("Survey analysis", "survey"), ("Drive analysis", "drives"), ("Paper audit", "paper"),
                        ("Tables", "tables"), ("Figures", "figures")):
         d = out / sub
@@ -696,8 +1078,8 @@ def _files_section(out: Path, steps, skipped: dict, used_figs: set, used_tabs: s
             files = sorted(f for f in d.iterdir() if f.is_file())
             if files:
                 links = "".join(f"<li><a href=\"{esc(sub)}/{esc(f.name)}\">{esc(f.name)}</a></li>" for f in files)
-                parts.append(f"<h3>{esc(title)} (<code>{esc(sub)}/</code>)</h3><ul class=\"files\">{links}</ul>")
-    top = [f for f in ("reproduction.md", "reproduction.csv") if (out / f).exists()]
+                parts.append(f"<h4>{esc(title)} (<code>{esc(sub)}/</code>)</h4><ul class=\"files\">{links}</ul>")
+    top = [f for f in ("reproduction.md", "reproduction.csv") if (out / f).exists()] + ["exhibits.json"]
     if top:
         parts.append("<p>" + " · ".join(f"<a href=\"{esc(f)}\">{esc(f)}</a>" for f in top) + "</p>")
     return parts
@@ -706,35 +1088,44 @@ def _files_section(out: Path, steps, skipped: dict, used_figs: set, used_tabs: s
 def render_document(out: Path, st, steps, skipped: dict[str, str], mode: str = "lab store",
                     store_name: str = "", core: bool = True, absent: set[str] = frozenset()) -> Path:
     """Write `out/index.html`: the whole report as one document (module docstring) for the study of the open
-    store `st`; `steps` are the pipeline's StepResults, `skipped` the parts not produced with their reasons; `core`:
-    whether the simulation core's figures belong to the study (without them there is no such section); `absent`:
-    the parts the study's declaration rules out (no section either, :func:`analysis.report.build.absent_parts`)."""
+    store `st`, and `out/exhibits.json`, its numbered tables and figures in reading order
+    (:mod:`analysis.report.exhibits`); `steps` are the pipeline's StepResults, `skipped` the parts not produced with
+    their reasons; `core`: whether the simulation core's figures belong to the study (without them there is no such
+    section); `absent`: the parts the study's declaration rules out (no section either,
+    :func:`analysis.report.build.absent_parts`)."""
+    from analysis.report.exhibits import write_exhibits
     from study.store.studies import definition
 
     out = Path(out)
     study = definition(st)
     used_figs: set[str] = set()
     used_tabs: set[str] = set()
+    box, prov = _verdict_box(out, st, study, mode)
+    ex = Exhibits(prov)
     body = [f"<h1>{esc(study.title)}</h1>", "<p class=\"note\">Report of study <code>"
-            f"{esc(study.study_id)}</code> generated by pedas-study from the study store.</p>"]
-    body += _study_section(st, study, mode, store_name)
-    body += _flow_section(out, st, study, used_figs, used_tabs)
+            f"{esc(study.study_id)}</code> generated by pedas-study from the study store. Main text: "
+            "<a href=\"#study\">Study</a> · <a href=\"#methods\">Method</a> · <a href=\"#results\">Results</a>; "
+            "<a href=\"#appendix\">Appendix</a>.</p>", box]
+    body += _study_section(out, st, study, mode, store_name)
+    ex.section = "Method"
     ran = (*(("survey",) if "survey" not in skipped else ()),
            *(("within",) if (out / "within" / "anova.csv").is_file() and "within" not in skipped else ()),
            *(("simulation",) if mode == "reference study" else ()))
     body += _methods_section(out, st, study, ran)
+    ex.section = "Participants"
+    body += _flow_main(out, study, used_figs, used_tabs, ex)
+    body.append("<h2 id=\"results\">Results</h2>")
     if "survey" not in absent:
-        body += _survey_section(out, study, skipped, used_figs, used_tabs)
-    body += _within_section(out, skipped, used_tabs)
-    body += _drives_section(out, study, skipped, used_figs, used_tabs)
-    body += _core_section(out, study, skipped, used_figs, core)
-    if "reproduction" not in absent:
-        body += _reproduction_section(out, skipped, used_tabs)
-    body += _files_section(out, steps, skipped, used_figs, used_tabs, study)
+        body += _survey_main(out, study, skipped, used_figs, used_tabs, ex)
+    body += _within_section(out, skipped, used_tabs, ex)
+    if (out / "drives").exists() or "drives" in skipped:
+        body += _drives_main(out, study, skipped, used_figs, used_tabs, ex)
+    body += _appendix(out, st, study, steps, skipped, used_figs, used_tabs, core, absent, ex)
     page = ("<!doctype html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
             "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">"
             f"<title>{esc(study.title)}: report</title><style>{CSS}</style></head><body>\n"
-            + "\n".join(body) + "\n</body></html>\n")
+            + ex.resolve("\n".join(body)) + "\n</body></html>\n")
     path = out / "index.html"
     path.write_text(page, encoding="utf-8")
+    write_exhibits(out, ex.items)
     return path

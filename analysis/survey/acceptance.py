@@ -592,6 +592,8 @@ def _analyze(responses, study, *, attributes, instrument, model, n_boot, seed, l
                 "study": study.study_id, "study_hash": study.hash,
                 "hypothesis_signs": {h.hypothesis: h.sign for h in plan.hypotheses},
                 "covariates": cov_cols, "table_titles": table_titles(study),
+                # the paper's row wording of Table 5 ("Step 1: Dependent Variable - BI") only where declared
+                "paper_idioms": bool(study.settings.get("analysis", {}).get("paper_idioms", False)),
                 "construct_labels": construct_labels(study, inst, list(constructs))}
     return SurveyAnalysis(descriptives=descriptives, loadings=loadings, fit=fit, reliability=reliability,
                           correlations=correlations, fornell_larcker=fl, htmt=ht, regressions=regressions,

@@ -5,14 +5,15 @@ construct labels of Table 3 and the titles of Tables 4 and 5 come from the study
 ``construct_labels``, ``table_titles``; :func:`analysis.survey.acceptance.table_titles`).
 
 Table 3 shows, for a retained item, its loading in the final CFA and, for an omitted item, its loading in the
-initial CFA marked with * (as the paper marks items omitted from the analysis); reverse-scored items carry a
-dagger. Table 4 stars: * p < .05, ** p < .01 (two-tailed). Table 5 stars on beta: * p < .05, ** p < .001 (the
-paper's Table 5 note); the CI column is the 95 % t-interval of B, the bootstrap CI is printed beside it.
+initial CFA marked with a double dagger (the paper marks it *, which the report keeps for significance); reverse-scored
+items carry a dagger. Tables 4 and 5 mark significance by the report's one convention (analysis.apa.STARS:
+* p < .05, ** p < .01, *** p < .001, two-tailed); the CI column is the 95 % t-interval of B as [LL, UL], the
+bootstrap CI is printed beside it.
 """
 from __future__ import annotations
 
 from analysis.render import fmt_cell, latex_table, markdown_table
-from analysis.survey.validity import stars
+from analysis import apa
 
 # what λ is, per `analyze_survey(loadings=...)`
 LOADING_NOTES = {"cfa": "standardized factor loading of the CFA",
@@ -35,9 +36,9 @@ def table3_rows(res) -> tuple[list[str], list[list[str]], list[str]]:
                      fmt_cell(r["cr"]) if r is not None else "", fmt_cell(r["ave"]) if r is not None else ""])
         for item in ini.index[ini["construct"] == c]:
             name = item + ("†" if bool(desc.loc[item, "reversed"]) else "")
-            lam = fmt_cell(fin.loc[item, "loading"]) if item in fin.index else fmt_cell(ini.loc[item, "loading"]) + "*"
+            lam = fmt_cell(fin.loc[item, "loading"]) if item in fin.index else fmt_cell(ini.loc[item, "loading"]) + "‡"
             rows.append([name, fmt_cell(desc.loc[item, "mean"]), fmt_cell(desc.loc[item, "sd"]), lam, "", "", ""])
-    notes = [f"N = {res.n}. λ = {LOADING_NOTES[res.settings.get('loadings', 'cfa')]} (final items; * all items "
+    notes = [f"N = {res.n}. λ = {LOADING_NOTES[res.settings.get('loadings', 'cfa')]} (final items; ‡ all items "
              "of the construct, item omitted from the analysis), "
              "Cα = Cronbach's alpha, CR = composite reliability, AVE = average variance extracted (final items).",
              "† reverse-scored item (mean and SD after reverse scoring)."]
@@ -55,36 +56,39 @@ def table4_rows(res) -> tuple[list[str], list[list[str]], list[str]]:
         for j, b in enumerate(cons):
             if j < i:
                 r = corr.get((b, a)) or corr.get((a, b))
-                row.append(f"{fmt_cell(r.r)}{stars(r.p)}" if r is not None else "")
+                row.append(f"{apa.num(r.r, 3, bounded=True)}{apa.stars(r.p)}" if r is not None else "")
             elif j == i:
-                row.append(f"**{fmt_cell(sq[a])}**")
+                row.append(f"**{apa.num(sq[a], 3, bounded=True)}**")
             else:
                 row.append("")
         rows.append(row)
     notes = [f"N = {res.n}. Diagonal (bold): square root of AVE; below: Pearson correlations of the composites.",
-             "** significant at the 0.01 level, * at the 0.05 level (2-tailed)."]
+             f"{apa.stars_note()} (two-tailed)"]
     return header, rows, notes
 
 
 def table5_rows(res) -> tuple[list[str], list[list[str]], list[str]]:
     reg = res.regressions
-    header = ["Models", "R²", "Adj. R²", "ΔR²", "B", "SE B", "β", "95% CI", "Bootstrap 95% CI"]
+    header = ["Models", "R²", "Adj. R²", "ΔR²", "B", "SE B", "β", "95 % CI", "Bootstrap 95 % CI"]
+    idioms = res.settings.get("paper_idioms", False)
     rows = []
     for name, m in reg.groupby("model", sort=False):
         label = m["label"].iloc[0] or name
         rows.append([f"**{name}. {label}**", "", "", "", "", "", "", "", ""])
         for step, s in m.groupby("step", sort=True):
             top = s.iloc[0]
-            rows.append([f"Step {step}: Dependent Variable - {top['dv']}", fmt_cell(top["r2"]),
+            step_label = (f"Step {step}: Dependent Variable - {top['dv']}" if idioms
+                          else f"Step {step} (DV: {top['dv']})")
+            rows.append([step_label, fmt_cell(top["r2"]),
                          fmt_cell(top["adj_r2"]), fmt_cell(top["delta_r2"]) + ("*" if top["p_change"] < 0.05 else ""),
                          "", "", "", "", ""])
             for _, r in s[s["predictor"] != "(Constant)"].iterrows():
-                rows.append([f"Independent Variable - {r['predictor']}", "", "", "", fmt_cell(r["b"]),
-                             fmt_cell(r["se_b"]), fmt_cell(r["beta"]) + stars(r["p"], (0.05, 0.001)),
-                             f"{fmt_cell(r['ci_low'])} – {fmt_cell(r['ci_high'])}",
-                             f"{fmt_cell(r['boot_ci_low'])} – {fmt_cell(r['boot_ci_high'])}"])
+                rows.append([f"Independent Variable - {r['predictor']}" if idioms else f" {r['predictor']}",
+                             "", "", "", fmt_cell(r["b"]),
+                             fmt_cell(r["se_b"]), fmt_cell(r["beta"]) + apa.stars(r["p"]),
+                             apa.ci(r["ci_low"], r["ci_high"], 3), apa.ci(r["boot_ci_low"], r["boot_ci_high"], 3)])
     boot = res.settings.get("n_boot", 0)
-    notes = [f"N = {res.n}. β: ** p < 0.001, * p < 0.05 (2-tailed); ΔR²* : F change significant at 0.05.",
+    notes = [f"N = {res.n}. Stars on β: {apa.stars_note()} (two-tailed); ΔR²*: F change significant at p < .05.",
              f"95% CI: t-interval of B; bootstrap: {res.settings.get('boot_method', 'percentile')} CI of B, "
              f"{boot} case resamples, seed {res.settings.get('seed')}."]
     return header, rows, notes

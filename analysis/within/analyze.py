@@ -14,6 +14,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from analysis import apa
+
 from study.common.errors import UserError
 
 #: the tables of a within-subjects analysis, in the order the report shows them
@@ -207,31 +209,33 @@ def _orders(data: pd.DataFrame) -> pd.DataFrame:
 
 # ---------------------------------------------------------------------------------------------- sentences
 def _p(p: float) -> str:
-    """APA-style p: 'p < .001' or 'p = .023'."""
-    if p < 0.001:
-        return "p < .001"
-    return "p = " + f"{p:.3f}".lstrip("0")
+    """APA p in a sentence: 'p < .001' or 'p = .023' (analysis.apa)."""
+    return apa.p_text(p)
 
 
-def _num(x: float, digits: int = 2) -> str:
-    return f"{x:.{digits}f}"
+def _num(x: float, digits: int = 2, bounded: bool = False) -> str:
+    return apa.num(x, digits, bounded)
 
 
 def result_sentence(study: WithinStudy, variable: str) -> str:
     """One APA-style sentence of a variable's rm-ANOVA (with the correction when Mauchly's test rejects sphericity)
-    and Friedman test, e.g. 'SUS score: F(2, 34) = 63.55, p < .001, partial eta^2 = .79; ...'."""
+    and Friedman test, e.g. 'SUS score: F(2, 34) = 63.55, p < .001, partial η² = .79; ...' (APA numbers)."""
     v = study.variables.set_index("variable").loc[variable]
     a = study.anova[study.anova["variable"] == variable].iloc[0]
     f = study.friedman[study.friedman["variable"] == variable].iloc[0]
-    text = (f"{v['label']}: F({a['df1']:g}, {a['df2']:g}) = {_num(a['f'])}, {_p(a['p'])}, partial eta^2 = "
-            f"{_num(a['np2'])}, generalised eta^2 = {_num(a['ng2'])}")
+    unit = f" ({v['unit']})" if isinstance(v.get("unit"), str) and v["unit"] else ""
+    text = (f"{v['label']}{unit}: F({apa.df_text(a['df1'])}, {apa.df_text(a['df2'])}) = {_num(a['f'])}, "
+            f"{_p(a['p'])}, partial η² = {_num(a['np2'], bounded=True)}, generalised η² = "
+            f"{_num(a['ng2'], bounded=True)}")
     if pd.notna(a["mauchly_p"]):
         if a["mauchly_p"] < study.alpha:
-            text += (f"; sphericity rejected (Mauchly's W = {_num(a['mauchly_w'])}, {_p(a['mauchly_p'])}), "
-                     f"{CORRECTION} eps = {_num(a['eps_gg'])}, corrected {_p(a['p_gg'])}")
+            text += (f"; sphericity rejected (Mauchly's W = {_num(a['mauchly_w'], bounded=True)}, {_p(a['mauchly_p'])}), "
+                     f"{CORRECTION} ε = {_num(a['eps_gg'], bounded=True)}, corrected {_p(a['p_gg'])}")
         else:
-            text += f"; sphericity not rejected (Mauchly's W = {_num(a['mauchly_w'])}, {_p(a['mauchly_p'])})"
-    text += f"; Friedman chi^2({f['df']:g}) = {_num(f['chi2'])}, {_p(f['p'])}, Kendall's W = {_num(f['kendall_w'])}."
+            text += (f"; sphericity not rejected (Mauchly's W = {_num(a['mauchly_w'], bounded=True)}, "
+                     f"{_p(a['mauchly_p'])})")
+    text += (f"; Friedman χ²({apa.df_text(f['df'])}) = {_num(f['chi2'])}, {_p(f['p'])}, Kendall's W = "
+             f"{_num(f['kendall_w'], bounded=True)}.")
     ph = study.posthoc[(study.posthoc["variable"] == variable) & (study.posthoc["test"] == "t")]
     sig = [f"{r.a} vs {r.b} (d_z = {_num(r.dz)}, Holm {_p(r.p_holm)})" for r in ph.itertuples()
            if r.p_holm < study.alpha]
@@ -244,20 +248,25 @@ def methods_markdown(study: WithinStudy) -> str:
     """The methods paragraph and one result sentence per variable, generated from the analysis."""
     n = int(study.orders["n"].sum())
     k = len(study.conditions)
+    # the repeated-measures tests use the participants with every condition: df2 = (k - 1)(n - 1)
+    complete = int(round(study.anova["df2"].min() / (k - 1))) + 1 if len(study.anova) and k > 1 else n
     orders = "; ".join(f"{r.order}: {r.n}" for r in study.orders.itertuples())
     has_period = study.mixed["term"].astype(str).str.contains("period").any()
     lines = [
         "# Within-subjects comparison", "",
-        f"Each of the {n} participants was measured under the {k} conditions ({', '.join(study.conditions)}); "
-        f"participants per protocol order: {orders}.",
+        (f"Each of the {n} participants was measured under the {k} conditions ({', '.join(study.conditions)}); "
+         if complete >= n else
+         f"Of the {n} participants, {complete} were measured under all {k} conditions "
+         f"({', '.join(study.conditions)}; the repeated-measures tests use these {complete}, the mixed model every "
+         f"available value); ") + f"participants per protocol order: {orders}.",
         "",
         "For each dependent variable, a one-way repeated-measures ANOVA (pingouin) tested the condition effect, with "
         "Mauchly's test of sphericity and the Greenhouse-Geisser and Huynh-Feldt corrections; effect sizes are "
-        "partial and generalised eta^2. A Friedman test with Kendall's W checked the result without the normality "
+        "partial and generalised η². A Friedman test with Kendall's W checked the result without the normality "
         "assumption. Pairs of conditions were compared with paired t-tests and Wilcoxon signed-rank tests, "
         f"Holm-corrected, with Cohen's d_z. A linear mixed model (statsmodels MixedLM, REML) with condition"
         f"{' and period' if has_period else ''} as fixed effects and a random intercept per participant used every "
-        f"available value. Significance level {study.alpha:g}.",
+        f"available value. Significance level α = {apa.num(study.alpha, 2, bounded=True)}.",
         "",
         "## Results",
         "",

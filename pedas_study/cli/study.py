@@ -18,6 +18,8 @@ id = "{id}"                      # lower-case letters, digits, _ or -; one store
 title = "Acceptance of a driving assistance system"
 description = """You drove a simulated car twice, once with an assistance system and once without it. \\
 Please tell us what you think of the system."""   # shown to participants above the survey
+summary = """Acceptance of a driving assistance system: each participant drives with and without it; a \
+questionnaire after the drives."""   # researcher-facing, opens the report
 
 [participants]
 id_pattern = "^P[0-9]{{3,}}$"      # regular expression every (pseudonymous) participant id must match,
@@ -169,6 +171,13 @@ def summary(study) -> str:
     if within is not None:
         parts.append(f"within-subjects: {len(within.scores) + len(within.kpis)} variables across "
                      f"{'|'.join(within.conditions)}")
+    labels = study.settings.get("analysis", {}).get("construct_labels") or {}
+    unlabelled = [c for c in (model.measurement if model is not None else ()) if c not in labels]
+    if unlabelled:
+        parts.append(f"constructs without a researcher-facing label ([analysis.construct_labels]): "
+                     f"{', '.join(unlabelled)}")
+    if not study.summary:
+        parts.append("no [study] summary (the report opens without a researcher-facing description)")
     return f"study {study.study_id} OK: " + ", ".join(parts)
 
 

@@ -174,6 +174,7 @@ class StudyDefinition:
     settings: dict[str, Any]
     files: dict[str, str] = field(repr=False)
     paths: dict[str, Any] = field(repr=False)
+    summary: str = ""   # researcher-facing: what the study compares and how (the report's description)
 
     # ---------------------------------------------------------------- identity
     @cached_property
@@ -423,6 +424,7 @@ def _parse(files: dict[str, str], problems: Problems, check_files: bool = True,
                      f"{study_id!r}: use lower-case letters, digits, _ or - (at most 40, starting with a letter)")
     title = need(s, "title", "study", str) or ""
     description = need(s, "description", "study", str, "")
+    summary = need(s, "summary", "study", str, "")
 
     p = data.get("participants", {})
     id_pattern = need(p, "id_pattern", "participants", str) or r"^$"
@@ -509,7 +511,8 @@ def _parse(files: dict[str, str], problems: Problems, check_files: bool = True,
     if not isinstance(alpha, (int, float)) or not 0 < alpha < 1:
         problems.add(STUDY_FILE, line_of(text, "alpha", "analysis"), "analysis.alpha", "must be in (0, 1)")
 
-    study = StudyDefinition(study_id=study_id, title=title, description=description, id_pattern=id_pattern,
+    study = StudyDefinition(study_id=study_id, title=title, description=description, summary=summary,
+                            id_pattern=id_pattern,
                             id_example=id_example, attributes=tuple(attributes), conditions=tuple(conditions),
                             checks=tuple(checks), settings=settings,
                             files={k: v for k, v in files.items()

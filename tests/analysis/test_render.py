@@ -111,14 +111,14 @@ def test_latex_tables_fit_a_two_column_article(tmp_path):
 
 # ---------------------------------------------------------------------------------------------- Markdown
 def test_markdown_table_default():
-    md = markdown_table(["a", "b"], [["1", "x|y"]], title="T", notes=["n1", "n2"])
-    assert md == "### T\n\n| a | b |\n|---|---|\n| 1 | x\\|y |\n\n_n1_\n_n2_\n"
+    md = markdown_table(["a", "c"], [["1", "x|y"]], title="T", notes=["n1", "n2"])
+    assert md == "### T\n\n| a | c |\n|---|---|\n| 1 | x\\|y |\n\n_n1_\n_n2_\n"
 
 
 def test_markdown_table_options():
     md = markdown_table(["Style", "n", "mean"], [["all", "5", "1.00"]], title="KPIs", notes=["** p < .01", "last"],
                         align="lrc", title_style="bold", notes_style="plain")
-    assert md == ("**KPIs**\n\n| Style | n | mean |\n|---|---:|:---:|\n| all | 5 | 1.00 |\n\n"
+    assert md == ("**KPIs**\n\n| Style | n | M |\n|---|---:|:---:|\n| all | 5 | 1.00 |\n\n"
                   "** p < .01  \nlast\n")
     with pytest.raises(ValueError):
         markdown_table(["a", "b"], [], align="l")

@@ -67,7 +67,9 @@ def test_sentences_quote_the_tables(study):
     a = res.anova.set_index("variable").loc["sus"]
     text = methods_markdown(res)
     assert f"sus: F(2, 34) = {a['f']:.2f}, p < .001" in text
-    assert "Each of the 19 participants was measured under the 3 conditions (none, visual, audiovisual)" in text
+    # TOR-A19 broke off: the repeated-measures n (df2 = 2 (n - 1) = 34) is 18, not 19
+    assert "Of the 19 participants, 18 were measured under all 3 conditions (none, visual, audiovisual" in text
+    assert "p = 0" not in text and "η² = 0." not in text and "eta^2" not in text   # APA: no leading zero where bounded
     assert "TOR-A19" in text   # the incomplete participant is named in the warnings
 
 

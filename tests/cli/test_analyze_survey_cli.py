@@ -183,18 +183,24 @@ def test_cli_from_the_store_applies_subjective_exclusions(cli, paper_db, data, t
 
 
 def test_tables_are_rendered_from_the_frames(res):
+    from analysis import apa
     from analysis.survey.tables import render_all
-    from analysis.survey.validity import stars
 
     out = render_all(res)
     t3, t4, t5 = out["table3.md"], out["table4.md"], out["table5.md"]
     pu = res.reliability.set_index("construct").loc["PU"]
-    assert f"**{pu.sqrt_ave:.3f}**" in t4 and f"{pu.alpha:.3f} | {pu.cr:.3f} | {pu.ave:.3f}" in t3
+    # APA: values bounded by 1 without a leading zero, the report's one star convention
+    assert f"**{apa.num(pu.sqrt_ave, 3, bounded=True)}**" in t4
+    assert " | ".join(apa.num(x, 3, bounded=True) for x in (pu.alpha, pu.cr, pu.ave)) in t3
     c = res.correlations.set_index(["a", "b"]).loc[("PU", "ATT")]
-    assert f"| ATT | {c.r:.3f}{stars(c.p)} |" in t4
+    assert f"| ATT | {apa.num(c.r, 3, bounded=True)}{apa.stars(c.p)} |" in t4
     ini = res.loadings[(res.loadings.stage == "initial")].set_index("item")
-    assert "| ATT1 |" in t3 and f"{ini.loc['ATT1', 'loading']:.3f}*" in t3 and "| PEoU3† |" in t3
-    assert t5.count("Step ") == 8 and t5.count("Independent Variable - ") == 1 + 3 + 3 + 6
+    assert "| ATT1 |" in t3 and f"{apa.num(ini.loc['ATT1', 'loading'], 3, bounded=True)}‡" in t3
+    assert "| PEoU3† |" in t3
+    if res.settings.get("paper_idioms"):
+        assert t5.count("Step ") == 8 and t5.count("Independent Variable - ") == 1 + 3 + 3 + 6
+    else:
+        assert t5.count("Step ") == 8 and "(DV: " in t5 and "Independent Variable" not in t5
     assert r"$\beta$" in out["table5.tex"] and r"\textbf{" in out["table4.tex"]
 
 

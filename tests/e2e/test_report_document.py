@@ -12,10 +12,11 @@ import pandas as pd
 import pytest
 
 from analysis.report.document import SECTIONS, markdown_to_html
+from analysis.report.exhibits import read_exhibits
 from tests.conftest import needs_chromium
 
 # the simulator does not drive its conditions and it declares no published values: those sections are absent
-LK_SECTIONS = [s for s in SECTIONS if s not in ("Simulation core", "Reproduction")]
+LK_SECTIONS = list(SECTIONS)
 
 REPO = Path(__file__).resolve().parents[2]
 LK_STUDY = REPO / "studies" / "lane_keeping"
@@ -89,7 +90,7 @@ def test_document_reads_top_to_bottom(lk_report):
     assert outline.headings == [("h1", "Acceptance of a lane-keeping head-up display")] + \
         [("h2", s) for s in LK_SECTIONS]
     # the study summary: 24 registered, 22 in the survey analysis (LK-02 excluded from all, LK-03 from the survey)
-    assert "24 registered; 22 included in the survey analysis" in doc
+    assert "24 registered; 22 in the survey analysis</dd>" in doc   # no drives stored: no drive sample
     assert "<code>hud</code> (Drive with the lane-keeping HUD)" in doc
     # LK-01 in familiarisation, LK-02 aborted in it: completed 0, aborted 1, in progress 1
     assert "<td>familiarisation</td><td class=\"r\">0</td><td class=\"r\">1</td><td class=\"r\">1</td>" in doc
@@ -106,7 +107,7 @@ def test_document_reads_top_to_bottom(lk_report):
     hyp = pd.read_csv(out / "survey" / "hypotheses.csv")
     assert list(hyp["hypothesis"]) == ["H1", "H2", "H3"]
     n_ok = int(hyp["supported"].astype(str).str.lower().isin(["true", "1"]).sum())
-    assert f"{n_ok} of 3 hypotheses supported at α = 0.05." in doc
+    assert f"{n_ok} of 3 hypotheses supported at α = .05" in doc
     for h in ("H1", "H2", "H3"):
         assert re.search(rf"<tr><td>{h}</td><td>[A-Z]+ -&gt; BI</td><td>positive</td>", doc), h
     # what the study does not have is skipped with its reason, not failed
@@ -123,11 +124,29 @@ def test_document_reads_top_to_bottom(lk_report):
     # self-contained: no scripts, no external resources, every relative link points at a written file
     assert "script" not in outline.tags and "link" not in outline.tags
     for ref in outline.refs:
+        if ref.startswith("#"):   # a link within the document: to a section or a numbered exhibit
+            assert f"id=\"{ref[1:]}\"" in doc, ref
+            continue
         assert not re.match(r"^[a-z]+:", ref) and not ref.startswith("/"), ref
         assert (out / ref.split("#")[0]).is_file(), ref
-    # every table written into tables/ is inline
+    # every table written into tables/ is inline, numbered, and listed in exhibits.json in reading order
     for md in (out / "tables").glob("*.md"):
-        assert f"id=\"tab-{md.stem}\"" in doc, md.stem
+        assert f"id=\"x-{md.stem}\"" in doc, md.stem
+    exhibits = read_exhibits(out)
+    assert {e.stem for e in exhibits} >= {p.stem for p in (out / "tables").glob("*.md")} | {"participant_flow"}
+    for kind, word in (("table", "Table"), ("figure", "Figure")):
+        for part, prefix in (("main", ""), ("appendix", "A")):
+            labels = [e.label for e in exhibits if e.kind == kind and e.part == part]
+            assert labels == [f"{word} {prefix}{k}" for k in range(1, len(labels) + 1)], labels
+    parts = [e.part for e in exhibits]
+    assert parts == sorted(parts, key=lambda p: p != "main")      # the main text first, then the appendix
+    labels_in_doc = re.findall(r"<p class=\"xlabel\">([^<]+)</p>", doc)
+    assert labels_in_doc == [e.label for e in exhibits]           # the same numbers, in the document's order
+    assert sum(e.part == "main" for e in exhibits) <= 10
+    for e in exhibits:
+        assert e.title and all((out / f).is_file() for f in e.files.values()), e
+    # APA numbers: no p with a leading zero, intervals as [LL, UL], the true minus sign
+    assert not re.search(r"p [=<] 0\.", doc) and not re.search(r"\d – [−\d]", doc) and "−" in doc
 
 
 def test_document_bytes_are_deterministic(lk_report, tmp_path):

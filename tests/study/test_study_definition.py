@@ -149,6 +149,13 @@ def test_new_writes_a_template_that_passes_the_check_and_serves_a_store(cli, tmp
     assert r.code == 0 and r.out.startswith("study my_study OK: 3 attributes, conditions control|system, "
                                             "instrument acceptance_v1 (12 items), protocols protocol_v1, "
                                             "model: 3 constructs, 1 regressions, 2 hypotheses"), r.out
+    assert "summary" not in r.out            # the template declares the researcher-facing summary
+    toml = (d / "study.toml").read_text()
+    (d / "study.toml").write_text(toml.replace("summary = ", "# summary = ", 1).replace(
+        '\nquestionnaire after the drives."""', '\n# questionnaire after the drives."""'), encoding="utf-8")
+    r = cli("study", "check", d, db=None)
+    assert r.code == 0 and "no [study] summary" in r.out, r.out
+    (d / "study.toml").write_text(toml, encoding="utf-8")
     db = tmp_path / "s.duckdb"
     assert cli("init", "--study", d, db=db).code == 0
     assert 'id_pattern = "^P[0-9]{3,}$"' in (d / "study.toml").read_text()
