@@ -29,6 +29,7 @@ import math
 from bisect import bisect_left
 from collections.abc import Mapping
 from dataclasses import dataclass
+from math import isfinite
 from typing import NamedTuple
 
 import numpy as np
@@ -256,8 +257,12 @@ class PedasController:
         """Advice for the measured state: time t (s), route position s (m), speed v (m/s), leader = (gap d_rel m,
         its speed v_p m/s) or None. A measurement that is not a finite number raises :class:`RefusedMeasurement`
         before anything changes (no advice, no state: the next finite step is as if this one never came)."""
-        if not (_isfinite(t) and _isfinite(s) and _isfinite(v)) or (
-                leader is not None and not (_isfinite(leader[0]) and _isfinite(leader[1]))):
+        try:   # one guarded test of all fields (a value that is no number raises TypeError: refused as well)
+            finite = isfinite(t) and isfinite(s) and isfinite(v) and (
+                leader is None or (isfinite(leader[0]) and isfinite(leader[1])))
+        except TypeError:
+            finite = False
+        if not finite:
             raise RefusedMeasurement.of(t, s, v, leader)
         v = max(float(v), 0.0)
         self.stats["steps"] += 1

@@ -105,6 +105,7 @@ class CsrProduct:
             csr_matvec = None
         self._kernel = csr_matvec
         self._args = (self.A.shape[0], self.A.shape[1], self.A.indptr, self.A.indices, self.A.data)
+        self.product_vector = self._ax   # where :meth:`product` writes (views of it stay valid)
 
     def product(self, x: np.ndarray) -> np.ndarray:
         """A x into the work vector (valid until the next call)."""
@@ -180,7 +181,8 @@ class _Kkt:
         if n:
             r += lam[:n]
         np.abs(r, r)
-        stat = float(r.max()) / max(1.0, float(f.max()), -float(f.min()))   # at the optimum |Hz| ~ |f + M'lam|
+        # maxima by argmax (0.2 us against 0.9 us for .max(); the first NaN of r is its argmax, so NaN stays NaN)
+        stat = float(r[r.argmax()]) / max(1.0, float(f[f.argmax()]), -float(f[f.argmin()]))   # |Hz| ~ |f + M'lam|
         zhz, fz = float(z @ hz), float(f @ z)
         np.copyto(b, lo)
         np.copyto(b, hi, where=lam > 0.0)     # the bound each multiplier pushes against
@@ -484,10 +486,14 @@ class DaqpCondensedBackend(_DaqpBase):
         # [Z'q | Z'PE b_eq | K b_eq] from [q | b_eq], and [E b_eq | Z y] from [b_eq | y]
         self._vec = CsrProduct(_block_diag_csr(ZT, sp.vstack([ZT @ self.P @ E, K], format="csr")))
         self._map = CsrProduct(_block_diag_csr(E, Z))
-        self._in_vec, self._in_map = np.empty(nx + neq), np.empty(neq + nf)
-        self._q_in, self._beq = self._in_vec[:nx], self._in_vec[nx:]
-        self._beq_map, self._y_in = self._in_map[:neq], self._in_map[neq:]
-        self._nf, self._nx = nf, nx
+        # one work vector [q | b_eq | y]: the first product reads [q | b_eq], the second [b_eq | y] (b_eq taken once)
+        self._in = np.empty(nx + neq + nf)
+        self._in_vec, self._in_map = self._in[:nx + neq], self._in[nx:]
+        self._q_in, self._beq, self._y_in = self._in[:nx], self._in[nx:nx + neq], self._in[nx + neq:]
+        # views of the products' result vectors (CsrProduct writes into the same vector each call)
+        vec, xmap = self._vec.product_vector, self._map.product_vector
+        self._zq, self._zpe, self._kb = vec[:nf], vec[nf:2 * nf], vec[2 * nf:]
+        self._eb, self._zy = xmap[:nx], xmap[nx:]
         self._eq_rows = eq_rows
         self._lohi2 = self._lohi.reshape(2, -1)     # [lower; upper] as two rows: one broadcast subtraction
         self._f = np.empty(nf)
@@ -497,22 +503,20 @@ class DaqpCondensedBackend(_DaqpBase):
     def _fill(self, q: np.ndarray, l: np.ndarray, u: np.ndarray) -> None:
         """f = Z'q + Z'PE b_eq and the shifted inequality bounds (simple first, then general), clipped to +-bound."""
         self._q_in[...] = q
-        beq = l.take(self._eq_rows, None, self._beq)
-        self._beq_map[...] = beq
-        nf = self._nf
-        prod = self._vec.product(self._in_vec)
-        np.add(prod[:nf], prod[nf:2 * nf], self._f)
+        l.take(self._eq_rows, None, self._beq)
+        self._vec.product(self._in_vec)
+        np.add(self._zq, self._zpe, self._f)
         self._src_l[...] = l
         self._src_u[...] = u
         self._src.take(self._gather, None, self._lohi)
-        np.subtract(self._lohi2, prod[2 * nf:], self._lohi2)      # l - K b_eq, u - K b_eq in DAQP's order
+        np.subtract(self._lohi2, self._kb, self._lohi2)      # l - K b_eq, u - K b_eq in DAQP's order
         _clip(self._lohi, self._bound_lo, self._bound_hi, self._lohi)
 
     def _primal(self, z: np.ndarray) -> np.ndarray:
         """x = E b_eq + Z y, a new array (the plan keeps it)."""
         self._y_in[...] = z
-        prod = self._map.product(self._in_map)
-        return np.add(prod[:self._nx], prod[self._nx:])
+        self._map.product(self._in_map)
+        return np.add(self._eb, self._zy)
 
 
 def _block_diag_csr(*blocks: sp.spmatrix) -> sp.csr_matrix:

@@ -8,6 +8,9 @@ sequence runs once per QP backend (DAQP, OSQP). The peer builds the very QP of t
 (``SparseMpc.qp_data``) from scratch in cvxpy and solves it with Clarabel at tolerance 1e-10, on an evenly spread
 subset of the steps: it is both the timed peer and the reference of the objective gap and the first-input error.
 Those QPs are recorded during the run and solved after it, so that no peer solve runs between two timed steps.
+After the timed pass, a second pass of the same steps on a fresh controller times every stage of the step
+(:func:`stage_breakdown`: the controller's stages, the QP fill, the solver's own calls, the checks, the unpacking and
+the glue between them).
 """
 from __future__ import annotations
 
@@ -57,6 +60,7 @@ class BenchResult:
     controller_share: dict = field(default_factory=dict)
     statuses: dict = field(default_factory=dict)
     settings: dict = field(default_factory=dict)
+    stages: dict = field(default_factory=dict)
 
     def as_dict(self) -> dict:
         """JSON-ready dict of the result."""
@@ -81,6 +85,15 @@ class BenchResult:
             f"{self.qp_hessian_min_eig:.2g}",
             f"  {self.backend} settings " + ", ".join(f"{k}={v}" for k, v in self.settings.items() if k != "verbose"),
         ]
+        if self.stages:
+            st = self.stages["stages"]
+            total = sum(x["mean_us"] for x in st.values())
+            lines.append(f"  breakdown by stage (second pass of the same steps, every stage timed; step median "
+                         f"{self.stages['step_median_ms']:.3f} ms instrumented), us per step:")
+            lines.append(f"    {'stage':<38} {'mean':>7} {'median':>7} {'share':>6}")
+            lines += [f"    {label:<38} {x['mean_us']:7.1f} {x['median_us']:7.1f} {x['mean_us'] / total:6.1%}"
+                      for label, x in st.items()]
+            lines.append(f"    {'total':<38} {total:7.1f}")
         return "\n".join(lines)
 
 
@@ -112,7 +125,6 @@ def run_bench(steps: int = 5000, peer_steps: int = 300, seed: int = 0, osqp_sett
         require("cvxpy", "bench", "the cvxpy peer of bench mpc")
         require("clarabel", "bench", "the cvxpy peer of bench mpc")
     backend = backend or CONTROLLER.qp_backend
-    rng = np.random.default_rng(seed)
     route = bench_route()
     dp = dp_reference(route)
     settings = dataclasses.replace(CONTROLLER, qp_backend=backend)
@@ -125,17 +137,13 @@ def run_bench(steps: int = 5000, peer_steps: int = 300, seed: int = 0, osqp_sett
     statuses: dict[str, int] = {}
     peer_every = max(1, steps // max(peer_steps, 1)) if peer_steps else 0
     peer_qps = []   # the QPs of the peer steps, solved by the peer after the timed run
-    t, s, v = 0.0, 0.0, 0.0
-    lead_s, lead_v, lead_on = None, 0.0, False
-    next_event = 20.0
     counts = {"rt": 0, "cf": 0, "switches": 0}
     iters = []
     prev_ctrl = None
-    for i in range(steps):
-        leader = (lead_s - s, lead_v) if lead_on else None
-        t0 = time.perf_counter()
-        adv = ctrl.step(t, s, v, leader)
-        step_t[i] = time.perf_counter() - t0
+
+    def record(i, adv, elapsed):
+        nonlocal prev_ctrl
+        step_t[i] = elapsed
         mpc = ctrl.cf if adv.controller == "cf" else ctrl.rt
         solve_t.append(mpc.last_solve_time)
         iters.append(mpc.last_iter)
@@ -147,27 +155,14 @@ def run_bench(steps: int = 5000, peer_steps: int = 300, seed: int = 0, osqp_sett
         if peer_every and i % peer_every == 0 and len(peer_qps) < peer_steps:
             x = None if adv.fallback or mpc.x_prev is None else mpc.x_prev.copy()
             peer_qps.append((mpc.qp_data(), x, int(mpc.ift[0]), int(mpc.ifb[0]), adv.solve_status))
-        # virtual driver: first-order lag towards the advice, plant = the advised speed trajectory
-        v_new = max(0.0, v + DT / DRIVER_LAG * (adv.v_advice - v) + rng.normal(0.0, 0.05))
-        s += DT * 0.5 * (v + v_new)
-        v = v_new
-        t += DT
-        # leader: appears 60-95 m ahead, changes speed, vanishes after 25-60 s
-        if t >= next_event:
-            lead_on = not lead_on
-            if lead_on:
-                lead_s, lead_v = s + rng.uniform(60.0, 95.0), max(2.0, v + rng.uniform(-4.0, 1.0))
-                next_event = t + rng.uniform(25.0, 60.0)
-            else:
-                next_event = t + rng.uniform(15.0, 40.0)
-        if lead_on:
-            lead_v = float(np.clip(lead_v + DT * rng.normal(0.0, 0.8), 0.0, 30.0))
-            lead_s += DT * lead_v
-            if lead_s - s < 2.0:   # the benchmark's driver never collides: the leader turns off
-                lead_on = False
-        if s >= route.length - 5.0:
-            ctrl.reset()
-            t, s, v, lead_on, prev_ctrl = t + 1.0, 0.0, 0.0, False, None
+
+    def restart():
+        nonlocal prev_ctrl
+        prev_ctrl = None
+
+    _sequence(ctrl, route, steps, seed, record, restart)
+    stages = stage_breakdown(PedasController(route, v_dp=dp, settings=settings, osqp_settings=osqp_settings),
+                             route, steps, seed)
     peer_t, gaps, du0, over = _peer(peer_qps)
     ms = step_t * 1e3
     med = float(np.median(ms))
@@ -184,7 +179,7 @@ def run_bench(steps: int = 5000, peer_steps: int = 300, seed: int = 0, osqp_sett
         switches=counts["switches"], controller_share={"rt": counts["rt"], "cf": counts["cf"]},
         statuses=statuses, settings=used,
         power_hessian_eigs=[float(e) for e in power_hessian_eigs(ctrl.model)],
-        qp_hessian_min_eig=min(_min_eig(ctrl.rt.P), _min_eig(ctrl.cf.P)))
+        qp_hessian_min_eig=min(_min_eig(ctrl.rt.P), _min_eig(ctrl.cf.P)), stages=stages)
 
 
 def run_bench_all(steps: int = 5000, peer_steps: int = 300, seed: int = 0) -> dict[str, BenchResult]:
@@ -232,3 +227,147 @@ def _min_eig(P) -> float:
 
 def _count_prefix(statuses: dict, prefix: str) -> int:
     return int(sum(n for k, n in statuses.items() if k.startswith(prefix)))
+
+
+def _sequence(ctrl, route, steps: int, seed: int, record, restart) -> None:
+    """The drive-like sequence (module docstring): `steps` calls of ``ctrl.step``, each timed alone and handed to
+    ``record(i, advisory, seconds)``; ``restart()`` when the route ends and the controller starts a new drive."""
+    rng = np.random.default_rng(seed)
+    t, s, v = 0.0, 0.0, 0.0
+    lead_s, lead_v, lead_on = None, 0.0, False
+    next_event = 20.0
+    for i in range(steps):
+        leader = (lead_s - s, lead_v) if lead_on else None
+        t0 = time.perf_counter()
+        adv = ctrl.step(t, s, v, leader)
+        record(i, adv, time.perf_counter() - t0)
+        # virtual driver: first-order lag towards the advice, plant = the advised speed trajectory
+        v_new = max(0.0, v + DT / DRIVER_LAG * (adv.v_advice - v) + rng.normal(0.0, 0.05))
+        s += DT * 0.5 * (v + v_new)
+        v = v_new
+        t += DT
+        # leader: appears 60-95 m ahead, changes speed, vanishes after 25-60 s
+        if t >= next_event:
+            lead_on = not lead_on
+            if lead_on:
+                lead_s, lead_v = s + rng.uniform(60.0, 95.0), max(2.0, v + rng.uniform(-4.0, 1.0))
+                next_event = t + rng.uniform(25.0, 60.0)
+            else:
+                next_event = t + rng.uniform(15.0, 40.0)
+        if lead_on:
+            lead_v = float(np.clip(lead_v + DT * rng.normal(0.0, 0.8), 0.0, 30.0))
+            lead_s += DT * lead_v
+            if lead_s - s < 2.0:   # the benchmark's driver never collides: the leader turns off
+                lead_on = False
+        if s >= route.length - 5.0:
+            ctrl.reset()
+            restart()
+            t, s, v, lead_on = t + 1.0, 0.0, 0.0, False
+
+
+# the stages of the breakdown, in the order of a step: (label, owner, attribute); owner "ctrl" is the controller,
+# "mpc" each MPC (rt, cf), "qp" each MPC's QP backend, "solver" the backend's compiled solver object
+STAGES = (
+    ("measure", "ctrl", "_measure"),
+    ("predict", "ctrl", "_predict"),
+    ("objects ahead", "ctrl", "_objects_ahead"),
+    ("green wave", "ctrl", "_green_wave"),
+    ("reference", "ctrl", "_reference"),
+    ("solve stage (choice, cf bounds)", "ctrl", "_solve"),
+    ("QP fill: set_step", "mpc", "set_step"),
+    ("QP fill: backend vectors", "qp", "_fill"),
+    ("data check (finite q, l, u)", "module", "_finite_data"),
+    ("solver C calls (update + solve)", "solver", None),
+    ("residual check", "qp", "_residual"),
+    ("KKT check", "qp", "_kkt"),
+    ("map back (x from the solver's z)", "qp", "_primal"),
+    ("checked-solve glue (status, result)", "qp", "_solve_checked"),
+    ("unpack (plan)", "mpc", "unpack"),
+    ("advise", "ctrl", "_advise"),
+    ("HUD", "ctrl", "_hud"),
+    ("glue (step, MPC solve, Advisory)", "ctrl", "step"),
+)
+
+
+class _StageClock:
+    """Exclusive time per stage: each timed call's own time minus that of the timed calls made inside it."""
+
+    def __init__(self) -> None:
+        self.acc: dict[str, float] = {}
+        self._stack = [0.0]
+
+    def wrap(self, label: str, fn):
+        clock, stack, acc = time.perf_counter, self._stack, self.acc
+
+        def timed(*args, **kw):
+            stack.append(0.0)
+            t0 = clock()
+            try:
+                return fn(*args, **kw)
+            finally:
+                dt = clock() - t0
+                inner = stack.pop()
+                stack[-1] += dt
+                acc[label] = acc.get(label, 0.0) + dt - inner
+        return timed
+
+
+class _TimedSolver:
+    """The backend's solver object with its per-step calls timed (DAQP's update and solve, OSQP's vector update and
+    solve); everything else passed through."""
+
+    def __init__(self, solver, clock: _StageClock, label: str) -> None:
+        self._solver = solver
+        for name in ("update", "solve", "update_data_vec"):
+            if hasattr(solver, name):
+                setattr(self, name, clock.wrap(label, getattr(solver, name)))
+
+    def __getattr__(self, name):
+        return getattr(self._solver, name)
+
+
+def stage_breakdown(ctrl, route, steps: int, seed: int) -> dict:
+    """Time per stage of the controller step on the benchmark's sequence (a second pass of the same steps on
+    `ctrl`, a fresh controller): every stage of :data:`STAGES` timed exclusively (its own time without the timed
+    stages it calls). Returns {'stages': {label: {'mean_us', 'median_us'}}, 'step_median_ms'} (the instrumented
+    step; the timers' own cost, ~0.1 us per call, lands in the calling stage)."""
+    import pedas.qp as qp_module
+
+    clock = _StageClock()
+    solver_label = next(label for label, owner, _ in STAGES if owner == "solver")
+    for label, owner, attr in STAGES:
+        if owner == "ctrl":
+            setattr(ctrl, attr, clock.wrap(label, getattr(ctrl, attr)))
+        elif owner in ("mpc", "qp"):
+            for mpc in (ctrl.rt, ctrl.cf):
+                obj = mpc if owner == "mpc" else mpc.qp
+                if hasattr(obj, attr):
+                    setattr(obj, attr, clock.wrap(label, getattr(obj, attr)))
+
+    def time_solvers() -> None:   # again after a restart: OSQP's cold start sets up a new solver object
+        for mpc in (ctrl.rt, ctrl.cf):
+            qp = mpc.qp
+            if hasattr(qp, "model") and not isinstance(qp.model, _TimedSolver):
+                qp.model = _TimedSolver(qp.model, clock, solver_label)
+            elif getattr(qp, "_core", None) is not None and not isinstance(qp._core, _TimedSolver):
+                qp._core = _TimedSolver(qp._core, clock, solver_label)
+
+    time_solvers()
+    finite = qp_module._finite_data
+    qp_module._finite_data = clock.wrap("data check (finite q, l, u)", finite)
+    per_step = {label: np.zeros(steps) for label, _, _ in STAGES}
+    step_t = np.empty(steps)
+
+    def record(i, adv, elapsed):
+        step_t[i] = elapsed
+        for label, sec in clock.acc.items():
+            per_step[label][i] = sec
+        clock.acc.clear()
+
+    try:
+        _sequence(ctrl, route, steps, seed, record, time_solvers)
+    finally:
+        qp_module._finite_data = finite
+    return {"stages": {label: {"mean_us": float(t.mean() * 1e6), "median_us": float(np.median(t) * 1e6)}
+                       for label, t in per_step.items()},
+            "step_median_ms": float(np.median(step_t) * 1e3)}

@@ -5,7 +5,7 @@ import json
 
 import pytest
 
-from pedas_study.bench.mpc import run_bench
+from pedas_study.bench.mpc import STAGES, run_bench
 
 
 @pytest.mark.parametrize("backend", ["daqp", "osqp"])
@@ -22,6 +22,13 @@ def test_run_bench_small(backend):
     assert res.controller_share["rt"] + res.controller_share["cf"] == 120
     assert ("eps_abs" if backend == "osqp" else "primal_tol") in res.settings
     assert "ratio" in res.to_text() and f"[{label}]" in res.to_text()
+    # the breakdown by stage: every stage of the step timed on the same steps, the solver's calls among them
+    stages = res.stages["stages"]
+    assert list(stages) == [label for label, _, _ in STAGES]
+    for label in ("predict", "reference", "QP fill: set_step", "solver C calls (update + solve)", "residual check",
+                  "KKT check", "unpack (plan)", "HUD", "glue (step, MPC solve, Advisory)"):
+        assert stages[label]["mean_us"] > 0, label
+    assert res.stages["step_median_ms"] > 0 and "breakdown by stage" in res.to_text()
 
 
 def test_cli_bench_mpc_json(cli):
