@@ -26,6 +26,7 @@ from typing import Callable, Sequence
 import pandas as pd
 
 from analysis import apa
+from analysis.render import write_table
 
 #: section headings (h2) in document order
 SECTIONS = ("Study", "Method", "Results", "Appendix")
@@ -594,8 +595,9 @@ def _flow_main(out: Path, study, used_figs: set, used_tabs: set, ex: Exhibits) -
     return parts + figs
 
 
-def _phases_table(st, study, ex: Exhibits) -> str:
-    """Participants per protocol phase (completed, aborted, in progress), a numbered appendix table."""
+def _phases_table(out: Path, st, study, ex: Exhibits) -> str:
+    """Participants per protocol phase (completed, aborted, in progress), a numbered appendix table; its cells also
+    as ``tables/protocol_phases.{csv,md,tex}`` (the Word and LaTeX outputs read a table from its files)."""
     ev = st.df("SELECT p.protocol, e.phase, e.outcome, count(*) AS n FROM phase_events e "
                "JOIN participants p USING (participant_id) GROUP BY ALL")
     if ev.empty:
@@ -605,16 +607,21 @@ def _phases_table(st, study, ex: Exhibits) -> str:
         order += [(name, ph) for ph in proto.phases]
     order += sorted({(r.protocol, r.phase) for r in ev.itertuples()} - set(order))
     outcomes = ("completed", "aborted", "in_progress")
-    rows = []
+    rows, table = [], []
     for proto, phase in order:
         sub = ev[(ev["protocol"] == proto) & (ev["phase"] == phase)]
         if sub.empty and proto not in set(ev["protocol"]):
             continue
         counts = [int(sub.loc[sub["outcome"] == o, "n"].sum()) for o in outcomes]
+        table.append((proto, phase, *counts))
         rows.append(f"<tr><td>{esc(proto)}</td><td>{esc(phase)}</td>"
                     + "".join(f"<td class=\"r\">{c}</td>" for c in counts) + "</tr>")
     title = "Participants per Protocol Phase"
-    label = ex.number("table", "protocol_phases", title, "Counts of phase events recorded in the store.", {})
+    note = "Counts of phase events recorded in the store."
+    frame = pd.DataFrame(table, columns=["Protocol", "Phase", "Completed", "Aborted", "In progress"])
+    write_table(frame, out / "tables", "protocol_phases", title, [note])
+    label = ex.number("table", "protocol_phases", title, note, _files(out, "tables", "protocol_phases",
+                                                                        ("md", "tex", "csv")))
     return (f"<section class=\"exhibit\" id=\"x-protocol_phases\"><p class=\"xlabel\">{label}</p>"
             f"<p class=\"xtitle\">{title}</p><div class=\"scroll\"><table><thead><tr>"
             "<th>Protocol</th><th>Phase</th><th class=\"r\">Completed</th><th class=\"r\">Aborted</th>"
@@ -1015,7 +1022,7 @@ def _appendix(out: Path, st, study, steps, skipped: dict, used_figs: set, used_t
     parts.append("<h3>Sample</h3>")
     for stem, render in [d for d in ex.deferred if d[0] == "participant_flow"]:
         parts.append(render())
-    parts.append(_phases_table(st, study, ex))
+    parts.append(_phases_table(out, st, study, ex))
     ex.section = "Moved from the main text"
     moved = [d for d in ex.deferred if d[0] != "participant_flow"]
     if moved:

@@ -59,8 +59,9 @@ def test_latex_table_structure():
                       notes=["Note. N = 40.", "* p < .05"], label="tab:l", align="lc")
     assert tex.splitlines() == [
         r"\begin{table}[tbp]", r"\centering\small", r"\begin{threeparttable}", r"\caption{Loadings (\%)}",
-        r"\label{tab:l}", r"\begin{tabular}{lS[table-format=1.3]}", r"\toprule", r"Item & {$\lambda$} \\",
-        r"\midrule", r"PU1 & 0.800 \\", r"x\_y & {\textbf{0.9}} \\", r"\bottomrule", r"\end{tabular}",
+        r"\label{tab:l}", r"\begin{tabular}{lS[table-format=1.3, print-zero-integer=false]}", r"\toprule",
+        r"Item & {$\lambda$} \\",
+        r"\midrule", r"PU1 & .800 \\", r"x\_y & {\textbf{0.9}} \\", r"\bottomrule", r"\end{tabular}",
         r"\begin{tablenotes}[flushleft]\footnotesize", r"\item \textit{Note.} N = 40.", r"\item * p < .05",
         r"\end{tablenotes}", r"\end{threeparttable}", r"\end{table}"]
     assert r"\begin{tabular}{lll}" in latex_table(["a", "b", "c"], [])  # no numbers: text, set left

@@ -16,4 +16,5 @@ def test_bench_cli_text_says_which_target_is_met():
     row = {ln.split("  ")[0].strip(): ln for ln in lines[2:]}
     assert row["--help"].endswith("<= 0.15 s: met") and " 2.0 " in row["--help"]
     assert row["participant list"].endswith("<= 0.5 s: NOT met")
-    assert row["drive import (9,000 samples)"].endswith("  -")
+    assert row["drive import (9,000 samples)"].endswith("<= 0.8 s: met")
+    assert row["analyze survey; analyze extended"].endswith("  -")

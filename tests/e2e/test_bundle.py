@@ -53,7 +53,8 @@ def test_bundle_contents_and_determinism(tmp_path):
     # every figure in three formats, and every image the document shows at the path it shows it from
     figures = {Path(n).stem for n in names if n.startswith("figures/")}
     assert figures and all(f"figures/{s}.{ext}" in names for s in figures for ext in ("png", "svg", "pdf"))
-    assert set(document_images(out)) <= set(names) and len(document_images(out)) == 2
+    # likert items, participant flow, path diagram
+    assert set(document_images(out)) <= set(names) and len(document_images(out)) == 3
     tables = {Path(n).stem for n in names if n.startswith("tables/") and n.endswith(".csv")}
     assert "survey_hypotheses" in tables and "survey_loadings" in tables
     for stem in tables:  # every table in three forms
@@ -71,7 +72,7 @@ def test_bundle_contents_and_determinism(tmp_path):
     exhibits, _ = report_exhibits(out)
     doc = docx.Document(io.BytesIO(z.read("manuscript/results.docx")))
     assert len(doc.tables) == sum(e.kind == "table" for e in exhibits) >= 10
-    assert len(doc.inline_shapes) == sum(e.kind == "figure" for e in exhibits) == 2
+    assert len(doc.inline_shapes) == sum(e.kind == "figure" for e in exhibits) == 3
     texts = [p.text for p in doc.paragraphs]
     labels = [t for t in texts if t in {e.label for e in exhibits}]
     assert labels == [e.label for e in sorted(exhibits, key=lambda e: e.part == "appendix")]
@@ -137,4 +138,4 @@ def test_bundle_document_opens_with_every_image(tmp_path, browser):
     page.goto((unpacked / "index.html").as_uri())
     page.wait_for_load_state("load")
     images = page.eval_on_selector_all("img", "els => els.map(e => [e.getAttribute('src'), e.naturalWidth])")
-    assert len(images) == 2 and all(width > 0 for _, width in images), images
+    assert len(images) == 3 and all(width > 0 for _, width in images), images

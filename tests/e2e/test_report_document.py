@@ -118,7 +118,7 @@ def test_document_reads_top_to_bottom(lk_report):
     assert "simulation core" not in doc.lower() and "core figures" not in doc
     # every figure written is shown with its caption, and has a reading from the numbers
     pngs = sorted(f"figures/{p.name}" for p in (out / "figures").glob("*.png"))
-    assert pngs == ["figures/likert_items.png", "figures/participant_flow.png"]
+    assert pngs == ["figures/likert_items.png", "figures/participant_flow.png", "figures/path_diagram.png"]
     assert sorted(outline.images) == pngs
     assert "24 enrolled; 22 in the survey sample" in doc
     # self-contained: no scripts, no external resources, every relative link points at a written file
@@ -182,7 +182,7 @@ def test_document_in_chromium(lk_report, browser):
     assert headings == ["H1 Acceptance of a lane-keeping head-up display"] + [f"H2 {s}" for s in LK_SECTIONS]
     images = page.eval_on_selector_all("img", "els => els.map(e => [e.getAttribute('src'), e.complete, "
                                               "e.naturalWidth])")
-    assert len(images) == 2 and all(done and width > 0 for _, done, width in images), images
+    assert len(images) == 3 and all(done and width > 0 for _, done, width in images), images
     tables = page.locator("table")
     assert tables.count() >= 10
     for k in range(tables.count()):
