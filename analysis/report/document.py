@@ -754,13 +754,17 @@ def _procedure(study, st) -> list[str]:
         seq = "; ".join(f"{esc(o)}: {esc(' → '.join(ph))}" for o, ph in orders.items())
         out.append(f"<p><strong>Procedure</strong> (protocol <code>{esc(name)}</code>): "
                    + (f"{len(orders)} order sequences ({seq})" if len(orders) > 1 else f"phases {seq}") + ".</p>")
-    from study.folder.kpi_spec import EventKpi, study_spec
+    from study.folder.kpi_spec import EventKpi, MeasureKpi, study_spec
 
     spec = study_spec(study)   # the stored study passed its check: its KPI file parses
     kpis = [f"{esc(k)}: {esc(BUILTIN_KPIS[k])}" for k in spec.columns if k in BUILTIN_KPIS]
     for k in spec.user_kpis:
-        what = (f"{k.statistic} time from <code>{esc(k.start)}</code> to <code>{esc(k.end)}</code>"
-                if isinstance(k, EventKpi) else f"<code>{esc(k.sql)}</code>")
+        if isinstance(k, EventKpi):
+            what = f"{k.statistic} time from <code>{esc(k.start)}</code> to <code>{esc(k.end)}</code>"
+        elif isinstance(k, MeasureKpi):   # its definition is the methods sentence of the drive measures
+            what = f"the standard measure <code>{esc(k.measure)}</code>"
+        else:
+            what = f"<code>{esc(k.sql)}</code>"
         kpis.append(f"{esc(k.heading)}: {what}")
     if kpis:
         out.append("<p><strong>KPIs</strong> per drive (and per route segment): " + "; ".join(kpis) + ".</p>")

@@ -89,7 +89,7 @@ def test_car_following_study_end_to_end(tmp_path, capsys, browser):
     page.goto((tmp_path / "reports" / "index.html").as_uri())
     methods = page.locator("#methods").locator("xpath=..").inner_text()
     assert "Steering reversals: reversals per minute" in methods and "front bumper to front bumper" in methods
-    region = page.locator("#tab-drives_region_summary")
+    region = page.locator("#x-drives_region_summary")
     assert region.count() == 1
     assert "lead_braking" in region.inner_text()
     page.locator("#drive-results").scroll_into_view_if_needed()
