@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from analysis import apa
 from analysis.survey.cfa import HU_BENTLER, judge_fit, rmsea_ci
 
 STAGES = {"initial": "Initial (every scaled item)", "final": "Final (retained items)"}
@@ -15,13 +16,8 @@ CUTOFFS = "CFI ≥ .95, TLI ≥ .95, RMSEA ≤ .06, SRMR ≤ .08"
 
 
 def _bounded(x: float, digits: int = 3) -> str:
-    """A value bounded by 1 as APA prints it: no leading zero, a true minus sign."""
-    s = f"{x:.{digits}f}".replace("0.", ".", 1) if abs(x) < 1 else f"{x:.{digits}f}"
-    return s.replace("-", "−")
-
-
-def _p(p: float) -> str:
-    return "p < .001" if p < 0.001 else f"p = {_bounded(p)}"
+    """A value bounded by 1 as APA prints it (:func:`analysis.apa.num`): no leading zero, a true minus sign."""
+    return apa.num(x, digits, bounded=True)
 
 
 def fit_indices_table(fit: pd.DataFrame, level: float = 0.90) -> pd.DataFrame:
@@ -70,7 +66,8 @@ def fit_sentence(row: dict | pd.Series, what: str = "The final measurement model
     met = [NAMES[k] for k, v in ok.items() if v]
     missed = [NAMES[k] for k, v in ok.items() if not v]
     verdict = ("fitted well" if not missed else "fitted poorly" if not met else "fitted acceptably only in part")
-    stats_text = (f"χ²({int(r['df'])}) = {float(r['chi2']):.2f}, {_p(float(r['p']))}, CFI = {_bounded(r['cfi'])}, "
+    stats_text = (f"χ²({int(r['df'])}) = {float(r['chi2']):.2f}, {apa.p_text(float(r['p']))}, "
+                  f"CFI = {_bounded(r['cfi'])}, "
                   f"TLI = {_bounded(r['tli'])}, RMSEA = {_bounded(r['rmsea'])}, {100 * level:g} % CI "
                   f"[{_bounded(lo)}, {_bounded(hi)}], SRMR = {_bounded(r['srmr'])}")
     if not missed:
