@@ -149,24 +149,43 @@ def _onsets(flag: np.ndarray) -> np.ndarray:
     return np.flatnonzero(on[1:] & ~on[:-1]) + 1
 
 
-def _reaction(d, sel, o, channel: str, below: bool):
-    """Time from each event onset in the window to the first sample at or after it where `channel` is at or above
-    (``below``: at or below) the threshold; the drive's onsets and responses are found once."""
-    onsets = _cached(d, ("onsets", o["event"]), lambda: _onsets(d[o["event"]]))
-    onsets = onsets[_mask(sel, len(d["t"]))[onsets]]
-    if not len(onsets):
-        return math.nan
-    x, thr = d[channel], o["threshold_pct"]
+def _event_onsets(d, sel, event: str) -> np.ndarray:
+    """Indices of the rising edges of the 0/1 channel `event` in the window `sel` (the drive's onsets found once)."""
+    onsets = _cached(d, ("onsets", event), lambda: _onsets(d[event]))
+    return onsets[_mask(sel, len(d["t"]))[onsets]]
+
+
+def _responses(d, onsets: np.ndarray, channel: str, thr: float, below: bool) -> np.ndarray:
+    """Index of the first sample at or after each onset where `channel` is at or above the threshold `thr`
+    (``below``: at or below it), -1 where none follows; the drive's samples over the threshold are found once."""
+    x = d[channel]
     hits = _cached(d, ("responses", channel, thr, below), lambda: np.flatnonzero(x <= thr if below else x >= thr))
     k = np.searchsorted(hits, onsets)
-    t = d["t"]
-    rt = np.full(len(onsets), np.nan)
+    out = np.full(len(onsets), -1, dtype=np.int64)
     found = k < len(hits)
-    rt[found] = t[hits[k[found]]] - t[onsets[found]]
+    out[found] = hits[k[found]]
+    return out
+
+
+def _per_event(x: np.ndarray, statistic: str) -> float:
+    """The window's value of a per-event time (NaN: none): the first event's (``first``) or the mean of the events
+    that have one (``mean``)."""
+    if statistic == "first":
+        return float(x[0])
+    return float(np.nanmean(x)) if np.isfinite(x).any() else math.nan
+
+
+def _reaction(d, sel, o, channel: str, below: bool):
+    """Time (s) from each event onset in the window to the first sample at or after it where `channel` is at or
+    above (``below``: at or below) the threshold; NaN where none follows within ``max_s``."""
+    onsets = _event_onsets(d, sel, o["event"])
+    if not len(onsets):
+        return math.nan
+    hit = _responses(d, onsets, channel, o["threshold_pct"], below)
+    t = d["t"]
+    rt = np.where(hit >= 0, t[hit] - t[onsets], np.nan)
     rt[rt > o["max_s"]] = np.nan
-    if o["statistic"] == "first":
-        return float(rt[0])
-    return float(np.nanmean(rt)) if np.isfinite(rt).any() else math.nan
+    return _per_event(rt, o["statistic"])
 
 
 def _mask(sel, n: int) -> np.ndarray:
@@ -183,6 +202,32 @@ def brake_reaction_time(d, sel, o):
 
 def accelerator_release_time(d, sel, o):
     return _reaction(d, sel, o, "accel_pedal", below=True)
+
+
+def accelerator_to_brake_time(d, sel, o):
+    """Accelerator-to-brake transition time (s) of each event onset in the window: t_brake - t_release, where
+    t_release is the first sample at or after the onset with the accelerator pedal at or below
+    ``accel_threshold_pct`` and t_brake the first sample at or after it with the brake pedal at or above
+    ``brake_threshold_pct`` (the responses of :func:`accelerator_release_time` and :func:`brake_reaction_time`, so
+    wherever it is defined it equals their difference with the same thresholds). Per event NaN (NULL), because there
+    is no foot movement from the accelerator to the brake to time, when
+
+    * the accelerator is at or below its threshold at the onset sample (the driver was not on it);
+    * the brake threshold is reached before the accelerator's (braked before releasing: two-footed, or the brake
+      already pressed at the onset); both in the same sample gives 0 s (a movement shorter than the sample step);
+    * the accelerator is never released, or the brake is not reached within ``max_s`` of the onset.
+
+    A re-press of the accelerator between release and brake onset stays in the time (the first release counts).
+    The window's value is the first event's or the mean (``statistic``)."""
+    onsets = _event_onsets(d, sel, o["event"])
+    if not len(onsets):
+        return math.nan
+    rel = _responses(d, onsets, "accel_pedal", o["accel_threshold_pct"], below=True)
+    brk = _responses(d, onsets, "brake_pedal", o["brake_threshold_pct"], below=False)
+    t = d["t"]
+    # rel > onset: on the accelerator at the onset and released later; brk >= rel >= 1: braked, not before releasing
+    ok = (rel > onsets) & (brk >= rel) & (t[brk] - t[onsets] <= o["max_s"])
+    return _per_event(np.where(ok, t[brk] - t[rel], np.nan), o["statistic"])
 
 
 def brake_applications(d, sel, o):
@@ -336,8 +381,8 @@ def jerk(d, sel, o):
 
 FUNCTIONS = {f.__name__: f for f in (
     speed_mean, speed_sd, speed_exceedance, sdlp, lateral_position_mean, lane_departure, time_headway, distance_gap,
-    ttc, brake_reaction_time, accelerator_release_time, steering_reversal_rate, steering_entropy, jerk,
-    brake_applications)}
+    ttc, brake_reaction_time, accelerator_release_time, accelerator_to_brake_time, steering_reversal_rate,
+    steering_entropy, jerk, brake_applications)}
 
 
 # ------------------------------------------------------------------------------------------- drives and windows

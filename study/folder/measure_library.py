@@ -112,6 +112,17 @@ _CHOICE_TEXT: dict[tuple, str] = {
 _EVENT = Option("event", None, "channel", text="0/1 channel whose rising edge is the event (e.g. takeover_request)")
 _MAX_S = Option("max_s", 10.0, lo=0.1, hi=120.0, unit="s", text="no response within this time: no value (NULL)")
 
+
+def _brake_pct(name: str = "threshold_pct") -> Option:
+    """The brake pedal travel that is braking (the brake reaction time's and the transition time's)."""
+    return Option(name, 5.0, lo=0.1, hi=100.0, unit="%", text="brake pedal travel that is braking")
+
+
+def _accel_pct(name: str = "threshold_pct") -> Option:
+    """The accelerator pedal travel that is released (the release time's and the transition time's)."""
+    return Option(name, 1.0, lo=0.0, hi=100.0, unit="%", text="accelerator pedal travel that is released")
+
+
 MEASURES: dict[str, Measure] = {m.name: m for m in (
     Measure("speed_mean", "Mean speed", "m/s", f"{_J2944}, speed", ("v",),
             methods="arithmetic mean of the logged speed samples"),
@@ -157,17 +168,25 @@ MEASURES: dict[str, Measure] = {m.name: m for m in (
             "{statistic_text} time to collision, the gap divided by the closing speed at constant speeds, over the "
             "samples where the subject vehicle closes in on a lead vehicle (threshold {threshold_s:g} s)"),
     Measure("brake_reaction_time", "Brake reaction time", "s", f"{_J2944}, brake reaction time", ("brake_pedal",),
-            (_EVENT, Option("threshold_pct", 5.0, lo=0.1, hi=100.0, unit="%", text="pedal travel that is braking"),
-             _stat(("first", "mean")), _MAX_S),
+            (_EVENT, _brake_pct(), _stat(("first", "mean")), _MAX_S),
             "{statistic_text} time from the onset of the event ({event} rising) to the first sample with the brake "
             "pedal at or above {threshold_pct:g} % of its travel, no response within {max_s:g} s counted as missing"),
     Measure("accelerator_release_time", "Accelerator release time", "s", f"{_J2944}, accelerator release time",
             ("accel_pedal",),
-            (_EVENT, Option("threshold_pct", 1.0, lo=0.0, hi=100.0, unit="%", text="pedal travel that is released"),
-             _stat(("first", "mean")), _MAX_S),
+            (_EVENT, _accel_pct(), _stat(("first", "mean")), _MAX_S),
             "{statistic_text} time from the onset of the event ({event} rising) to the first sample with the "
             "accelerator pedal at or below {threshold_pct:g} % of its travel, no release within {max_s:g} s counted "
             "as missing"),
+    Measure("accelerator_to_brake_time", "Accelerator-to-brake transition time", "s",
+            f"{_J2944}, reaction time; Liebermann et al. (1995), accelerator-to-brake movement time",
+            ("accel_pedal", "brake_pedal"),
+            (_EVENT, _accel_pct("accel_threshold_pct"), _brake_pct("brake_threshold_pct"), _stat(("first", "mean")),
+             _MAX_S),
+            "{statistic_text} time from the release of the accelerator pedal (its first sample at or below "
+            "{accel_threshold_pct:g} % of its travel after the onset of the event, {event} rising) to brake onset (the "
+            "first sample with the brake pedal at or above {brake_threshold_pct:g} %), counted as missing when the "
+            "accelerator was already released at the onset, when the brake was reached before the accelerator was "
+            "released, or when no brake onset followed within {max_s:g} s of the onset"),
     Measure("steering_reversal_rate", "Steering reversal rate", "1/min",
             f"{_J2944}, steering reversal rate (appendix); Markkula & Engstr\u00f6m (2006)", ("steering_angle",),
             (Option("gap_deg", 2.0, lo=0.1, hi=20.0, unit="deg", text="smallest counted reversal"),

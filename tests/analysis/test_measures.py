@@ -8,6 +8,8 @@ import duckdb
 import numpy as np
 import pandas as pd
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from analysis.drives.kpis import kpis_from_frame
 from analysis.drives.measures import (FUNCTIONS, drive_arrays, entropy_of, measure_kpis, prediction_errors,
@@ -82,6 +84,21 @@ def test_speed_mean_sd_and_jerk_worked_examples():
     assert value("jerk", d, statistic="rms") == pytest.approx(math.sqrt(6 / 4), abs=1e-12)
 
 
+def test_accelerator_to_brake_transition_worked_example():
+    # 10 Hz; the event rises at sample 2 (0.2 s). Accelerator 20, 20, 20, 18, 6, 0.5, 0, ...: first at or below 1 %
+    # at sample 5 (0.5 s); brake 0, ..., 2, 7, 30, 40: first at or above 5 % at sample 7 (0.7 s). Transition
+    # 0.7 - 0.5 = 0.2 s (= brake reaction 0.5 s - accelerator release 0.3 s); with the brake at 1.5 %: sample 6, 0.1 s
+    t = np.arange(10) / 10.0
+    d = drive_arrays({"t": t, "s": t, "v": np.ones(10), "a": np.zeros(10), "speed_limit": np.ones(10),
+                      "tor": np.array([0, 0, 1, 1, 1, 1, 1, 1, 1, 1.0]),
+                      "accel_pedal": np.array([20, 20, 20, 18, 6, 0.5, 0, 0, 0, 0.0]),
+                      "brake_pedal": np.array([0, 0, 0, 0, 0, 0, 2, 7, 30, 40.0])})
+    assert value("accelerator_to_brake_time", d, event="tor") == pytest.approx(0.2, abs=1e-12)
+    assert value("accelerator_to_brake_time", d, event="tor", brake_threshold_pct=1.5) == pytest.approx(0.1, abs=1e-12)
+    assert value("brake_reaction_time", d, event="tor") == pytest.approx(0.5, abs=1e-12)
+    assert value("accelerator_release_time", d, event="tor") == pytest.approx(0.3, abs=1e-12)
+
+
 # ------------------------------------------------------------------------------------------- ground truth
 @pytest.mark.parametrize("freq", [0.1, 0.25, 0.5, 1.0])
 def test_srr_of_a_sine_counts_one_reversal_between_consecutive_extrema(freq):
@@ -143,6 +160,53 @@ def test_brake_reaction_and_accelerator_release_after_a_known_delay():
     assert value("accelerator_release_time", d, event="tor") == pytest.approx(0.45, abs=1e-9)
     assert math.isnan(value("brake_reaction_time", d, event="tor", max_s=1.0))   # no response within 1 s
     assert value("brake_applications", d) == 1.0
+    assert value("accelerator_to_brake_time", d, event="tor") == pytest.approx(1.3 - 0.45, abs=1e-9)
+
+
+@pytest.mark.parametrize("rate", [100.0, 60.0, 20.0])
+@pytest.mark.parametrize("release_s, brake_s", [(0.45, 1.3), (0.3, 0.3), (0.8, 2.4)])
+def test_accelerator_to_brake_transition_of_a_known_release_and_brake(rate, release_s, brake_s):
+    """The accelerator released `release_s` and the brake pressed `brake_s` after an event at 12.34 s: the tool
+    returns the time between the first samples at or after the two instants, within one sample step of the truth
+    brake_s - release_s (exactly it where both instants are samples)."""
+    onset = 12.34
+    t = np.arange(int(30 * rate)) / rate
+    d = drive_arrays({"t": t, "s": 10 * t, "v": np.full(len(t), 10.0), "a": np.zeros(len(t)),
+                      "speed_limit": np.full(len(t), 14.0), "tor": (t >= onset).astype(float),
+                      "accel_pedal": np.where(t >= onset + release_s, 0.0, 30.0),
+                      "brake_pedal": np.where(t >= onset + brake_s, 50.0, 0.0)})
+    i_on, i_rel, i_brk = np.searchsorted(t, [onset, onset + release_s, onset + brake_s])   # first sample at or after
+    got = value("accelerator_to_brake_time", d, event="tor")
+    assert got == t[i_brk] - t[i_rel]
+    assert abs(got - (brake_s - release_s)) < 1.0 / rate
+    on_grid = all(abs(x * rate - round(x * rate)) < 1e-9 for x in (onset, onset + release_s, onset + brake_s))
+    if on_grid:
+        assert got == pytest.approx(brake_s - release_s, abs=1e-9)
+
+
+def test_accelerator_to_brake_transition_is_null_without_a_movement_from_one_pedal_to_the_other():
+    tor = lambda t: ((t >= 30.0) & (t < 31.0)) | ((t >= 60.0) & (t < 61.0))       # two events
+    brake = lambda t: np.where((t >= 31.0) & (t < 40.0), 50.0, 0.0)              # after the first only
+    on_then_off = lambda t: np.where((t >= 30.5) & (t < 50.0), 0.0, 25.0)
+    d = drive(tor=tor, brake_pedal=brake, accel_pedal=on_then_off)
+    assert value("accelerator_to_brake_time", d, event="tor") == pytest.approx(0.5, abs=1e-9)
+    # the second event: released at 60 s (50 s on), never braked again -> NULL; the mean is the first event's
+    assert value("accelerator_to_brake_time", d, event="tor", statistic="mean") == pytest.approx(0.5, abs=1e-9)
+    # not on the accelerator at the event (brake reaction time defined, release time 0 s)
+    off = drive(tor=tor, brake_pedal=brake, accel_pedal=lambda t: 0 * t)
+    assert value("brake_reaction_time", off, event="tor") == pytest.approx(1.0, abs=1e-9)
+    assert value("accelerator_release_time", off, event="tor") == 0.0
+    assert math.isnan(value("accelerator_to_brake_time", off, event="tor"))
+    # braked (two-footed) at 31 s before releasing at 31.5 s
+    late = drive(tor=tor, brake_pedal=brake, accel_pedal=lambda t: np.where(t >= 31.5, 0.0, 25.0))
+    assert math.isnan(value("accelerator_to_brake_time", late, event="tor"))
+    # the brake beyond max_s (1 s after the onset is not within 0.9 s), the accelerator never released
+    assert math.isnan(value("accelerator_to_brake_time", d, event="tor", max_s=0.9))
+    held = drive(tor=tor, brake_pedal=brake, accel_pedal=lambda t: 0 * t + 25.0)
+    assert math.isnan(value("accelerator_to_brake_time", held, event="tor"))
+    # released and braking within the same sample: 0 s, shorter than the sample step
+    same = drive(tor=tor, brake_pedal=brake, accel_pedal=lambda t: np.where(t >= 31.0, 0.0, 25.0))
+    assert value("accelerator_to_brake_time", same, event="tor") == 0.0
 
 
 def test_lane_departures_with_known_excursions():
@@ -166,6 +230,30 @@ def test_sdlp_is_invariant_to_a_constant_offset(offset):
     a = drive(50.0, lat_pos=lambda t: x)
     b = drive(50.0, lat_pos=lambda t: x + offset)
     assert value("sdlp", a) == pytest.approx(value("sdlp", b), abs=1e-12)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.sampled_from([0.0, 0.5, 1.0, 3.0, 20.0, 60.0]), min_size=40, max_size=40),
+       st.lists(st.sampled_from([0.0, 2.0, 5.0, 10.0, 60.0]), min_size=40, max_size=40),
+       st.integers(1, 30), st.sampled_from([0.5, 1.0, 3.0]), st.sampled_from([2.0, 5.0, 10.0]),
+       st.sampled_from([0.5, 1.0, 10.0]), st.sampled_from(["first", "mean"]))
+def test_transition_time_is_brake_reaction_minus_accelerator_release(accel, brake, onset, acc_pct, brk_pct, max_s,
+                                                                     statistic):
+    """With the same event, thresholds and max_s: wherever the transition time is defined it equals the brake
+    reaction time minus the accelerator release time, and it is defined exactly when both are, the release is after
+    the onset and the brake not before the release (one event, 10 Hz pedal traces drawn at random)."""
+    t = np.arange(40) / 10.0
+    d = drive_arrays({"t": t, "s": t, "v": np.ones(40), "a": np.zeros(40), "speed_limit": np.ones(40),
+                      "tor": (np.arange(40) >= onset).astype(float), "accel_pedal": np.array(accel),
+                      "brake_pedal": np.array(brake)})
+    opts = {"event": "tor", "max_s": max_s, "statistic": statistic}
+    brt = value("brake_reaction_time", d, threshold_pct=brk_pct, **opts)
+    art = value("accelerator_release_time", d, threshold_pct=acc_pct, **opts)
+    abt = value("accelerator_to_brake_time", d, accel_threshold_pct=acc_pct, brake_threshold_pct=brk_pct, **opts)
+    defined = math.isfinite(brt) and math.isfinite(art) and art > 0 and brt >= art
+    assert math.isfinite(abt) == defined
+    if defined:
+        assert abt == pytest.approx(brt - art, abs=1e-12)
 
 
 def test_srr_scales_with_the_frequency_of_a_sine_above_the_gap():
