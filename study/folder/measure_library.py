@@ -1,15 +1,16 @@
-"""The shipped standard driving measures: SAE J2944 definitions (and the papers J2944 cites for the measures it leaves
-to them) with their options, included into a study by name in its KPI file (docs/measures.md)::
+"""The shipped standard driving measures: each named by the SAE J2944 term it follows and, where one exists, the paper
+that defines it, with its options, included into a study by name in its KPI file (docs/measures.md)::
 
     [measures]
     srr = { measure = "steering_reversal_rate", gap_deg = 2.0 }
     thw = { measure = "time_headway", option = "A", statistic = "min" }
 
-Each :class:`Measure` names its source, the channels it reads (the log mapping's standard names: ``t``, ``s``,
-``v``, ``a``, ``speed_limit``, ``leader_gap``, ``leader_v``, and the extra channels ``lat_pos`` (m, left of the lane
-centre positive), ``steering_angle`` (deg), ``brake_pedal`` and ``accel_pedal`` (% of travel)), its options with
-the defaults J2944 (or the defining paper) recommends and their allowed ranges, and the sentence a methods section
-must carry (J2944 asks that the options used be reported). The computations live in
+Each :class:`Measure` names its source (the J2944 term and the defining paper by author and year, without J2944
+section numbers; the full references, and why no section numbers, are in docs/measures.md), the channels it reads
+(the log mapping's standard names: ``t``, ``s``, ``v``, ``a``, ``speed_limit``, ``leader_gap``, ``leader_v``, and the
+extra channels ``lat_pos`` (m, left of the lane centre positive), ``steering_angle`` (deg), ``brake_pedal`` and
+``accel_pedal`` (% of travel)), its options with their defaults and allowed ranges, and the sentence a methods
+section must carry (J2944 asks that the options used be reported). The computations live in
 :mod:`analysis.drives.measures`; this module is the catalogue and its checks, and imports nothing heavy.
 """
 from __future__ import annotations
@@ -134,7 +135,7 @@ MEASURES: dict[str, Measure] = {m.name: m for m in (
             "{statistic_text} with the speed above the posted limit plus {tolerance_kmh:g} km/h, summed over the "
             "sampling intervals whose first sample exceeds it",
             units=(("distance_m", "m"), ("share", "1"))),
-    Measure("sdlp", "SDLP", "m", f"{_J2944}, standard deviation of lane position", ("lat_pos",),
+    Measure("sdlp", "SDLP", "m", f"{_J2944}, standard deviation of lane position (SDLP)", ("lat_pos",),
             methods="sample standard deviation (n - 1) of the lateral position of the vehicle centre relative to the "
                     "lane centre, over all samples"),
     Measure("lateral_position_mean", "Mean lateral position", "m", f"{_J2944}, lane position", ("lat_pos",),
@@ -148,7 +149,7 @@ MEASURES: dict[str, Measure] = {m.name: m for m in (
             "of the {vehicle_width_m:g} m wide vehicle lies beyond a boundary of the {lane_width_m:g} m lane to the "
             "first sample inside again, departures shorter than {min_duration_s:g} s not counted",
             units=(("duration_mean_s", "s"), ("duration_total_s", "s"))),
-    Measure("time_headway", "Time headway", "s", f"{_J2944}, headway and gap", ("v", "leader_gap"),
+    Measure("time_headway", "Time headway", "s", f"{_J2944}, time headway", ("v", "leader_gap"),
             (_stat(("min", "mean", "share_below")), Option("option", "A", "choice", choices=("A", "B", "C")),
              Option("lead_length_m", 4.5, lo=1.0, hi=25.0, unit="m"),
              Option("subject_length_m", 4.5, lo=1.0, hi=25.0, unit="m"),
@@ -158,20 +159,21 @@ MEASURES: dict[str, Measure] = {m.name: m for m in (
             "samples with a lead vehicle present and a headway of at most {max_s:g} s (threshold {threshold_s:g} s; "
             "lead vehicle {lead_length_m:g} m, subject vehicle {subject_length_m:g} m long)",
             units=(("share_below", "1"),)),
-    Measure("distance_gap", "Gap", "m", f"{_J2944}, headway and gap", ("leader_gap",),
+    Measure("distance_gap", "Gap", "m", f"{_J2944}, gap", ("leader_gap",),
             (_stat(("min", "mean")),),
             "{statistic_text} distance from the front bumper of the subject vehicle to the rear bumper of the lead "
             "vehicle, over the samples with a lead vehicle present"),
-    Measure("ttc", "Time to collision", "s", f"{_J2944}, time to collision", ("v", "leader_gap", "leader_v"),
+    Measure("ttc", "Time to collision", "s", f"{_J2944}, time to collision; Hayward (1972)",
+            ("v", "leader_gap", "leader_v"),
             (_stat(("min", "time_below_s")),
              Option("threshold_s", 3.0, lo=0.1, hi=20.0, unit="s", text="for time_below_s")),
             "{statistic_text} time to collision, the gap divided by the closing speed at constant speeds, over the "
             "samples where the subject vehicle closes in on a lead vehicle (threshold {threshold_s:g} s)"),
-    Measure("brake_reaction_time", "Brake reaction time", "s", f"{_J2944}, brake reaction time", ("brake_pedal",),
+    Measure("brake_reaction_time", "Brake reaction time", "s", f"{_J2944}, reaction time", ("brake_pedal",),
             (_EVENT, _brake_pct(), _stat(("first", "mean")), _MAX_S),
             "{statistic_text} time from the onset of the event ({event} rising) to the first sample with the brake "
             "pedal at or above {threshold_pct:g} % of its travel, no response within {max_s:g} s counted as missing"),
-    Measure("accelerator_release_time", "Accelerator release time", "s", f"{_J2944}, accelerator release time",
+    Measure("accelerator_release_time", "Accelerator release time", "s", f"{_J2944}, reaction time",
             ("accel_pedal",),
             (_EVENT, _accel_pct(), _stat(("first", "mean")), _MAX_S),
             "{statistic_text} time from the onset of the event ({event} rising) to the first sample with the "
@@ -188,7 +190,7 @@ MEASURES: dict[str, Measure] = {m.name: m for m in (
             "accelerator was already released at the onset, when the brake was reached before the accelerator was "
             "released, or when no brake onset followed within {max_s:g} s of the onset"),
     Measure("steering_reversal_rate", "Steering reversal rate", "1/min",
-            f"{_J2944}, steering reversal rate (appendix); Markkula & Engstr\u00f6m (2006)", ("steering_angle",),
+            f"{_J2944}, steering wheel reversal rate; Markkula & Engstr\u00f6m (2006)", ("steering_angle",),
             (Option("gap_deg", 2.0, lo=0.1, hi=20.0, unit="deg", text="smallest counted reversal"),
              Option("cutoff_hz", 6.0, lo=0.1, hi=15.0, unit="Hz", text="low-pass cut-off"),
              Option("resample_hz", 32.0, lo=1.0, hi=200.0, unit="Hz")),
@@ -196,7 +198,8 @@ MEASURES: dict[str, Measure] = {m.name: m for m in (
             "with a 2nd-order Butterworth filter at {cutoff_hz:g} Hz (forward and backward, no phase lag), a "
             "reversal being a change of direction between stationary points by at least {gap_deg:g} deg, counted "
             "upwards and downwards"),
-    Measure("steering_entropy", "Steering entropy", "1", "Nakayama et al. (1999); Boer et al. (2005)",
+    Measure("steering_entropy", "Steering entropy", "1",
+            f"{_J2944}, steering entropy; Nakayama et al. (1999); Boer et al. (2005)",
             ("steering_angle",),
             (Option("method", "boer2005", "choice", choices=("boer2005", "nakayama1999")),
              Option("alpha_deg", 0.0, lo=0.0, hi=45.0, unit="deg",
