@@ -4,7 +4,8 @@ lead_brake_event.
 
 A drive: 180 s behind a lead vehicle at 22 m/s, a time gap drawn per participant and condition; at 90 s the lead
 vehicle brakes hard (4 m/s^2 for 3 s, flag on for those 3 s) and speeds up again at 1 m/s^2. The driver releases the
-accelerator and, after a brake reaction time drawn per participant and condition (shorter with the warning), brakes;
+accelerator after 0.6 of a brake reaction time drawn per participant and condition (shorter with the warning) and
+brakes at the end of it (so the accelerator-to-brake transition takes the remaining 0.4);
 the driver's speed is the lead vehicle's delayed by that time plus 0.3 s. The steering is two sines and a little noise;
 the lateral position a slow sway with a known number of lane departures (the vehicle's edge over the lane boundary
 for 1 s).
@@ -23,6 +24,8 @@ LEAD_BRAKES_S = 90.0
 LEAD_V = 22.0
 #: mean brake reaction time (s) per condition
 REACTION_S = {"no_warning": 1.35, "fcw": 0.95}
+#: share of the brake reaction time that passes before the accelerator is released
+RELEASE_SHARE = 0.6
 
 
 def _rng(*parts: str) -> np.random.Generator:
@@ -33,6 +36,12 @@ def reaction_time(participant: str, condition: str) -> float:
     """The seeded brake reaction time (s): the condition's mean + a participant effect + noise, at least 0.5 s."""
     return max(0.5, REACTION_S[condition] + _rng(participant).normal(0, 0.15)
                + _rng(participant, condition, "rt").normal(0, 0.1))
+
+
+def release_time(participant: str, condition: str) -> float:
+    """When (s after the lead vehicle starts braking) the driver takes the foot off the accelerator: 0.6 of the
+    brake reaction time, the rest being the move to the brake pedal."""
+    return RELEASE_SHARE * reaction_time(participant, condition)
 
 
 def time_gap(participant: str, condition: str) -> float:
@@ -67,7 +76,8 @@ def make_log(participant: str, condition: str) -> pd.DataFrame:
         [[0.0], np.cumsum((vl[1:] + vl[:-1]) / 2 / RATE_HZ)])
     gap = s_lead - s
     brake = np.where((t >= LEAD_BRAKES_S + rt) & (t < LEAD_BRAKES_S + rt + 4), 40.0, 0.0)
-    throttle = np.where((t >= LEAD_BRAKES_S + 0.6 * rt) & (t < LEAD_BRAKES_S + rt + 6), 0.0, 20.0)
+    throttle = np.where((t >= LEAD_BRAKES_S + release_time(participant, condition)) & (t < LEAD_BRAKES_S + rt + 6),
+                        0.0, 20.0)
     phase = rng.uniform(0, 2 * np.pi)
     steer = (3 * np.sin(2 * np.pi * 0.05 * t + phase) + 1.5 * np.sin(2 * np.pi * 0.3 * t)
              + np.convolve(rng.normal(0, 0.3, t.size), np.ones(5) / 5, mode="same"))

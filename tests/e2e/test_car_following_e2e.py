@@ -1,9 +1,9 @@
-"""The car-following example study (studies/car_following: six shipped standard measures, two regions of interest)
+"""The car-following example study (studies/car_following: seven shipped standard measures, two regions of interest)
 end to end through the CLI on a temporary store: `study check` (and its one-line refusals of a broken KPI file),
 four participants' 20 Hz logs (tests/car_following_logs.py) imported, `analyze drives`, the report, and the report's
-drive section in headless Chromium (screenshot tests/output/car_following_report.png). The brake reaction time and
-the lane departures are compared with the log generator's truth. Every command and what it printed is written to
-tests/output/car_following_e2e.txt."""
+drive section in headless Chromium (screenshot tests/output/car_following_report.png). The brake reaction time, the
+accelerator-to-brake transition time and the lane departures are compared with the log generator's truth. Every
+command and what it printed is written to tests/output/car_following_e2e.txt."""
 from __future__ import annotations
 
 import math
@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from tests.car_following_logs import LEAD_BRAKES_S, RATE_HZ, departures, reaction_time, write_log
+from tests.car_following_logs import LEAD_BRAKES_S, RATE_HZ, departures, reaction_time, release_time, write_log
 from tests.conftest import OUTPUT, REPO, needs_chromium
 from tests.e2e.test_takeover_e2e import Transcript
 
@@ -39,9 +39,11 @@ def test_a_broken_measure_declaration_is_refused_with_file_line_and_reason(tmp_p
     assert lines[1] == "car_following/kpis.toml:9: measures.srr.gap_deg: must be in [0.1, 20] deg, not 45"
     assert lines[2] == ("car_following/kpis.toml:12: measures.brt: needs channel 'horn', which the log mapping "
                         "logmap.toml does not map")
-    assert lines[3] == ("car_following/kpis.toml:17: regions.lead_braking: needs channel 'horn', which the log "
+    assert lines[3] == ("car_following/kpis.toml:13: measures.abt: needs channel 'horn', which the log mapping "
+                        "logmap.toml does not map")
+    assert lines[4] == ("car_following/kpis.toml:18: regions.lead_braking: needs channel 'horn', which the log "
                         "mapping logmap.toml does not map")
-    assert lines[4] == "pedas-study: error: 4 problem(s) in study folder car_following" and len(lines) == 5
+    assert lines[5] == "pedas-study: error: 5 problem(s) in study folder car_following" and len(lines) == 6
 
 
 @pytest.mark.browser
@@ -69,20 +71,27 @@ def test_car_following_study_end_to_end(tmp_path, capsys, browser):
         OUTPUT.mkdir(exist_ok=True)
         (OUTPUT / "car_following_e2e.txt").write_text("\n".join(run.lines) + "\n", encoding="utf-8")
 
-    # the tool against the generator's truth: the brake pedal's first 20 Hz sample at or after onset + reaction time
+    # the tool against the generator's truth: the brake pedal's first 20 Hz sample at or after onset + reaction time,
+    # the accelerator's at or after onset + release time
+    def first_sample(delay_s: float) -> float:
+        return math.ceil(delay_s * RATE_HZ - 1e-9) / RATE_HZ
+
     kpis = pd.read_csv(tmp_path / "drives" / "kpis.csv")
     overall = kpis[kpis["segment"] == "overall"].set_index(["participant_id", "condition"])
     for pid in PEOPLE:
         for cond in CONDITIONS:
-            truth = math.ceil(reaction_time(pid, cond) * RATE_HZ - 1e-9) / RATE_HZ
+            truth = first_sample(reaction_time(pid, cond))
             assert overall.loc[(pid, cond), "brt"] == pytest.approx(truth, abs=1e-6)
+            assert overall.loc[(pid, cond), "abt"] == pytest.approx(truth - first_sample(release_time(pid, cond)),
+                                                                    abs=1e-6)
             assert overall.loc[(pid, cond), "departures"] == departures(pid, cond)
             assert 0.1 < overall.loc[(pid, cond), "sdlp"] < 0.4
     regions = pd.read_csv(tmp_path / "drives" / "regions.csv")
     braking = regions[regions["region"] == "lead_braking"]
-    assert np.allclose(braking.set_index(["participant_id", "condition"])["brt"].sort_index(),
-                       overall["brt"].sort_index())
-    assert regions[regions["region"] == "following"]["brt"].isna().all()   # no event in that stretch
+    for col in ("brt", "abt"):
+        assert np.allclose(braking.set_index(["participant_id", "condition"])[col].sort_index(),
+                           overall[col].sort_index())
+        assert regions[regions["region"] == "following"][col].isna().all()   # no event in that stretch
     assert LEAD_BRAKES_S > 0
 
     page = browser.new_page(viewport={"width": 1280, "height": 900})
