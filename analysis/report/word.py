@@ -119,11 +119,14 @@ def _table(doc, header: list[str], rows: list[list[str]], room_pt: float) -> Non
     for row_cells in cells:
         for cell, w in zip(row_cells, widths):
             cell.width = w  # Word reads the cells' widths, LibreOffice the grid's
+    # the style by its id: python-docx's `paragraph.style = ...` scans every style of the document to see whether the
+    # one given is the default, which made these look-ups most of the document's time (the same XML either way)
+    cell_style = doc.styles["Exhibit cell"].style_id
     numeric = [j > 0 and all(_NUMERIC.match(r[j].strip().strip("*")) or r[j].strip() in ("", "–", "—")
                              for r in rows) for j in range(len(header))]
     for j, (cell, h) in enumerate(zip(cells[0], header)):
         p = cell.paragraphs[0]
-        p.style = doc.styles["Exhibit cell"]
+        p._p.style = cell_style
         _runs(p, h)
         p.alignment = WD_ALIGN_PARAGRAPH.CENTER if j else WD_ALIGN_PARAGRAPH.LEFT
         _rule(cell, "top")
@@ -132,7 +135,7 @@ def _table(doc, header: list[str], rows: list[list[str]], room_pt: float) -> Non
     for row_cells, row in zip(cells[1:], rows):
         for j, (cell, v) in enumerate(zip(row_cells, row)):
             p = cell.paragraphs[0]
-            p.style = doc.styles["Exhibit cell"]
+            p._p.style = cell_style
             _runs(p, v)
             if numeric[j]:
                 p.alignment = WD_ALIGN_PARAGRAPH.CENTER
