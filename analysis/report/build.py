@@ -438,6 +438,17 @@ def study_figures_step(cfg: ReportConfig) -> None:
 _RAW_DATA = {"responses", "composites"}  # data files, not tables to render
 
 
+def _audit_table(frame: pd.DataFrame, out: Path, stem: str) -> None:
+    from analysis.paper.audit import write_table_files
+
+    write_table_files(frame, out, stem)
+
+
+#: (part folder, CSV stem) -> the writer of a table the part lays out itself from its CSV (header words, cells as
+#: printed) where the CSV's folder holds no table files of it: the audit (its audit.md is a whole report)
+OWN_LAYOUT = {("paper", "audit"): _audit_table}
+
+
 def collect_step(cfg: ReportConfig) -> None:
     """Every table into tables/ (csv, md, tex) and every figure into figures/."""
     tables, figs = cfg.out / "tables", cfg.out / "figures"
@@ -451,9 +462,11 @@ def collect_step(cfg: ReportConfig) -> None:
         for f in sorted(d.glob("*.csv")):
             if f.stem in _RAW_DATA:
                 continue
-            # a part's own rendering (paper-shaped tables) wins over the generic one
+            # a part's own rendering (paper-shaped tables, the audit's table) wins over the generic one
             shaped = [f.with_suffix(ext) for ext in (".md", ".tex") if f.with_suffix(ext).exists()]
-            if len(shaped) == 2:
+            if (sub, f.stem) in OWN_LAYOUT:
+                OWN_LAYOUT[(sub, f.stem)](pd.read_csv(f), tables, f"{prefix}_{f.stem}")
+            elif len(shaped) == 2:
                 for g in [f, *shaped]:
                     shutil.copy2(g, tables / f"{prefix}_{g.name}")
             else:
