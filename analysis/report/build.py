@@ -190,7 +190,8 @@ def survey_step(cfg: ReportConfig) -> None:
     from study.store.studies import definition
 
     with _open_store(cfg, read_only=True) as st:
-        reason = survey_missing(st, definition(st))
+        study = definition(st)
+        reason = survey_missing(st, study)
         if reason is None:
             try:
                 res, responses = analyze_store(st, n_boot=cfg.n_boot, seed=cfg.seed or 20240101)
@@ -198,12 +199,14 @@ def survey_step(cfg: ReportConfig) -> None:
                 # too few rows for the CFA, a singular covariance matrix, ...: the part is skipped with its reason,
                 # the rest of the report still runs
                 reason = f"the survey analysis (CFA, reliability, regressions) cannot run: {exc}"
+        pca = None
         if reason is None:
-            # Table 3 the way SPSS FACTOR reports it (first principal component per construct), beside our CFA;
-            # only the loadings differ, so no bootstrap, and the CFA fits are the ones above
-            pca, _ = analyze_store(st, n_boot=0, seed=cfg.seed or 20240101, loadings="pca", reuse=res)
-            ext, ext_reason = _extended_survey(st, definition(st), responses, cfg, res)
-            covariates = _covariates(st, definition(st), res.composites.index)
+            if paper_idioms(study):
+                # Table 3 the way the paper's SPSS FACTOR reported it (first principal component per construct),
+                # beside our CFA; only the loadings differ, so no bootstrap, and the CFA fits are the ones above
+                pca, _ = analyze_store(st, n_boot=0, seed=cfg.seed or 20240101, loadings="pca", reuse=res)
+            ext, ext_reason = _extended_survey(st, study, responses, cfg, res)
+            covariates = _covariates(st, study, res.composites.index)
     with _fresh_dir(cfg.out / "survey") as out:
         if reason is not None:
             (out / SKIPPED).write_text(reason + "\n", encoding="utf-8")
@@ -212,7 +215,8 @@ def survey_step(cfg: ReportConfig) -> None:
         responses.to_csv(out / "responses.csv", index=False)
         # fit with the RMSEA interval, regression diagnostics, the path diagram (analysis.survey.statistics_tables)
         write_survey_statistics(res, out, covariates)
-        write_table3_pca(pca, out / "pca")
+        if pca is not None:
+            write_table3_pca(pca, out / "pca")
         # the extended statistics (docs/acceptance_statistics.md) in survey/extended/
         if ext is not None:
             ext.write(out / "extended")
@@ -237,6 +241,12 @@ def within_step(cfg: ReportConfig) -> None:
             (out / SKIPPED).write_text(reason + "\n", encoding="utf-8")
             return
         res.write(out, data)
+
+
+def paper_idioms(study) -> bool:
+    """Whether the study asks for the paper's idioms (``[analysis] paper_idioms = true``: the principal-component
+    Table 3, Table 5's "Step 1: Dependent Variable" rows); no other study's report shows them."""
+    return bool(study.settings.get("analysis", {}).get("paper_idioms", False))
 
 
 def write_table3_pca(pca, out: Path) -> None:

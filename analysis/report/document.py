@@ -1027,6 +1027,7 @@ def _appendix(out: Path, st, study, steps, skipped: dict, used_figs: set, used_t
     for stem, render in [d for d in ex.deferred if d[0] == "participant_flow"]:
         parts.append(render())
     parts.append(_phases_table(out, st, study, ex))
+    used_tabs.add("protocol_phases")   # the files it writes into tables/ are this table, not another one
     ex.section = "Moved from the main text"
     moved = [d for d in ex.deferred if d[0] != "participant_flow"]
     if moved:
