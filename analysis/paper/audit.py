@@ -749,7 +749,8 @@ TABLE_COLUMNS = {"id": "Row", "check": "Check", "where": "Where", "reported": "R
 TABLE_TITLE = "Audit of the published statistics"
 TABLE_NOTES = ("Each row recomputes a printed number from other printed numbers. Status: ok (agrees), inconsistent "
                "(contradicts them), note (a fact the findings rest on). Finding: the number of the finding an "
-               "inconsistent row belongs to (paper/audit.md).",)
+               "inconsistent row belongs to (paper/audit.md). Stars are the paper's as printed: Table 4 * p < .05, "
+               "** p < .01; Table 5 * p < .05, ** p < .001.",)
 
 
 def table_cells(audit: pd.DataFrame, cols=tuple(TABLE_COLUMNS)) -> tuple[list[str], list[list[str]]]:

@@ -159,6 +159,9 @@ def test_the_report_table_of_the_audit_has_words_and_whole_finding_numbers(audit
     want = audit["finding"].map(lambda k: "" if pd.isna(k) else str(int(k))).tolist()
     assert [r[6] for r in rows] == want and "1" in want and "10" in want
     assert [r[3] for r in rows] == audit["reported"].tolist()
+    # the stars in Reported are the paper's (two conventions), not the report's: the note says which
+    assert "Stars are the paper's as printed: Table 4 * p < .05, ** p < .01; Table 5 * p < .05, ** p < .001." \
+        in " ".join(notes)
     printed = pd.read_csv(cfg.out / "tables" / "paper_audit.csv", dtype=str, keep_default_na=False)
     assert printed["Finding"].tolist() == want
     tex = (cfg.out / "tables" / "paper_audit.tex").read_text()
