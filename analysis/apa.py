@@ -5,7 +5,8 @@
 * confidence intervals as ``[LL, UL]``;
 * a true minus sign (U+2212) in front of a negative number;
 * degrees of freedom as integers where they are integers, fractional (corrected) df to two decimals;
-* one significance convention per document (:data:`STARS`), stated in each table's note by :func:`stars_note`.
+* one significance convention per document (:data:`STARS`), stated in each table's note by :func:`stars_note`;
+* a measured value in a sentence with its declared unit (:func:`quantity`: ``M = 2.41 s``, ``12.8 %``).
 
 Table writers call :func:`table_cells` with a header and string cells: headers that are identifiers become words and
 symbols (:func:`header`), each cell is reformatted by the kind of its column (:func:`column_kind`). Every function
@@ -127,6 +128,23 @@ def num(x, digits: int = 2, bounded: bool = False) -> str:
         s = s[1:]
     s = minus(s)
     return no_leading_zero(s) if bounded else s
+
+
+#: units that name no physical unit: the value is printed bare (a count, a share, a score)
+DIMENSIONLESS = ("", "1", "-", "–", "count", "counts")
+
+
+def quantity(x, unit: str = "", digits: int = 2) -> str:
+    """A measured value in a sentence with its unit (as declared: a KPI's ``unit``, the measure library's):
+    ``2.41 s``, ``−3.2 Wh/km``, ``12.8 %``; a dimensionless one (:data:`DIMENSIONLESS`) as the number alone;
+    `digits` decimals (0 for counts).
+
+    >>> quantity(2.4123, "s"), quantity(-3.21, "Wh/km", 1), quantity(12.84, "%", 1), quantity(3, "count", 0)
+    ('2.41 s', '−3.2 Wh/km', '12.8 %', '3')
+    """
+    s = num(x, digits)
+    unit = str(unit or "").strip()
+    return s if unit in DIMENSIONLESS or s == "–" else f"{s} {unit}"
 
 
 def p_value(p, digits: int = 3) -> str:

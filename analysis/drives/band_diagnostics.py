@@ -14,14 +14,17 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from analysis import apa
 from analysis.drives.kpis import KpiParams
-from analysis.drives.savings import BAND_HIGHWAY, BAND_RED, BAND_VIOLATION, ObjectiveResult
+from analysis.drives.savings import BAND_HIGHWAY, BAND_RED, BAND_UNITS, BAND_VIOLATION, ObjectiveResult
 from pedas.constants import KMH, SENSOR_RANGE
 
 QUEUE_GAP = 30.0  # m: a red stop with a leader this close is a stop in a queue (a car length + minGap ~ 7 m each)
 SLOW_LEADER = 90.0 * KMH  # m/s: a leader no faster than this is (almost always) a lorry: their limiters stop at 90 km/h
 
 COLUMNS = ["band", "key", "quantity", "unit", "baseline", "pedas"]
+#: the units of the diagnostics that are counts (of drives, of stops): printed as whole numbers
+COUNT_UNITS = ("drives", "stops")
 
 _SQL = """
 WITH s0 AS (
@@ -99,7 +102,7 @@ def diagnostics_markdown(diag: pd.DataFrame) -> str:
     def cell(x, unit):
         if pd.isna(x):
             return "–"
-        return f"{x:.0f}" if unit in ("drives", "stops") else f"{x:.2f}" if unit == "%" else f"{x:.1f}"
+        return f"{x:.0f}" if unit in COUNT_UNITS else f"{x:.2f}" if unit == "%" else f"{x:.1f}"
 
     rows = [[r.band, r.quantity, r.unit, cell(r.baseline, r.unit), cell(r.pedas, r.unit)]
             for r in diag.itertuples()]
@@ -145,5 +148,7 @@ def why_missed(bands: pd.DataFrame, diag: pd.DataFrame) -> list[str]:
                        "names the dense urban traffic as what limits the urban effect; our urban demand "
                        "(docs/route_and_traffic.md) leaves fewer red stops for the green wave to avoid.")
         else:
-            out.append(f"*{b.band}*: ours {b.our_value:.2f}, paper {b.paper_value:g}; see the table above.")
+            unit = BAND_UNITS.get(b.band, "")
+            out.append(f"*{b.band}*: ours {apa.quantity(b.our_value, unit)}, paper "
+                       f"{apa.quantity(b.paper_value, unit)}; see the table above.")
     return out

@@ -38,6 +38,21 @@ KPI_WORDS = {"energy_wh": ("Battery energy", "Wh"), "distance_m": ("Distance", "
              "mean_abs_a": ("Mean absolute acceleration", "m/s²")}
 
 
+def kpi_words(kpi: str, spec=None) -> str:
+    """A KPI in words for a sentence, without its unit: a study KPI's declared label (its name without one), a
+    built-in's words from :data:`KPI_WORDS` (lower case).
+
+    >>> from analysis.drives.paired import kpi_words
+    >>> kpi_words("trip_time_s"), kpi_words("my_kpi")
+    ('trip time', 'my kpi')
+    """
+    declared = {k.name: k for k in spec.user_kpis} if spec is not None else {}
+    if kpi in declared:
+        return declared[kpi].label or kpi
+    words = KPI_WORDS.get(kpi, (kpi.replace("_", " "), ""))[0]
+    return words[:1].lower() + words[1:]
+
+
 def kpi_label(kpi: str, segment: str, headings: dict | None = None) -> str:
     """'Battery energy, urban (Wh)': the KPI in words with its segment (none for overall) and unit.
 

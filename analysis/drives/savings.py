@@ -238,6 +238,8 @@ BAND_OVERALL = "mean overall energy savings within 5-15 %"
 BAND_HIGHWAY = "highway savings above urban savings (difference of means, pp)"
 BAND_VIOLATION = "speed-violation reduction within 30-60 %"
 BAND_RED = "red stops reduced by 40-80 %"
+#: the unit of each band's value (paper's and ours): a mean reduction in %, a difference of mean savings in pp
+BAND_UNITS = {BAND_OVERALL: "%", BAND_HIGHWAY: "pp", BAND_VIOLATION: "%", BAND_RED: "%"}
 
 
 def reproduction_bands(summary: pd.DataFrame, published: pd.DataFrame | None = None) -> pd.DataFrame:

@@ -130,9 +130,10 @@ def kpi_summary_table(summary: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def informative_summary(summary: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
+def informative_summary(summary: pd.DataFrame, spec=None) -> tuple[pd.DataFrame, list[str]]:
     """The KPI summary without what says nothing, and a note line per left-out part: a KPI constant across every
-    drive (SD 0 in each group and one value throughout) and, on a route of one segment, that segment's rows (they
+    drive (SD 0 in each group and one value throughout; named with its value and unit as `spec`, the study's
+    :class:`study.folder.kpi_spec.KpiSpec`, declares them) and, on a route of one segment, that segment's rows (they
     repeat the whole drive's).
 
     Examples
@@ -144,8 +145,12 @@ def informative_summary(summary: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]
     ...                   "sd": [0.0, 1.0, 0.0, 1.0], "min": [75.0, 8.0, 75.0, 8.0], "max": [75.0, 10.0, 75.0, 10.0]})
     >>> kept, notes = informative_summary(s)
     >>> list(kept["metric"]), notes[0]
-    (['energy_wh'], 'Constant across all drives and left out: trip time (s) = 75.000.')
+    (['energy_wh'], 'Constant across all drives and left out: trip time = 75.00 s.')
     """
+    from analysis.drives.paired import kpi_words
+    from study.folder.kpi_spec import DEFAULT_SPEC
+
+    spec = spec if spec is not None else DEFAULT_SPEC
     notes = []
     out = summary
     if {"metric", "sd", "min", "max"} <= set(summary.columns):
@@ -153,8 +158,9 @@ def informative_summary(summary: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]
                     if (g["sd"].fillna(0) == 0).all() and g["min"].min() == g["max"].max()]
         if constant:
             vals = summary.drop_duplicates("metric").set_index("metric")["min"]
-            notes.append("Constant across all drives and left out: "
-                         + ", ".join(f"{apa.header(m)} = {_fmt(vals[m], 3)}" for m in constant) + ".")
+            notes.append("Constant across all drives and left out: " + ", ".join(
+                f"{kpi_words(m, spec)} = {apa.quantity(vals[m], spec.unit(m), spec.decimals(m))}"
+                for m in constant) + ".")
             out = out[~out["metric"].isin(constant)]
     if "segment" in out.columns:
         segments = [s for s in out["segment"].astype(str).unique() if s != "overall"]
@@ -211,7 +217,8 @@ def write_tables(result, out_dir: str | Path) -> list[Path]:
         for name, df in (("kpis.csv", result.kpis), ("summary.csv", result.summary)):
             df.to_csv(out / name, index=False)
             written.append(out / name)
-        kept, notes = informative_summary(result.summary)   # the CSV keeps every KPI, the rendering the informative
+        # the CSV keeps every KPI, the rendering the informative ones
+        kept, notes = informative_summary(result.summary, result.spec)
         summary = kpi_summary_table(kept)
         table("kpi_table", kpi_summary_table(result.summary), lambda _: _summary_cells(summary, result.spec),
               f"Objective KPIs per drive, mean (SD) (N = {result.n} participants)", "tab:kpis", notes,

@@ -19,6 +19,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
+from analysis import apa
 from analysis.paper import grim
 from analysis.paper import published as P
 from analysis.render import markdown_table, md_cell
@@ -33,12 +34,12 @@ FINDING_TITLES = {
     "n_implied": "The tables imply N = 40 survey respondents, the text says N = 41",
     "grim_pbc2": "PBC2 mean 4.208 is impossible for N = 40 (GRIM)",
     "sd_truncated": "Table 3 SDs are truncated, not rounded",
-    "peou_diagonal": "Table 4 PEoU diagonal (0.641) is not √AVE of Table 3 (√0.537 = 0.733)",
+    "peou_diagonal": "Table 4 PEoU diagonal (.641) is not √AVE of Table 3 (√.537 = .733)",
     "t4_t5": "Table 4 PEoU correlations disagree with Table 5",
-    "bi_alpha": "2-item BI: Cα 0.792 is impossible with λ = 0.911, 0.911",
+    "bi_alpha": "2-item BI: Cα .792 is impossible with λ = .911, .911",
     "loadings_vs_alpha": "Printed λ are too high for the printed Cα and for Table 5's B/β ratios",
     "ci_not_t": "Two Table 5 CIs (PEoU-only steps) are not B ± t·SE; they fit the Table 4 PEoU composite",
-    "style_shares": "Driving-style shares 20.54% do not equal 7/34",
+    "style_shares": "Driving-style shares 20.54 % do not equal 7/34",
     "extraction": "The printed λ are first-principal-component loadings (SPSS FACTOR default), not CFA loadings",
 }
 
@@ -71,7 +72,7 @@ FINDING_NOTES = {
                   "model (ML factor analysis = one-construct CFA, or principal axis factoring) is ruled out for "
                   "every construct where the test is decidable (not for ATT's 9-item extraction, where the search "
                   "found no matrix - evidence, not proof). PEoU fits no extraction: principal components come "
-                  "closest (Cα at most 0.589 vs 0.596). Proven: ML/CFA and PAF cannot have produced the λ of PU, "
+                  "closest (Cα at most .589 vs .596). Proven: ML/CFA and PAF cannot have produced the λ of PU, "
                   "PEoU, ATT (4 items), PBC, SN, BI together with their Cα. Consistent only: PCA is one procedure "
                   "that reproduces them; for PU and ATT other matrices (and procedures) may as well.",
 }
@@ -90,8 +91,32 @@ class Check:
     group: str = ""
 
 
-def _f(x: float, d: int = 3) -> str:
-    return f"{x:.{d}f}"
+# Numbers in the rows' text, APA 7 (analysis.apa) by what each check compares: values bounded by 1 (r, β, α, λ,
+# CR, AVE, R²) without a leading zero, B, SE, SDs, ratios and differences with one, p never 0.000, a true minus.
+def _b(x: float, d: int = 3) -> str:
+    """A value bounded by 1 (r, β, Cα, λ, CR, AVE, √AVE, R²) to `d` decimals: ``.879``, ``−.087``."""
+    return apa.num(x, d, bounded=True)
+
+
+def _n(x: float, d: int = 3) -> str:
+    """An unbounded value (B, SE, a mean, an SD, a ratio, a difference, t) to `d` decimals: ``0.478``, ``−1.06``."""
+    return apa.num(x, d)
+
+
+def _g(x: float, bounded: bool = False) -> str:
+    """A published value with the digits it was printed with (``:g``): ``.792`` (bounded), ``4.35``, ``−0.212``."""
+    s = apa.minus(f"{x:g}")
+    return apa.no_leading_zero(s) if bounded else s
+
+
+def _d(x: float, d: int = 3) -> str:
+    """A signed difference: ``+0.049``, ``−0.146``."""
+    return ("+" if round(x, d) > 0 else "") + apa.num(x, d)
+
+
+def _pct(x: float, d: int = 1) -> str:
+    """A percentage with its unit: ``20.59 %``, ``−0.2 %``."""
+    return apa.quantity(x, "%", d)
 
 
 def _line(pub: pd.DataFrame, table: str, quantity: str, row: str, column: str = "") -> int:
@@ -288,7 +313,7 @@ def check_cr_ave(pub: pd.DataFrame) -> list[Check]:
             rep = tc.loc[c, name]
             ok = bool(grim.prints_as(rec, rep, 3, "round") or abs(rec - rep) <= 0.0015)
             out.append(Check(f"{name.upper()} from λ (Hair)", f"Table 3 {c} (line {_line(pub, 'table3', name, c)})",
-                             _f(rep), _f(rec, 4), "ok" if ok else "inconsistent",
+                             _b(rep), _b(rec, 4), "ok" if ok else "inconsistent",
                              f"retained items {', '.join(g['item'])}" + ("" if ok else " - differs"),
                              "" if ok else "loadings_vs_alpha"))
     return out
@@ -306,11 +331,12 @@ def check_sqrt_ave(pub: pd.DataFrame) -> list[Check]:
         if not ok:
             all_items = t3[t3["construct"] == r.a]
             _, ave_all = cr_ave(all_items["loading"].values)
-            expl = (f"√{tc.loc[r.a, 'ave']:.3f} = {rec:.4f}. The printed diagonal equals √AVE of all "
-                    f"{len(all_items)} items including the deleted ones: √{ave_all:.4f} = {np.sqrt(ave_all):.4f}; "
+            expl = (f"√{_b(tc.loc[r.a, 'ave'])} = {_b(rec, 4)}. The printed diagonal equals √AVE of all "
+                    f"{len(all_items)} items including the deleted ones: √{_b(ave_all, 4)} = "
+                    f"{_b(np.sqrt(ave_all), 4)}; "
                     "the Fornell-Larcker check in Table 4 used the initial model for this construct")
         out.append(Check("√AVE vs Table 4 diagonal", f"Table 4 {r.a} (line {_line(pub, 'table4', 'sqrt_ave', r.a)})",
-                         f"{r.r:g}", _f(rec, 4), "ok" if ok else "inconsistent", expl,
+                         _g(r.r, bounded=True), _b(rec, 4), "ok" if ok else "inconsistent", expl,
                          "" if ok else "peou_diagonal"))
     return out
 
@@ -329,16 +355,17 @@ def check_alpha_vs_loadings(pub: pd.DataFrame) -> list[Check]:
         rbar = rep / (k - rep * (k - 1))
         bad = abs(a_raw - rep) > 0.03
         if k == 2:
-            expl = (f"two items: r(BI1,BI2) = λ1·λ2 = {lam[0] * lam[1]:.3f} gives α = {a_raw:.3f} "
-                    f"(standardized {a_std:.3f}); α = {rep:g} needs r = {rbar:.3f}, i.e. λ = √r = {np.sqrt(rbar):.3f}")
+            expl = (f"two items: r(BI1,BI2) = λ1·λ2 = {_b(lam[0] * lam[1])} gives α = {_b(a_raw)} "
+                    f"(standardized {_b(a_std)}); α = {_g(rep, bounded=True)} needs r = {_b(rbar)}, i.e. λ = √r = "
+                    f"{_b(np.sqrt(rbar))}")
             group = "bi_alpha"
         else:
-            expl = (f"mean r_ij = λ_iλ_j is {np.mean([lam[i] * lam[j] for i in range(k) for j in range(i + 1, k)]):.3f}; "
-                    f"α = {rep:g} needs mean r ≈ {rbar:.3f}")
+            mean_r = np.mean([lam[i] * lam[j] for i in range(k) for j in range(i + 1, k)])
+            expl = f"mean r_ij = λ_iλ_j is {_b(mean_r)}; α = {_g(rep, bounded=True)} needs mean r ≈ {_b(rbar)}"
             group = "loadings_vs_alpha"
-        out.append(Check("Cα implied by λ", f"Table 3 {c} (line {_line(pub, 'table3', 'alpha', c)})", f"{rep:g}",
-                         f"{a_raw:.3f} (standardized {a_std:.3f})", "inconsistent" if bad else "ok",
-                         expl if bad else "agrees within 0.03", group if bad else ""))
+        out.append(Check("Cα implied by λ", f"Table 3 {c} (line {_line(pub, 'table3', 'alpha', c)})",
+                         _g(rep, bounded=True), f"{_b(a_raw)} (standardized {_b(a_std)})",
+                         "inconsistent" if bad else "ok", expl if bad else "agrees within 0.03", group if bad else ""))
     return out
 
 
@@ -373,8 +400,8 @@ def check_two_item_alpha_lattice(pub: pd.DataFrame, n: int = 40) -> list[Check]:
         near = sorted(reach, key=lambda a: abs(a - alpha))[:2]
         ok = bool(any(grim.prints_as(a, alpha, 3) for a in reach))
         line = _line(pub, "table3", "alpha", c)
-        out.append(Check(f"2-item Cα reachable with N = {n}", f"Table 3 {c} (line {line})", f"{alpha:g}",
-                         "nearest reachable: " + ", ".join(f"{a:.4f}" for a in sorted(near)),
+        out.append(Check(f"2-item Cα reachable with N = {n}", f"Table 3 {c} (line {line})", _g(alpha, bounded=True),
+                         "nearest reachable: " + ", ".join(_b(a, 4) for a in sorted(near)),
                          "ok" if ok else "inconsistent",
                          "reachable" if ok else (f"{i1} and {i2} each have one possible variance at N = {n} "
                                                  f"({len(moments[0])}x{len(moments[1])} (Σx, Σx²) pairs); Σxy is an "
@@ -400,11 +427,11 @@ def check_table4_vs_table5(pub: pd.DataFrame) -> list[Check]:
         if len(preds) == 1:
             p = preds[0]
             ok = abs(beta[0] - t4.loc[dv, p]) <= tol
-            out.append(Check("r(x,y) = β (one predictor)", where, f"Table 4 r({p},{dv}) = {t4.loc[dv, p]:.3f}",
-                             f"Table 5 β = {beta[0]:.3f} (R² = β² = {beta[0] ** 2:.3f}, printed {r2_rep:.3f})",
+            out.append(Check("r(x,y) = β (one predictor)", where, f"Table 4 r({p},{dv}) = {_b(t4.loc[dv, p])}",
+                             f"Table 5 β = {_b(beta[0])} (R² = β² = {_b(beta[0] ** 2)}, printed {_b(r2_rep)})",
                              "ok" if ok else "inconsistent",
-                             "agrees" if ok else f"differs by {t4.loc[dv, p] - beta[0]:+.3f}; Table 5's R² = β² "
-                             f"agrees with β, so Table 4 is the odd one out (r² = {t4.loc[dv, p] ** 2:.3f})",
+                             "agrees" if ok else f"differs by {_d(t4.loc[dv, p] - beta[0])}; Table 5's R² = β² "
+                             f"agrees with β, so Table 4 is the odd one out (r² = {_b(t4.loc[dv, p] ** 2)})",
                              "" if ok else "t4_t5"))
             continue
         rxx = t4.loc[preds, preds].values
@@ -416,15 +443,15 @@ def check_table4_vs_table5(pub: pd.DataFrame) -> list[Check]:
         rxy_t5 = tgt.loc[preds, preds].values @ beta
         agree_t5 = bool(np.all(np.abs(rxy_t5 - tgt.loc[preds, dv].values) <= tol))
         out.append(Check(
-            "β from Table 4 correlations", where, "β = " + ", ".join(f"{p} {b:.3f}" for p, b in zip(preds, beta))
-            + f"; R² = {r2_rep:.3f}",
-            "β = " + ", ".join(f"{p} {b:.3f}" for p, b in zip(preds, b_t4)) + f"; R² = {r2_t4:.3f}",
+            "β from Table 4 correlations", where, "β = " + ", ".join(f"{p} {_b(b)}" for p, b in zip(preds, beta))
+            + f"; R² = {_b(r2_rep)}",
+            "β = " + ", ".join(f"{p} {_b(b)}" for p, b in zip(preds, b_t4)) + f"; R² = {_b(r2_t4)}",
             "ok" if ok else "inconsistent",
             ("agrees (two/three-predictor identities β = R_xx⁻¹ r_xy)" if ok else
              "Table 4's correlations do not give Table 5's β") +
             "; with r = β from Table 5's one-predictor steps, β imply r_xy = "
-            + ", ".join(f"{p} {v:.3f}" for p, v in zip(preds, rxy_t5))
-            + (" - consistent" if agree_t5 else " - still inconsistent"),
+            + ", ".join(f"{p} {_b(v)}" for p, v in zip(preds, rxy_t5))
+            + (": consistent" if agree_t5 else ": still inconsistent"),
             "" if ok else "t4_t5"))
     return out
 
@@ -447,10 +474,10 @@ def check_adj_r2(pub: pd.DataFrame) -> list[Check]:
         for n in N_CANDIDATES:
             a_lo, a_hi = adj_r2(lo, n, k), adj_r2(hi, n, k)
             fits.append(a_hi >= alo and a_lo <= ahi)
-            recs.append(f"N = {n}: [{a_lo:.4f}, {a_hi:.4f}]")
+            recs.append(f"N = {n}: {apa.ci(a_lo, a_hi, 4, bounded=True)}")
         fit_n = [n for n, f in zip(N_CANDIDATES, fits) if f]
         out.append(Check("adj R² vs R²", f"Table 5 model {r.model} step {r.step} (line {line})",
-                         f"R² = {r.r2:.3f}, adj = {r.adj_r2:.3f}", "; ".join(recs),
+                         f"R² = {_b(r.r2)}, adj = {_b(r.adj_r2)}", "; ".join(recs),
                          "ok" if 40 in fit_n else "inconsistent",
                          "fits N = " + (", ".join(map(str, fit_n)) if fit_n else "none"),
                          "" if 40 in fit_n else "n_implied"))
@@ -460,8 +487,8 @@ def check_adj_r2(pub: pd.DataFrame) -> list[Check]:
         base = float(prev["r2"].iloc[0]) if len(prev) else 0.0
         d = r.r2 - base
         ok = abs(d - r.delta_r2) <= 0.0015
-        out.append(Check("ΔR² = R² - R²(previous step)", f"Table 5 model {r.model} step {r.step} (line {line})",
-                         f"{r.delta_r2:.3f}", f"{r.r2:.3f} - {base:.3f} = {d:.3f}", "ok" if ok else "inconsistent",
+        out.append(Check("ΔR² = R² − R²(previous step)", f"Table 5 model {r.model} step {r.step} (line {line})",
+                         _b(r.delta_r2), f"{_b(r.r2)} − {_b(base)} = {_b(d)}", "ok" if ok else "inconsistent",
                          "agrees within rounding" if ok else "differs", "" if ok else "t4_t5"))
     return out
 
@@ -483,11 +510,12 @@ def check_b_beta(pub: pd.DataFrame) -> list[Check]:
         ok_a, ok_l = abs(rel_a) <= 0.015, abs(rel_l) <= 0.015
         line = _line(pub, "table5", "b", f"model {r.model} step {r.step}", r.predictor)
         status = "ok" if ok_a and ok_l else "inconsistent"
-        expl = (f"SD_{r.dv}/SD_{r.predictor} from Cα and item SDs: {ra:.3f} ({rel_a:+.1%}); from λ (r_ij = λ_iλ_j): "
-                f"{rl:.3f} ({rel_l:+.1%}). Assumes composite = mean of retained items; item SDs from Table 3")
+        expl = (f"SD_{r.dv}/SD_{r.predictor} from Cα and item SDs: {_n(ra)} ({_d(100 * rel_a, 1)} %); from λ "
+                f"(r_ij = λ_iλ_j): {_n(rl)} ({_d(100 * rel_l, 1)} %). Assumes composite = mean of retained items; "
+                "item SDs from Table 3")
         out.append(Check("B/β vs composite SD ratio", f"Table 5 model {r.model} step {r.step} {r.predictor} (line {line})",
-                         f"B/β = {r.b:.3f}/{r.beta:.3f} = {ratio:.3f} [{r_lo:.3f}, {r_hi:.3f}]",
-                         f"α: {ra:.3f}; λ: {rl:.3f}", status, expl, "" if status == "ok" else "loadings_vs_alpha"))
+                         f"B/β = {_n(r.b)}/{_b(r.beta)} = {_n(ratio)} {apa.ci(r_lo, r_hi, 3)}",
+                         f"α: {_n(ra)}; λ: {_n(rl)}", status, expl, "" if status == "ok" else "loadings_vs_alpha"))
     return out
 
 
@@ -507,8 +535,8 @@ def check_se_b(pub: pd.DataFrame, n: int = 40) -> list[Check]:
         ok = abs(se_b - r.se_b) <= 0.004
         line = _line(pub, "table5", "se_b", f"model {r.model} step {r.step}", r.predictor)
         out.append(Check(f"SE B from R², VIF and B/β (N = {n})",
-                         f"Table 5 model {r.model} step {r.step} {r.predictor} (line {line})", f"{r.se_b:.3f}",
-                         f"{se_b:.4f} (SE β = {se_beta:.4f}, VIF = {vif:.3f})", "ok" if ok else "inconsistent",
+                         f"Table 5 model {r.model} step {r.step} {r.predictor} (line {line})", _n(r.se_b),
+                         f"{_n(se_b, 4)} (SE β = {_n(se_beta, 4)}, VIF = {_n(vif)})", "ok" if ok else "inconsistent",
                          "agrees" if ok else "differs by more than rounding", "" if ok else "n_implied"))
     return out
 
@@ -531,17 +559,17 @@ def check_ci(pub: pd.DataFrame, n: int = 40) -> list[Check]:
             # read the printed interval as a t-interval of some other fit: B' = midpoint, SE' = half-width / t
             se2 = half / t
             t2 = mid / se2
-            expl = (f"not t-based around B = {r.b:.3f}: midpoint {mid:.3f} (offset {mid - r.b:+.3f}), width "
-                    f"{2 * half:.3f} vs {hi - lo:.3f}. Read as a t-interval it belongs to B' = {mid:.3f}, "
-                    f"SE' = {se2:.3f}, t' = {t2:.2f}")
+            expl = (f"not t-based around B = {_n(r.b)}: midpoint {_n(mid)} (offset {_d(mid - r.b)}), width "
+                    f"{_n(2 * half)} vs {_n(hi - lo)}. Read as a t-interval it belongs to B' = {_n(mid)}, "
+                    f"SE' = {_n(se2)}, t' = {_n(t2, 2)}")
             if k == 1:
                 r_implied = t2 / np.sqrt(t2 ** 2 + n - 2)
-                expl += (f", i.e. r = t'/√(t'² + {n - 2}) = {r_implied:.3f} - the Table 4 correlation "
-                         f"r({r.predictor},{r.dv}), not Table 5's β = {r.beta:.3f}: the CI comes from the "
+                expl += (f", i.e. r = t'/√(t'² + {n - 2}) = {_b(r_implied)}: the Table 4 correlation "
+                         f"r({r.predictor},{r.dv}), not Table 5's β = {_b(r.beta)}: the CI comes from the "
                          "Table 4 composite")
         out.append(Check(f"CI = B ± t·SE (df = {n - k - 1})",
                          f"Table 5 model {r.model} step {r.step} {r.predictor} (line {line})",
-                         f"{r.ci_low:.3f} to {r.ci_high:.3f}", f"{lo:.3f} to {hi:.3f}",
+                         apa.ci(r.ci_low, r.ci_high, 3), apa.ci(lo, hi, 3),
                          "ok" if ok else "inconsistent", expl,
                          "" if ok else "ci_not_t"))
     return out
@@ -560,8 +588,9 @@ def check_stars(pub: pd.DataFrame, n: int = 40) -> list[Check]:
         expected = {len(stars(p, (0.05, 0.01))) for p in ps}
         ok = r.stars in expected
         line = _line(pub, "table4", "r", r.a, r.b)
-        out.append(Check(f"stars of r (N = {n})", f"Table 4 {r.a}-{r.b} (line {line})", f"{r.r:.3f}{'*' * r.stars}",
-                         f"p = {max(ps):.4f}" + ("" if len(expected) == 1 else f"..{min(ps):.4f} (on the boundary)"),
+        out.append(Check(f"stars of r (N = {n})", f"Table 4 {r.a}-{r.b} (line {line})", f"{_b(r.r)}{'*' * r.stars}",
+                         apa.p_text(max(ps), 4) + ("" if len(expected) == 1 else
+                                                   f" to {apa.p_value(min(ps), 4)} (on the boundary)"),
                          "ok" if ok else "inconsistent", "agrees" if ok else "stars do not match p", ""))
     co = P.table5_coefficients(pub)
     for r in co.itertuples():
@@ -570,7 +599,7 @@ def check_stars(pub: pd.DataFrame, n: int = 40) -> list[Check]:
         ok = r.stars == len(stars(p, (0.05, 0.001)))
         line = _line(pub, "table5", "beta", f"model {r.model} step {r.step}", r.predictor)
         out.append(Check(f"stars of β (N = {n})", f"Table 5 model {r.model} step {r.step} {r.predictor} (line {line})",
-                         f"{r.beta:.3f}{'*' * r.stars}", f"t = {r.b / r.se_b:.2f}, p = {p:.4f}",
+                         f"{_b(r.beta)}{'*' * r.stars}", f"t = {_n(r.b / r.se_b, 2)}, {apa.p_text(p, 4)}",
                          "ok" if ok else "inconsistent", "agrees (* .05, ** .001 per the table note)" if ok else
                          "stars do not match p", ""))
     return out
@@ -583,9 +612,9 @@ def check_cohort(pub: pd.DataFrame) -> list[Check]:
     out = []
     for name, lhs, rhs, txt in (
             ("male + female = enrolled", v("male") + v("female"), v("enrolled"), "37 + 7"),
-            ("enrolled - motion sickness = survey N", v("enrolled") - v("motion_sickness"), v("survey_n"), "44 - 3"),
-            ("survey N - technical issues = objective N", v("survey_n") - v("technical_issues"), v("objective_n"),
-             "41 - 7")):
+            ("enrolled − motion sickness = survey N", v("enrolled") - v("motion_sickness"), v("survey_n"), "44 − 3"),
+            ("survey N − technical issues = objective N", v("survey_n") - v("technical_issues"), v("objective_n"),
+             "41 − 7")):
         out.append(Check(name, f"Section 4.2 (line {line})", f"{rhs:g}", f"{txt} = {lhs:g}",
                          "ok" if lhs == rhs else "inconsistent", "agrees" if lhs == rhs else "differs", ""))
     n_obj = v("objective_n")
@@ -596,10 +625,10 @@ def check_cohort(pub: pd.DataFrame) -> list[Check]:
         rec = 100 * c / n_obj
         ok = abs(rec - rep) <= grim.half_unit(2)
         out.append(Check(f"style share {style} = count/{n_obj:g}", f"Section 4.2 (line {line})", f"{rep:g} %",
-                         f"{c}/{n_obj:g} = {rec:.2f} %", "ok" if ok else "inconsistent",
+                         f"{c}/{n_obj:g} = {_pct(rec, 2)}", "ok" if ok else "inconsistent",
                          "agrees" if ok else (f"no integer count of {n_obj:g} gives {rep:g} % "
                                               f"(7/34 = 20.59 %); the three shares sum to "
-                                              f"{sum(v('style_share', s, 'percent') for s in counts):.2f} %"),
+                                              f"{_pct(sum(v('style_share', s, 'percent') for s in counts), 2)}"),
                          "" if ok else "style_shares"))
     return out
 
@@ -620,7 +649,7 @@ def check_extraction(pub: pd.DataFrame) -> list[Check]:
         for r in rows:
             where = f"Table 3 {c} (line {line}), {r.item_set} items"
             if r.how in ("closed form", "family scan"):
-                rec = f"Cα allowed by λ: {r.alpha_low:.4f} to {r.alpha_high:.4f}" if np.isfinite(r.alpha_low) \
+                rec = f"Cα allowed by λ: {_b(r.alpha_low, 4)} to {_b(r.alpha_high, 4)}" if np.isfinite(r.alpha_low) \
                     else "no correlation matrix has these λ"
             else:
                 rec = "witness matrix found" if r.status == "fits" else "no matrix found"
@@ -635,13 +664,12 @@ def check_extraction(pub: pd.DataFrame) -> list[Check]:
             else:
                 status = "note"
             out.append(Check(f"λ and Cα under {F.METHOD_NAMES[r.method]}", where,
-                             f"Cα = {r.alpha_printed:g}; λ = " + ", ".join(f"{x:g}" for x in
-                                                                       P.table3(pub).set_index("item").loc[r.items,
-                                                                                                         "loading"]),
+                             f"Cα = {_g(r.alpha_printed, bounded=True)}; λ = " + ", ".join(
+                                 _g(x, bounded=True) for x in P.table3(pub).set_index("item").loc[r.items, "loading"]),
                              rec, status, proof, "extraction"))
         fits = sorted({f"{F.METHOD_NAMES[r.method]} ({r.item_set} items)" for r in rows if r.status == "fits"})
         out.append(Check("some extraction reproduces λ and Cα", f"Table 3 {c} (line {line})",
-                         f"Cα = {rows[0].alpha_printed:g}", "; ".join(fits) if fits else "none",
+                         f"Cα = {_g(rows[0].alpha_printed, bounded=True)}", "; ".join(fits) if fits else "none",
                          "ok" if fits else "inconsistent",
                          "consistent with " + ", ".join(fits) if fits else
                          "no extraction of the retained or of all items gives these λ with this Cα",
@@ -660,16 +688,16 @@ def check_ci_bootstrap(pub: pd.DataFrame) -> list[Check]:
         line = _line(pub, "table5", "ci_low", f"model {r.model} step {r.step}", r.predictor)
         t_based = abs(r.printed_low - r.t_low) <= 0.02 and abs(r.printed_high - r.t_high) <= 0.02
         status = "ok" if r.consistent else ("note" if t_based else "inconsistent")
-        expl = (f"over {B.N_SEEDS} seeds the {r.method} interval's ends range {r.low_min:.3f}..{r.low_max:.3f} and "
-                f"{r.high_min:.3f}..{r.high_max:.3f} (B = {r.b_data:.3f} on the reference data, t-interval "
-                f"{r.t_low:.3f} to {r.t_high:.3f}); {r.share_both:.1%} of seeds print the printed interval. "
+        expl = (f"over {B.N_SEEDS} seeds the {r.method} interval's ends range {_n(r.low_min)} to {_n(r.low_max)} "
+                f"and {_n(r.high_min)} to {_n(r.high_max)} (B = {_n(r.b_data)} on the reference data, t-interval "
+                f"{apa.ci(r.t_low, r.t_high, 3)}); {_pct(100 * r.share_both)} of seeds print the printed interval. "
                 + ("Consistent on this data." if r.consistent else
                    "No seed comes near: not SPSS's bootstrap of this regression on data that meets the rest of the "
                    "paper (a statement about this data set, not a proof for every data set)."))
         out.append(Check(f"CI = SPSS bootstrap ({B.N_BOOT} resamples, {r.method})",
                          f"Table 5 model {r.model} step {r.step} {r.predictor} (line {line})",
-                         f"{r.printed_low:.3f} to {r.printed_high:.3f}",
-                         f"lower {r.low_min:.3f}..{r.low_max:.3f}, upper {r.high_min:.3f}..{r.high_max:.3f}",
+                         apa.ci(r.printed_low, r.printed_high, 3),
+                         f"lower {_n(r.low_min)} to {_n(r.low_max)}, upper {_n(r.high_min)} to {_n(r.high_max)}",
                          status, expl, "ci_not_t" if status == "inconsistent" else ""))
     return out
 
@@ -715,10 +743,51 @@ def finding_for(audit: pd.DataFrame, group: str) -> int | None:
 # Rendering
 # ----------------------------------------------------------------------------------------------------------------
 
+#: the audit's columns as a table prints them: column -> header (words)
+TABLE_COLUMNS = {"id": "Row", "check": "Check", "where": "Where", "reported": "Reported", "recomputed": "Recomputed",
+                 "status": "Status", "finding": "Finding", "explanation": "Explanation"}
+TABLE_TITLE = "Audit of the published statistics"
+TABLE_NOTES = ("Each row recomputes a printed number from other printed numbers. Status: ok (agrees), inconsistent "
+               "(contradicts them), note (a fact the findings rest on). Finding: the number of the finding an "
+               "inconsistent row belongs to (paper/audit.md). Stars are the paper's as printed: Table 4 * p < .05, "
+               "** p < .01; Table 5 * p < .05, ** p < .001.",)
+
+
+def table_cells(audit: pd.DataFrame, cols=tuple(TABLE_COLUMNS)) -> tuple[list[str], list[list[str]]]:
+    """Header (words, :data:`TABLE_COLUMNS`) and cells of the columns `cols` of the audit: the rows' text as the
+    checks wrote it (their numbers in APA form already), the finding number as an integer (a CSV read back holds
+    it as a float), empty where a row has none."""
+    def cell(col, v) -> str:
+        if pd.isna(v):
+            return ""
+        return str(int(v)) if col == "finding" else str(v)
+
+    return ([TABLE_COLUMNS[c] for c in cols],
+            [[cell(c, v) for c, v in zip(cols, row)] for row in audit[list(cols)].itertuples(index=False)])
+
+
+def write_table_files(audit: pd.DataFrame, out_dir, stem: str) -> list:
+    """Every check as one table: ``<stem>.csv`` (the cells as printed), ``.md`` and ``.tex``; returns the paths."""
+    import csv
+    import io
+    from pathlib import Path
+
+    from analysis.render import latex_table
+
+    out = Path(out_dir)
+    header, rows = table_cells(audit)
+    buf = io.StringIO()
+    csv.writer(buf, lineterminator="\n").writerows([header, *rows])
+    texts = {"csv": buf.getvalue(), "md": markdown_table(header, rows, TABLE_TITLE, TABLE_NOTES),
+             "tex": latex_table(header, rows, TABLE_TITLE, TABLE_NOTES, label=f"tab:{stem}")}
+    for ext, text in texts.items():
+        (out / f"{stem}.{ext}").write_text(text, encoding="utf-8")
+    return [out / f"{stem}.{ext}" for ext in texts]
+
+
 def _md_table(df: pd.DataFrame, cols: list[str]) -> list[str]:
-    """Markdown lines of the columns `cols` of `df`, values as printed by `str`, missing as empty."""
-    rows = [["" if pd.isna(v) else v for v in row] for row in df[cols].itertuples(index=False)]
-    return markdown_table(cols, rows).splitlines()
+    """Markdown lines of the columns `cols` of `df` (:func:`table_cells`)."""
+    return markdown_table(*table_cells(df, cols)).splitlines()
 
 
 def render_markdown(audit: pd.DataFrame) -> str:
@@ -741,7 +810,7 @@ def render_markdown(audit: pd.DataFrame) -> str:
             out.append(f"| ... | {len(rows) - 15} more rows in audit.csv | | | |")
         out.append("")
     out += ["## All checks", ""]
-    out += _md_table(audit, ["id", "check", "where", "reported", "recomputed", "status", "finding", "explanation"])
+    out += _md_table(audit, list(TABLE_COLUMNS))
     return "\n".join(out) + "\n"
 
 

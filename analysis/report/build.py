@@ -190,7 +190,8 @@ def survey_step(cfg: ReportConfig) -> None:
     from study.store.studies import definition
 
     with _open_store(cfg, read_only=True) as st:
-        reason = survey_missing(st, definition(st))
+        study = definition(st)
+        reason = survey_missing(st, study)
         if reason is None:
             try:
                 res, responses = analyze_store(st, n_boot=cfg.n_boot, seed=cfg.seed or 20240101)
@@ -198,12 +199,14 @@ def survey_step(cfg: ReportConfig) -> None:
                 # too few rows for the CFA, a singular covariance matrix, ...: the part is skipped with its reason,
                 # the rest of the report still runs
                 reason = f"the survey analysis (CFA, reliability, regressions) cannot run: {exc}"
+        pca = None
         if reason is None:
-            # Table 3 the way SPSS FACTOR reports it (first principal component per construct), beside our CFA;
-            # only the loadings differ, so no bootstrap, and the CFA fits are the ones above
-            pca, _ = analyze_store(st, n_boot=0, seed=cfg.seed or 20240101, loadings="pca", reuse=res)
-            ext, ext_reason = _extended_survey(st, definition(st), responses, cfg, res)
-            covariates = _covariates(st, definition(st), res.composites.index)
+            if paper_idioms(study):
+                # Table 3 the way the paper's SPSS FACTOR reported it (first principal component per construct),
+                # beside our CFA; only the loadings differ, so no bootstrap, and the CFA fits are the ones above
+                pca, _ = analyze_store(st, n_boot=0, seed=cfg.seed or 20240101, loadings="pca", reuse=res)
+            ext, ext_reason = _extended_survey(st, study, responses, cfg, res)
+            covariates = _covariates(st, study, res.composites.index)
     with _fresh_dir(cfg.out / "survey") as out:
         if reason is not None:
             (out / SKIPPED).write_text(reason + "\n", encoding="utf-8")
@@ -212,7 +215,8 @@ def survey_step(cfg: ReportConfig) -> None:
         responses.to_csv(out / "responses.csv", index=False)
         # fit with the RMSEA interval, regression diagnostics, the path diagram (analysis.survey.statistics_tables)
         write_survey_statistics(res, out, covariates)
-        write_table3_pca(pca, out / "pca")
+        if pca is not None:
+            write_table3_pca(pca, out / "pca")
         # the extended statistics (docs/acceptance_statistics.md) in survey/extended/
         if ext is not None:
             ext.write(out / "extended")
@@ -237,6 +241,12 @@ def within_step(cfg: ReportConfig) -> None:
             (out / SKIPPED).write_text(reason + "\n", encoding="utf-8")
             return
         res.write(out, data)
+
+
+def paper_idioms(study) -> bool:
+    """Whether the study asks for the paper's idioms (``[analysis] paper_idioms = true``: the principal-component
+    Table 3, Table 5's "Step 1: Dependent Variable" rows); no other study's report shows them."""
+    return bool(study.settings.get("analysis", {}).get("paper_idioms", False))
 
 
 def write_table3_pca(pca, out: Path) -> None:
@@ -438,6 +448,17 @@ def study_figures_step(cfg: ReportConfig) -> None:
 _RAW_DATA = {"responses", "composites"}  # data files, not tables to render
 
 
+def _audit_table(frame: pd.DataFrame, out: Path, stem: str) -> None:
+    from analysis.paper.audit import write_table_files
+
+    write_table_files(frame, out, stem)
+
+
+#: (part folder, CSV stem) -> the writer of a table the part lays out itself from its CSV (header words, cells as
+#: printed) where the CSV's folder holds no table files of it: the audit (its audit.md is a whole report)
+OWN_LAYOUT = {("paper", "audit"): _audit_table}
+
+
 def collect_step(cfg: ReportConfig) -> None:
     """Every table into tables/ (csv, md, tex) and every figure into figures/."""
     tables, figs = cfg.out / "tables", cfg.out / "figures"
@@ -451,9 +472,11 @@ def collect_step(cfg: ReportConfig) -> None:
         for f in sorted(d.glob("*.csv")):
             if f.stem in _RAW_DATA:
                 continue
-            # a part's own rendering (paper-shaped tables) wins over the generic one
+            # a part's own rendering (paper-shaped tables, the audit's table) wins over the generic one
             shaped = [f.with_suffix(ext) for ext in (".md", ".tex") if f.with_suffix(ext).exists()]
-            if len(shaped) == 2:
+            if (sub, f.stem) in OWN_LAYOUT:
+                OWN_LAYOUT[(sub, f.stem)](pd.read_csv(f), tables, f"{prefix}_{f.stem}")
+            elif len(shaped) == 2:
                 for g in [f, *shaped]:
                     shutil.copy2(g, tables / f"{prefix}_{g.name}")
             else:

@@ -483,9 +483,51 @@ def _exhibit_figure(out: Path, rel_dir: str, stem: str, ex: Exhibits, title: str
             f"<figcaption>" + (f"<em>Note.</em> {esc(note)} " if note else "") + links + "</figcaption></figure>")
 
 
+def _paired_kpi(study, stem: str):
+    """(KPI, segment, KPI spec) of the paired figure `stem`: the column of the study's comparison it plots
+    (:func:`analysis.drives.paired.kpi_stem`); None when the study compares none such."""
+    from analysis.drives.paired import kpi_stem
+    from study.folder.kpi_spec import study_spec
+
+    spec = study_spec(study)
+    if spec.comparison is None:
+        return None
+    return next(((kpi, seg, spec) for template, kpi, seg in spec.comparison.columns if kpi_stem(template) == stem),
+                None)
+
+
+def _reading_paired(out: Path, study, stem: str) -> str | None:
+    """The paired comparison behind figure `stem` in words (drives/paired.csv): the two condition means and their
+    difference with the KPI's declared unit, its 95 % CI, the paired t-test and d_z."""
+    from analysis.drives.paired import KPI_WORDS, kpi_label, kpi_words
+
+    hit, df = _paired_kpi(study, stem), _read_csv(out / "drives" / "paired.csv")
+    if hit is None or df is None or "KPI" not in df.columns:
+        return None
+    kpi, seg, spec = hit
+    row = df[df["KPI"] == kpi_label(kpi, seg, spec.headings)]
+    if row.empty:
+        return None
+    r, (ctrl, treat) = row.iloc[0], (spec.comparison.control, spec.comparison.treatment)
+    unit, d = spec.unit(kpi), spec.decimals(kpi)
+    if d == 0 or KPI_WORDS.get(kpi, ("", ""))[1] == "count":
+        d = 2   # a mean of counts is no count
+    words = kpi_words(kpi, spec) + ("" if seg in ("", "overall") else f", {seg}")
+    return (f"{words[:1].upper() + words[1:]}: M = {apa.quantity(r[f'M {ctrl}'], unit, d)} with {ctrl} and "
+            f"{apa.quantity(r[f'M {treat}'], unit, d)} with {treat}; {ctrl} − {treat} = "
+            f"{apa.quantity(r['M_diff'], unit, d)}, 95 % CI {apa.ci(r['95 % CI LL'], r['95 % CI UL'], d)}, "
+            f"t({apa.df_text(r['df'])}) = {apa.num(r['t'])}, {apa.p_text(r['p (t)'])}, d_z = {apa.num(r['d_z'])}.")
+
+
 def _figure(out: Path, stem: str, study, ex: Exhibits) -> str:
-    caption, reader = FIGURES.get(stem, (PAIRED_CAPTION if stem.startswith("paired_") else
-                                         stem.replace("_", " ") + ".", None))
+    caption, reader = FIGURES.get(stem, (stem.replace("_", " ") + ".", None))
+    if stem.startswith("paired_") and stem not in FIGURES:
+        from analysis.drives.paired import kpi_label
+
+        hit = _paired_kpi(study, stem)
+        caption = (f"{kpi_label(hit[0], hit[1], hit[2].headings)}: {PAIRED_CAPTION[:1].lower()}{PAIRED_CAPTION[1:]}"
+                   if hit else PAIRED_CAPTION)
+        reader = lambda o, s: _reading_paired(o, s, stem)  # noqa: E731
     reading = None
     if reader is not None:
         try:
@@ -660,7 +702,8 @@ def _methods_section(out: Path, st, study, ran: tuple[str, ...]) -> list[str]:
         dropped = settings.get("dropped_items") or []
         parts.append("<p><strong>Measurement model.</strong> Confirmatory factor analysis by maximum likelihood "
                      "(semopy) in two stages: every scaled item on its construct (initial; items with a "
-                     f"standardized loading below {esc(analysis.get('min_loading', 0.7))} flagged), then the "
+                     f"standardized loading below {esc(apa.num(analysis.get('min_loading', 0.7), 2, bounded=True))} "
+                     "flagged), then the "
                      f"model file's measurement model (final): {mm}."
                      + (f" Items left out of the final model: {esc(', '.join(dropped))}." if dropped else "")
                      + " Reliability and validity on the final items (Cronbach's α, composite reliability, AVE, "
@@ -684,7 +727,8 @@ def _methods_section(out: Path, st, study, ran: tuple[str, ...]) -> list[str]:
         hyps = "".join(f"<li>{esc(h.hypothesis)}: {esc(h.path)} in model {esc(h.model)} step {h.step} "
                        f"({esc(signs.get(h.sign, h.sign))})</li>" for h in model.hypotheses)
         if hyps:
-            parts.append(f"<p><strong>Hypotheses</strong> at α = {esc(study.alpha)}:</p><ul>{hyps}</ul>")
+            parts.append(f"<p><strong>Hypotheses</strong> at α = {esc(apa.num(study.alpha, 2, bounded=True))}:</p>"
+                         f"<ul>{hyps}</ul>")
     parts += _procedure(study, st)
     src = st.df("SELECT source, count(*) AS n FROM drives GROUP BY source ORDER BY source")
     if not src.empty:
@@ -990,6 +1034,9 @@ def _verdict_box(out: Path, st, study, mode: str) -> tuple[str, dict[str, str]]:
                         if reference else "") + ".</li>")
     bands = _read_csv(out / "tables" / "drives_bands.csv")
     if bands is not None and {"band", "holds"} <= set(bands.columns) and len(bands):
+        from analysis.drives.band_diagnostics import COUNT_UNITS
+        from analysis.drives.savings import BAND_UNITS
+
         diag = _read_csv(out / "tables" / "drives_band_diagnostics.csv")
         held = bands["holds"].astype(str).str.lower().isin(("true", "1", "yes"))
         missed_band = not held.all()
@@ -1001,10 +1048,15 @@ def _verdict_box(out: Path, st, study, mode: str) -> tuple[str, dict[str, str]]:
                 d = diag[diag["band"] == r.band]
                 if len(d):
                     q = d.iloc[0]
-                    why = (f"; {q['quantity']}: {apa.num(q['baseline'], 1)} baseline vs "
-                           f"{apa.num(q['pedas'], 1)} pEDAS {q['unit']}")
-            miss.append(f"{esc(r.band)} (ours {esc(apa.num(r.our_value, 1))}, paper {esc(apa.num(r.paper_value, 1))}"
-                        f"{esc(why)})")
+                    if q["unit"] in COUNT_UNITS:   # a count: "2 baseline vs 1 pEDAS drives"
+                        why = (f"; {q['quantity']}: {apa.num(q['baseline'], 0)} baseline vs "
+                               f"{apa.num(q['pedas'], 0)} pEDAS {q['unit']}")
+                    else:
+                        why = (f"; {q['quantity']}: {apa.quantity(q['baseline'], q['unit'], 1)} baseline vs "
+                               f"{apa.quantity(q['pedas'], q['unit'], 1)} pEDAS")
+            unit = BAND_UNITS.get(r.band, "")
+            miss.append(f"{esc(r.band)} (ours {esc(apa.quantity(r.our_value, unit, 1))}, paper "
+                        f"{esc(apa.quantity(r.paper_value, unit, 1))}{esc(why)})")
         items.append(f"<li><strong>Objective KPI targets</strong>: {int(held.sum())} of {len(bands)} bands met"
                      + (f" — met: {met}" if met else "") + (f"; missed: {'; '.join(miss)}" if miss else "")
                      + f". Details: {Exhibits.ref('drives_bands')}.</li>")
@@ -1027,6 +1079,7 @@ def _appendix(out: Path, st, study, steps, skipped: dict, used_figs: set, used_t
     for stem, render in [d for d in ex.deferred if d[0] == "participant_flow"]:
         parts.append(render())
     parts.append(_phases_table(out, st, study, ex))
+    used_tabs.add("protocol_phases")   # the files it writes into tables/ are this table, not another one
     ex.section = "Moved from the main text"
     moved = [d for d in ex.deferred if d[0] != "participant_flow"]
     if moved:

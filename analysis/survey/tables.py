@@ -103,9 +103,9 @@ def item_flags_rows(res) -> tuple[list[str], list[list[str]], list[str]]:
     rows = [[r["item"], r["construct"], fmt_cell(r["loading"]), fmt_cell(r["own_r"]), str(r["cross_construct"]),
              fmt_cell(r["cross_r"]), r["rule"] or "-", "yes" if r["retained"] else "no (config)"]
             for _, r in ini.iterrows()]
-    notes = [f"Rules: λ < {rules.get('min_loading', 0.7)}; negative λ; cross-construct: |r| with another construct's "
-             f"composite >= item-rest r of its own construct (margin {rules.get('cross_margin', 0.0)}). "
-             "The rules inform; the deletion itself is the declared configuration."]
+    notes = [f"Rules: λ < {apa.num(rules.get('min_loading', 0.7), 2, bounded=True)}; negative λ; cross-construct: "
+             f"|r| with another construct's composite >= item-rest r of its own construct (margin "
+             f"{rules.get('cross_margin', 0.0)}). The rules inform; the deletion itself is the declared configuration."]
     return header, rows, notes
 
 

@@ -218,13 +218,15 @@ def _num(x: float, digits: int = 2, bounded: bool = False) -> str:
 
 
 def result_sentence(study: WithinStudy, variable: str) -> str:
-    """One APA-style sentence of a variable's rm-ANOVA (with the correction when Mauchly's test rejects sphericity)
-    and Friedman test, e.g. 'SUS score: F(2, 34) = 63.55, p < .001, partial η² = .79; ...' (APA numbers)."""
+    """One APA-style paragraph of a variable: its rm-ANOVA (with the correction when Mauchly's test rejects
+    sphericity) and Friedman test, the condition means, the pairs that differ with their mean differences and the
+    mixed model's condition effects, every measured value with the variable's unit (none for a score), e.g.
+    'Takeover time: F(2, 34) = 113.17, p < .001, ... none: M = 3.03 s, SD = 0.49 s; ...'."""
     v = study.variables.set_index("variable").loc[variable]
+    unit = v["unit"] if isinstance(v.get("unit"), str) else ""
     a = study.anova[study.anova["variable"] == variable].iloc[0]
     f = study.friedman[study.friedman["variable"] == variable].iloc[0]
-    unit = f" ({v['unit']})" if isinstance(v.get("unit"), str) and v["unit"] else ""
-    text = (f"{v['label']}{unit}: F({apa.df_text(a['df1'])}, {apa.df_text(a['df2'])}) = {_num(a['f'])}, "
+    text = (f"{v['label']}: F({apa.df_text(a['df1'])}, {apa.df_text(a['df2'])}) = {_num(a['f'])}, "
             f"{_p(a['p'])}, partial η² = {_num(a['np2'], bounded=True)}, generalised η² = "
             f"{_num(a['ng2'], bounded=True)}")
     if pd.notna(a["mauchly_p"]):
@@ -236,11 +238,21 @@ def result_sentence(study: WithinStudy, variable: str) -> str:
                      f"{_p(a['mauchly_p'])})")
     text += (f"; Friedman χ²({apa.df_text(f['df'])}) = {_num(f['chi2'])}, {_p(f['p'])}, Kendall's W = "
              f"{_num(f['kendall_w'], bounded=True)}.")
+    d = study.descriptives[study.descriptives["variable"] == variable].set_index("condition")
+    means = [f"{c}: M = {apa.quantity(d.loc[c, 'mean'], unit)}, SD = {apa.quantity(d.loc[c, 'sd'], unit)}"
+             for c in study.conditions if c in d.index]
+    if means:
+        text += " " + "; ".join(means) + "."
     ph = study.posthoc[(study.posthoc["variable"] == variable) & (study.posthoc["test"] == "t")]
-    sig = [f"{r.a} vs {r.b} (d_z = {_num(r.dz)}, Holm {_p(r.p_holm)})" for r in ph.itertuples()
-           if r.p_holm < study.alpha]
+    sig = [f"{r.a} vs {r.b} ({r.a} − {r.b} = {apa.quantity(r.mean_diff, unit)}, d_z = {_num(r.dz)}, "
+           f"Holm {_p(r.p_holm)})" for r in ph.itertuples() if r.p_holm < study.alpha]
     text += (" Paired t-tests differ for " + "; ".join(sig) + "." if sig
              else " No pair of conditions differs in the Holm-corrected paired t-tests.")
+    mixed = study.mixed[(study.mixed["variable"] == variable) & (study.mixed["effect"] == "condition")]
+    if len(mixed):
+        text += (f" Mixed model (every available value), difference from {study.conditions[0]}: " + "; ".join(
+            f"{r.level} {apa.quantity(r.coef, unit)}, 95 % CI {apa.ci(r.ci_low, r.ci_high)}, {_p(r.p)}"
+            for r in mixed.itertuples()) + ".")
     return text
 
 

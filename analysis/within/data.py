@@ -68,7 +68,7 @@ def kpi_values(st, study, spec) -> pd.DataFrame:
         frames.append(pd.DataFrame({
             "participant": per["participant_id"].to_numpy(), "condition": per["condition"].to_numpy(),
             "variable": name, "source": "kpi", "label": getattr(k, "label", None) or name,
-            "unit": getattr(k, "unit", None) or "", "value": pd.to_numeric(per[name], errors="coerce").to_numpy()}))
+            "unit": kspec.unit(name), "value": pd.to_numeric(per[name], errors="coerce").to_numpy()}))
     return pd.concat(frames, ignore_index=True)
 
 

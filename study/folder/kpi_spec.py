@@ -206,9 +206,14 @@ DECIMALS = {"m": 1, "km": 3, "s": 2, "min": 2, "m/s": 2, "km/h": 1, "m/s^2": 2, 
             "kWh": 3, "Wh/km": 1, "W": 0, "kW": 2, "N": 0, "deg": 1, "rad": 3, "1": 3, "": 3}
 #: the most decimals a KPI may declare (``decimals = ...`` of an [sql], [events] or [measures] entry)
 MAX_DECIMALS = 10
-#: the units of the built-in KPI columns by their name's ending
-_BUILTIN_UNITS = (("_pct", "%"), ("_mps", "m/s"), ("_kmh", "km/h"), ("_wh_per_km", "Wh/km"), ("_wh", "Wh"),
-                  ("_m", "m"), ("_s", "s"))
+#: the unit of each built-in KPI column (docs/kpis.md); counts and shares are dimensionless ("")
+BUILTIN_UNITS = {"energy_wh": "Wh", "distance_m": "m", "trip_time_s": "s", "mean_speed_mps": "m/s",
+                 "wh_per_km": "Wh/km", "violation_distance_m": "m", "violation_share": "", "violation_events": "",
+                 "tl_crossed": "", "tl_crossed_green": "", "tl_crossed_yellow": "", "tl_crossed_red": "",
+                 "tl_green_passes": "", "red_stops": "", "stops": "", "rms_jerk": "m/s³", "mean_abs_a": "m/s²"}
+#: the units of other columns by their name's ending (reductions in %, columns per condition)
+_SUFFIX_UNITS = (("_pct", "%"), ("_mps", "m/s"), ("_kmh", "km/h"), ("_wh_per_km", "Wh/km"), ("_wh", "Wh"),
+                 ("_m", "m"), ("_s", "s"))
 
 
 @dataclass(frozen=True)
@@ -256,18 +261,31 @@ class KpiSpec:
         """Column -> how rendered tables name it: 'Label (unit)' for the study's own KPIs, the name for built-ins."""
         return {k.name: k.heading for k in self.user_kpis}
 
+    def unit(self, column: str) -> str:
+        """The unit of KPI `column` as declared: a study KPI's ``unit`` ([sql], [events]; a [measures] entry's from
+        the measure library), a built-in's from :data:`BUILTIN_UNITS`, another column's from its name's ending
+        (``saving_urban_pct``: %); "" for a dimensionless one (a count, a share, a score).
+
+        >>> from study.folder.kpi_spec import DEFAULT_SPEC
+        >>> DEFAULT_SPEC.unit("wh_per_km"), DEFAULT_SPEC.unit("red_stops"), DEFAULT_SPEC.unit("saving_urban_pct")
+        ('Wh/km', '', '%')
+        """
+        kpi = next((k for k in self.user_kpis if k.name == column), None)
+        if kpi is not None:
+            return kpi.unit
+        if column in BUILTIN_UNITS:
+            return BUILTIN_UNITS[column]
+        return next((u for end, u in _SUFFIX_UNITS if column.endswith(end)), "")
+
     def decimals(self, column: str) -> int:
         """Decimals `column` is shown with for reading: a declared KPI's own ``decimals``, else :data:`DECIMALS` of
-        its unit (a declared KPI's ``unit``, a built-in's from its name; counts without decimals)."""
+        its unit (:meth:`unit`; counts without decimals)."""
         kpi = next((k for k in self.user_kpis if k.name == column), None)
         if kpi is not None and kpi.decimals is not None:
             return kpi.decimals
-        unit = None if kpi is None else kpi.unit
-        if unit is None:
-            if column.endswith(("_events", "_stops", "n_intervals")):
-                return 0
-            unit = next((u for end, u in _BUILTIN_UNITS if column.endswith(end)), "")
-        return DECIMALS.get(unit, 3)
+        if kpi is None and column.endswith(("_events", "_stops", "n_intervals")):
+            return 0
+        return DECIMALS.get(self.unit(column), 3)
 
     @property
     def params(self):

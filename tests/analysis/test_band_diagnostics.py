@@ -38,5 +38,5 @@ def test_each_miss_in_the_expected_direction_is_explained_from_the_numbers():
 
 def test_a_miss_the_other_way_only_points_to_the_numbers():
     out = why_missed(bands(overall=7, highway=1, violation=10, red=90), DIAG)
-    assert out == [f"*{BAND_VIOLATION}*: ours 10.00, paper 1; see the table above.",
-                   f"*{BAND_RED}*: ours 90.00, paper 1; see the table above."]
+    assert out == [f"*{BAND_VIOLATION}*: ours 10.00 %, paper 1.00 %; see the table above.",   # reductions in %
+                   f"*{BAND_RED}*: ours 90.00 %, paper 1.00 %; see the table above."]

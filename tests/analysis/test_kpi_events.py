@@ -233,9 +233,11 @@ def test_label_and_unit_head_the_markdown_and_latex_tables(store, cli, tmp_path)
                     "requests mean (SD)", "distance (m) mean (SD)"):   # identifiers as words
         assert heading in header, heading
         assert heading in tex, heading
-    # the takeover times of these drives are one value throughout: left out with a line saying so
+    # the takeover times of these drives are one value throughout: left out with a line saying so, each by its
+    # declared label with its value in the declared unit (to the unit's decimals)
     assert "Takeover time" not in header
-    assert "Constant across all drives and left out: takeover query = 1.350, takeover time = 1.350" in md
+    assert ("Constant across all drives and left out: Takeover time (query) = 1.35 s, Takeover time = 1.35 s, "
+            "Reaction to the warning = 1.70 s.") in md
     assert "SDLP (m) mean (SD)" in r.out
     # the CSV files keep the KPI names
     kpis = pd.read_csv(tmp_path / "o" / "kpis.csv")

@@ -154,6 +154,15 @@ def test_report_on_reduced_reference_cohort(tmp_path, tmp_path_factory):
     assert re.search(r"Published survey values</strong> \([^)]*\): \d+ met .*?, 0 missed — on the reconstructed data",
                      html)
     assert "Mean energy savings were larger in " in html  # a figure's reading from the numbers
+    # the readings and verdicts state measured values with their units (docs/report.md, "Units")
+    assert re.search(r"Battery energy: M = [\d.]+ Wh with baseline and [\d.]+ Wh with pedas; baseline − pedas = "
+                     r"−?[\d.]+ Wh, 95 % CI \[", html)
+    for m in re.finditer(r"\(ours ([^,]+), paper ([^;)]+)", html):
+        assert m.group(1).endswith((" %", " pp")) and m.group(2).endswith((" %", " pp")), m.group(0)
+    # the audit in the appendix: headers in words, findings as their numbers
+    audit = (out / "tables" / "paper_audit.md").read_text()
+    assert "| Row | Check | Where | Reported | Recomputed | Status | Finding | Explanation |" in audit
+    assert "| inconsistent | 1 |" in audit and "| 1.000 |" not in audit
     # the replay of the participant of Figs. 11-12 (P006 is among the first four) is linked from the report
     assert 'href="drives/replay_P006.html"' in html and (out / "drives" / "replay_P006.html").exists()
     # the same cohort in the previous scenario: its own drive analysis and both scenarios' bands side by side

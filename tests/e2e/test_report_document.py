@@ -145,6 +145,12 @@ def test_document_reads_top_to_bottom(lk_report):
     assert sum(e.part == "main" for e in exhibits) <= 10
     for e in exhibits:
         assert e.title and all((out / f).is_file() for f in e.files.values()), e
+    # each table and figure once (the protocol phases were numbered twice)
+    assert len({(e.kind, e.stem) for e in exhibits}) == len(exhibits)
+    # the paper's idioms only where declared (studies/pedas_paper): no principal-component Table 3 here
+    assert not (out / "survey" / "pca").exists() and not list((out / "tables").glob("survey_pca_*"))
+    assert not [e for e in exhibits if "pca" in e.stem or "principal component" in (e.title + e.note).lower()]
+    assert "principal component" not in doc and "Dependent Variable -" not in doc
     # APA numbers: no p with a leading zero, intervals as [LL, UL], the true minus sign
     assert not re.search(r"p [=<] 0\.", doc) and not re.search(r"\d – [−\d]", doc) and "−" in doc
 

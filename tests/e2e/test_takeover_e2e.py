@@ -142,6 +142,17 @@ def test_takeover_study_end_to_end(tmp_path, capsys, reference):
 
     doc = (tmp_path / "reports" / "index.html").read_text(encoding="utf-8")
     assert "Within-subjects comparison" in doc and "Simulation core" not in doc
+    # the paper's idioms only where declared: no principal-component table, each exhibit numbered once
+    from analysis.report.exhibits import read_exhibits
+
+    exhibits = read_exhibits(tmp_path / "reports")
+    assert not [e for e in exhibits if "pca" in e.stem] and "principal component" not in doc
+    assert len({(e.kind, e.stem) for e in exhibits}) == len(exhibits)
+    # the takeover time in its declared unit in the result sentence, the scores without one
+    sentence = next(ln for ln in (res / "methods.md").read_text().splitlines() if ln.startswith("- Takeover time:"))
+    assert re.search(r"none: M = \d\.\d\d s, SD = \d\.\d\d s; visual: M = \d\.\d\d s", sentence), sentence
+    assert re.search(r"none − visual = \d\.\d\d s, d_z = ", sentence), sentence
+    assert re.search(r"- SUS \(0-100\): .* none: M = \d+\.\d\d, SD = \d+\.\d\d;", (res / "methods.md").read_text())
     assert re.search(r"pingouin \d", doc) and "DAQP" not in doc and "SUMO" not in doc
     # the bundle holds the within-subjects figures in three formats and every image the document shows
     import zipfile
