@@ -38,13 +38,21 @@ HEADERS = {
     "std_composite": "β (composite)", "mean_raw": "M (raw)", "paper_value": "Paper", "our_value": "Ours",
     "participant_id": "Participant", "drive_id": "Drive", "n_params": "Parameters", "n_boot": "Resamples",
     "statistic": "Statistic", "holds": "Holds", "lo": "Lower", "hi": "Upper", "dv": "DV",
+    # the diagnostics' columns (docs/contracts.md, survey/extended/): flags as the rule they test
+    "stage": "Stage", "construct": "Construct", "item": "Item", "variable": "Variable", "model": "Model",
+    "retained": "Retained", "rule": "Rule", "flag_low": "Low λ", "flag_negative": "Negative λ",
+    "flag_cross": "Cross-loading", "above_limit": "Above limit", "above_3_3": "VIF > 3.3", "above_085": "Above .85",
+    "above_090": "Above .90", "eigenvalue_1": "First eigenvalue", "first_share": "Share of the first factor",
+    "above_50": "Above 50 %", "n_components_eigen_gt_1": "Components with eigenvalue > 1", "chain": "Path",
+    "x": "From", "y": "To", "estimator": "Estimator", "f_min": "Fit function minimum", "converged": "Converged",
+    "admissible": "Admissible", "n_failed": "Failed resamples", "method": "Method",
 }
 #: pairs of lower/upper columns written as one "[LL, UL]" column, with that column's header
 CI_PAIRS = (("boot_ci_low", "boot_ci_high", "Bootstrap 95 % CI"), ("alpha_ci_low", "alpha_ci_high", "95 % CI of α"),
             ("ci_low", "ci_high", "95 % CI"))
 #: headers (first word) of values bounded by 1: printed without a leading zero
 BOUNDED = {"p", "r", "β", "α", "Cα", "ω", "λ", "CFI", "TLI", "SRMR", "RMSEA", "R²", "ΔR²", "Adj.", "AVE", "CR",
-           "√AVE", "HTMT", "HTMT2", "item-rest", "r²"}
+           "√AVE", "HTMT", "HTMT2", "item-rest", "r²", "Share"}
 _UNITS = (("_pct", " (%)"), ("_wh", " (Wh)"), ("_mps", " (m/s)"), ("_m", " (m)"), ("_s", " (s)"))
 _NUM = re.compile(r"^(?P<lt>[<>]\s?)?(?P<sign>[-−]?)(?P<int>\d+)(?P<frac>\.\d+)?(?P<tail>[*†‡a-z]*)$")
 
@@ -66,6 +74,8 @@ def header(name: str) -> str:
 def column_kind(head: str) -> str:
     """"p" (p values), "df" (degrees of freedom), "bounded" (values bounded by 1) or "number"."""
     first = str(head).split(" ")[0] if str(head).strip() else ""
+    if " CI of " in str(head):   # "95 % CI of α": the interval of a quantity is of that quantity's kind
+        first = str(head).split(" CI of ")[1].split(" ")[0]
     if first == "p":
         return "p"
     if first in ("df", "df1", "df2"):
@@ -91,7 +101,9 @@ def cell(text: str, kind: str = "number") -> str:
     s = str(text).strip()
     m = _NUM.match(s)
     if not m:
-        return minus(text) if re.fullmatch(r"\[?[-−]?[\d.]+, [-−]?[\d.]+\]?", s) else str(text)
+        if re.fullmatch(r"\[?[-−]?[\d.]+, [-−]?[\d.]+\]?", s):   # an interval
+            return no_leading_zero(minus(s)) if kind in ("bounded", "p") else minus(text)
+        return str(text)
     if kind == "p" and not m.group("lt") and not m.group("sign"):
         v = float(m.group("int") + (m.group("frac") or ""))
         digits = max(len(m.group("frac") or "") - 1, 3)

@@ -7,7 +7,8 @@ baseline vs pEDAS drive per participant), the statistics a reviewer asks for bes
 * ``paired_by_group``: per KPI and declared grouping (``group_by``, e.g. the driving style) the mixed ANOVA
   condition x group (:func:`analysis.survey.paired.mixed_anova`);
 * ``figures/paired_<kpi>``: each participant's two values joined by a line (coloured by the first grouping), the
-  condition means with their 95 % t-intervals.
+  condition means with their 95 % t-intervals; ``figures/paired_kpis`` every such plot as a panel of one figure
+  (the main text's).
 
 A KPI whose difference is the same for every participant (e.g. 0 for the number of traffic lights crossed on a
 fixed route) has no test; the table's note names it.
@@ -127,8 +128,31 @@ def paired_tables(result) -> tuple[pd.DataFrame, pd.DataFrame, list[str]]:
     return pd.DataFrame(rows), pd.DataFrame(group_rows), constant
 
 
+def _draw_pair(ax, x, y, groups, colours: dict, control: str, treatment: str, label: str, size: float = 9) -> None:
+    """One paired plot on `ax`: each participant's two values joined by a line (coloured by group), the condition
+    means with their 95 % t-intervals."""
+    ok = ~(np.isnan(x) | np.isnan(y))
+    for i in np.flatnonzero(ok):
+        c = colours.get(groups[i], "0.5") if groups is not None else "0.5"
+        ax.plot([0, 1], [x[i], y[i]], "-o", color=c, alpha=0.45, lw=0.8, ms=3)
+    for j, v in enumerate((x[ok], y[ok])):
+        m = v.mean()
+        half = stats.t.ppf(0.975, len(v) - 1) * v.std(ddof=1) / np.sqrt(len(v)) if len(v) > 1 else 0.0
+        ax.errorbar([j + (-0.08 if j == 0 else 0.08)], [m], yerr=[[half], [half]], fmt="s", color="black",
+                    ms=5, capsize=4, lw=1.4, zorder=5)
+    ax.set_xticks([0, 1], [control, treatment])
+    ax.set_xlim(-0.35, 1.35)
+    ax.set_ylabel(label, fontsize=size)
+    ax.tick_params(labelsize=size)
+    for side in ("top", "right"):
+        ax.spines[side].set_visible(False)
+
+
 def plot_paired(result, out_dir: str | Path) -> list[Path]:
-    """One figure ``paired_<kpi>`` per compared KPI that varies (module docstring); returns the paths written."""
+    """One figure ``paired_<kpi>`` per compared KPI that varies, and ``paired_kpis`` with all of them as panels
+    (module docstring); returns the paths written."""
+    import textwrap
+
     from matplotlib.lines import Line2D
 
     from analysis.render import bare_figure
@@ -138,32 +162,34 @@ def plot_paired(result, out_dir: str | Path) -> list[Path]:
     group = next((g for g in result.levels if g in pp), None)
     levels = [v for v in result.levels.get(group, []) if (pp[group] == v).any()] if group else []
     colours = {v: c for v, c in zip(levels, ["#1b6ca8", "#d1495b", "#2e8b57", "#8e6c8a", "#edae49", "#555555"])}
-    paths = []
+    groups = pp[group].to_numpy() if group else None
+    handles = [Line2D([], [], color=c, marker="o", ms=3, lw=0.8, label=str(v)) for v, c in colours.items()]
+    handles.append(Line2D([], [], color="black", marker="s", ms=5, lw=1.4, label="M ± 95 % CI"))
+    shown = []
     for label, a, b, stem in _pairs(result):
         x, y = pp[a].to_numpy(float), pp[b].to_numpy(float)
         ok = ~(np.isnan(x) | np.isnan(y))
-        if not ok.any() or np.all(x[ok] == y[ok]):
-            continue
+        if ok.any() and not np.all(x[ok] == y[ok]):
+            shown.append((label, x, y, stem))
+    paths = []
+    for label, x, y, stem in shown:
         fig = bare_figure((3.6, 3.4))
         ax = fig.add_subplot(1, 1, 1)
-        for i in np.flatnonzero(ok):
-            c = colours.get(pp[group].iloc[i], "0.5") if group else "0.5"
-            ax.plot([0, 1], [x[i], y[i]], "-o", color=c, alpha=0.45, lw=0.8, ms=3)
-        for j, v in enumerate((x[ok], y[ok])):
-            m = v.mean()
-            half = stats.t.ppf(0.975, len(v) - 1) * v.std(ddof=1) / np.sqrt(len(v)) if len(v) > 1 else 0.0
-            ax.errorbar([j + (-0.08 if j == 0 else 0.08)], [m], yerr=[[half], [half]], fmt="s", color="black",
-                        ms=5, capsize=4, lw=1.4, zorder=5)
-        ax.set_xticks([0, 1], [comp.control, comp.treatment])
-        ax.set_xlim(-0.35, 1.35)
-        ax.set_ylabel(label, fontsize=9)
-        ax.tick_params(labelsize=9)
-        handles = [Line2D([], [], color=c, marker="o", ms=3, lw=0.8, label=str(v)) for v, c in colours.items()]
-        handles.append(Line2D([], [], color="black", marker="s", ms=5, lw=1.4, label="M ± 95 % CI"))
+        _draw_pair(ax, x, y, groups, colours, comp.control, comp.treatment, label)
         ax.legend(handles=handles, fontsize=7, frameon=False, loc="upper left", bbox_to_anchor=(1.0, 1.0))
-        for side in ("top", "right"):
-            ax.spines[side].set_visible(False)
         paths += save_figure(fig, out_dir, stem)
+    if shown:
+        # every compared KPI in one figure for the main text: panels of a page's width, the legend once below
+        cols = min(4, len(shown))
+        rows = -(-len(shown) // cols)
+        fig = bare_figure((1.75 * cols + 0.4, 1.9 * rows + 0.5))
+        for k, (label, x, y, _) in enumerate(shown):
+            ax = fig.add_subplot(rows, cols, k + 1)
+            _draw_pair(ax, x, y, groups, colours, comp.control, comp.treatment, "", size=7)
+            ax.set_title("\n".join(textwrap.wrap(label, 24)), fontsize=7)
+        fig.legend(handles=handles, fontsize=7, frameon=False, loc="lower center", ncol=len(handles))
+        fig.tight_layout(rect=(0, 0.5 / (1.9 * rows + 0.5), 1, 1), h_pad=0.8, w_pad=0.6)
+        paths += save_figure(fig, out_dir, "paired_kpis")
     return paths
 
 

@@ -480,7 +480,11 @@ def collect_step(cfg: ReportConfig) -> None:
                 for g in [f, *shaped]:
                     shutil.copy2(g, tables / f"{prefix}_{g.name}")
             else:
-                write_table(pd.read_csv(f), tables, f"{prefix}_{f.stem}", f"{sub}: {f.stem}")
+                frame = pd.read_csv(f)
+                if {"a", "b"} <= set(frame.columns) and frame["a"].dtype == object:
+                    # a pair of constructs (HTMT, bootstrap intervals): "b" is not the coefficient B here
+                    frame = frame.rename(columns={"a": "Construct 1", "b": "Construct 2"})
+                write_table(frame, tables, f"{prefix}_{f.stem}", f"{sub}: {f.stem}")
         for f in sorted((d / "figures").glob("*")) if (d / "figures").exists() else []:
             shutil.copy2(f, figs / f.name)
 

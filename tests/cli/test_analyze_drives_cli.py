@@ -108,6 +108,8 @@ def test_analyze_drives_writes_tables_figures_and_bands(cli, cohort_db, tmp_path
     for stem in ("paired_energy_overall_wh", "paired_rms_jerk"):
         assert (out / "figures" / f"{stem}.png").stat().st_size > 1000, stem
     assert not (out / "figures" / "paired_tl_crossed.png").exists()   # the same in both drives
+    # all of them as panels of one figure (the main text's)
+    assert (out / "figures" / "paired_kpis.png").stat().st_size > 1000
     tex = (out / "style_table.tex").read_text()
     assert r"\toprule" in tex and r"\bottomrule" in tex
     bands = pd.read_csv(out / "bands.csv")

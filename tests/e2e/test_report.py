@@ -90,7 +90,7 @@ EXPECTED_FIGURES = ["fig9a_savings", "fig9b_savings_urban_by_style", "fig9c_savi
                     "fig9d_savings_overall_by_style", "fig10_tl_green", "fig11_driving_behaviour",
                     "fig12_controller_switching", "participant_flow", "likert_items", "aero_linearisation",
                     "speed_correction", "power_map_fit", "dp_profile", "green_wave_space_time", "path_diagram",
-                    "paired_energy_overall_wh"]
+                    "paired_energy_overall_wh", "paired_kpis"]
 EXPECTED_TABLES = ["survey_table3", "survey_table4", "survey_table5", "survey_hypotheses", "survey_fit",
                    "survey_htmt", "participant_flow", "drives_style_table", "drives_participant_table",
                    "drives_band_diagnostics", "paper_audit", "survey_fit_indices", "survey_regression_diagnostics",
@@ -163,6 +163,12 @@ def test_report_on_reduced_reference_cohort(tmp_path, tmp_path_factory):
     audit = (out / "tables" / "paper_audit.md").read_text()
     assert "| Row | Check | Where | Reported | Recomputed | Status | Finding | Explanation |" in audit
     assert "| inconsistent | 1 |" in audit and "| 1.000 |" not in audit
+    # the main text stays short: the paired plots as one figure of panels there, each KPI's own in the appendix
+    from analysis.report.exhibits import read_exhibits
+
+    main = [e.stem for e in read_exhibits(out) if e.part == "main"]
+    assert len(main) <= 11 and "paired_kpis" in main, main
+    assert not [s for s in main if s.startswith("paired_") and s != "paired_kpis"], main
     # the replay of the participant of Figs. 11-12 (P006 is among the first four) is linked from the report
     assert 'href="drives/replay_P006.html"' in html and (out / "drives" / "replay_P006.html").exists()
     # the same cohort in the previous scenario: its own drive analysis and both scenarios' bands side by side
