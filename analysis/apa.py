@@ -45,14 +45,14 @@ HEADERS = {
     "above_090": "Above .90", "eigenvalue_1": "First eigenvalue", "first_share": "Share of the first factor",
     "above_50": "Above 50 %", "n_components_eigen_gt_1": "Components with eigenvalue > 1", "chain": "Path",
     "x": "From", "y": "To", "estimator": "Estimator", "f_min": "Fit function minimum", "converged": "Converged",
-    "admissible": "Admissible", "n_failed": "Failed resamples", "method": "Method",
+    "admissible": "Admissible", "n_failed": "Failed resamples", "method": "Method", "band": "Band", "note": "Note",
 }
 #: pairs of lower/upper columns written as one "[LL, UL]" column, with that column's header
 CI_PAIRS = (("boot_ci_low", "boot_ci_high", "Bootstrap 95 % CI"), ("alpha_ci_low", "alpha_ci_high", "95 % CI of α"),
             ("ci_low", "ci_high", "95 % CI"))
 #: headers (first word) of values bounded by 1: printed without a leading zero
 BOUNDED = {"p", "r", "β", "α", "Cα", "ω", "λ", "CFI", "TLI", "SRMR", "RMSEA", "R²", "ΔR²", "Adj.", "AVE", "CR",
-           "√AVE", "HTMT", "HTMT2", "item-rest", "r²", "Share"}
+           "√AVE", "HTMT", "HTMT2", "item-rest", "r²", "Share", "η²", "η²p", "η²G"}
 _UNITS = (("_pct", " (%)"), ("_wh", " (Wh)"), ("_mps", " (m/s)"), ("_m", " (m)"), ("_s", " (s)"))
 _NUM = re.compile(r"^(?P<lt>[<>]\s?)?(?P<sign>[-−]?)(?P<int>\d+)(?P<frac>\.\d+)?(?P<tail>[*†‡a-z]*)$")
 
