@@ -916,10 +916,11 @@ def _within_section(out: Path, skipped: dict, used_tabs: set, ex: Exhibits) -> l
         if (d / f"{stem}.md").is_file() and len(pd.read_csv(d / f"{stem}.csv")):
             ex.deferred.append((f"within_{stem}", lambda stem=stem: _within_table(out, stem, ex)))
     variables = pd.read_csv(d / "descriptives.csv")["variable"].drop_duplicates()
+    labels = _within_labels(d)
     for variable in variables:
         if (d / f"lines_{variable}.png").is_file():
             parts.append(_exhibit_figure(
-                out, "within", f"lines_{variable}", ex, f"{variable} by Condition",
+                out, "within", f"lines_{variable}", ex, f"{labels.get(variable, variable)} by Condition",
                 "One grey line per participant; the condition means with their 95 % confidence intervals in black."))
     for stem in ("orders", "friedman", "mixed", "mixed_fit", "reliability", "item_descriptives"):
         if (d / f"{stem}.md").is_file() and len(pd.read_csv(d / f"{stem}.csv")):
@@ -934,6 +935,16 @@ def _within_table(out: Path, stem: str, ex: Exhibits) -> str:
     return _exhibit_table(out, "within", stem, ex, part="within")
 
 
+def _within_labels(d: Path) -> dict[str, str]:
+    """'label (unit)' of each within-subjects variable (``within/variables.csv``); empty for an older folder."""
+    from analysis.within.analyze import axis_label
+
+    found = _read_csv(d / "variables.csv")
+    if found is None or not {"variable", "label", "unit"} <= set(found.columns):
+        return {}
+    return {str(v.variable): axis_label(v) for v in found.itertuples()}
+
+
 def _within_summary(d: Path) -> bool:
     """Write `within/summary_table.{csv,md,tex}`: per variable, M (SD) under each condition and the
     repeated-measures ANOVA (F with its df, p, partial η², Greenhouse–Geisser ε) in one APA table of the main text;
@@ -945,6 +956,7 @@ def _within_summary(d: Path) -> bool:
         return False
     conds = list(dict.fromkeys(desc["condition"].astype(str)))
     aov = aov.set_index("variable")
+    labels = _within_labels(d)
     header = ["Variable"] + [f"{c} M (SD)" for c in conds] + ["df", "F", "p", "ηp²", "ε (GG)"]
     rows, frame = [], []
     for v, g in desc.groupby("variable", sort=False):
@@ -955,7 +967,7 @@ def _within_summary(d: Path) -> bool:
         test = ([f"{apa.df_text(a['df1'])}, {apa.df_text(a['df2'])}", apa.num(a["f"], 2), apa.p_value(a["p"]),
                  apa.num(a["np2"], 2, bounded=True), apa.num(a["eps_gg"], 2, bounded=True)]
                 if a is not None else ["–"] * 5)
-        rows.append([str(v)] + cells + test)
+        rows.append([labels.get(str(v), str(v))] + cells + test)
         frame.append(dict(zip(header, rows[-1])))
     n = int(aov["n"].min()) if "n" in aov.columns else None
     title = "Dependent Variables by Condition: Means, Standard Deviations and Repeated-Measures ANOVA"

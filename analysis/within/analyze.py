@@ -76,6 +76,8 @@ class WithinStudy:
         paths = []
         for name, frame in self.tables().items():
             paths += write_table(frame, out, name, title=TITLES[name], digits=3)
+        # each variable's label and unit: the report names the variables by them, not by their identifiers
+        paths += write_table(self.variables, out, "variables", title="Dependent variables: source, label and unit")
         if data is not None:
             for v in self.variables.itertuples():
                 paths += plot_variable(data[data["variable"] == v.variable], self.conditions, out,

@@ -154,6 +154,10 @@ def test_takeover_study_end_to_end(tmp_path, capsys, reference):
     assert re.search(r"none − visual = \d\.\d\d s, d_z = ", sentence), sentence
     assert re.search(r"- SUS \(0-100\): .* none: M = \d+\.\d\d, SD = \d+\.\d\d;", (res / "methods.md").read_text())
     assert re.search(r"pingouin \d", doc) and "DAQP" not in doc and "SUMO" not in doc
+    # the variables by their labels and units in the main text's table and figure titles, not their identifiers
+    assert "Takeover time (s) by Condition" in doc and "takeover_time by Condition" not in doc
+    main_text = doc.split('id="appendix"')[0]
+    assert "<td>Takeover time (s)</td>" in main_text and "<td>tlx_raw</td>" not in main_text
     # the bundle holds the within-subjects figures in three formats and every image the document shows
     import zipfile
 
