@@ -96,9 +96,28 @@ def fmt_cell(x, digits: int = 3, missing: str = "") -> str:
     return str(x)
 
 
+def whole_numbers(col: pd.Series) -> bool:
+    """Whether a float column holds whole numbers only (at least one): counts that a frame or a CSV read back holds
+    as floats (a count column with a missing value, a pivot of counts). APA prints integer-valued quantities as
+    integers.
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> from analysis.render import whole_numbers
+    >>> whole_numbers(pd.Series([7.0, None, 0.0])), whole_numbers(pd.Series([7.0, 0.5])), whole_numbers(pd.Series([7]))
+    (True, False, False)
+    """
+    if not pd.api.types.is_float_dtype(col):
+        return False
+    finite = col[np.isfinite(col)]
+    return len(finite) > 0 and bool((finite == np.round(finite)).all())
+
+
 def frame_cells(df: pd.DataFrame, digits: int = 3) -> tuple[list[str], list[list[str]]]:
-    """Header and string cells of a tidy frame (floats to `digits` decimals, missing as empty); a pair of lower and
-    upper confidence limits (``ci_low``/``ci_high`` ...) becomes one ``[LL, UL]`` column in the lower one's place."""
+    """Header and string cells of a tidy frame (floats to `digits` decimals, a float column of whole numbers as
+    integers (:func:`whole_numbers`), missing as empty); a pair of lower and upper confidence limits
+    (``ci_low``/``ci_high`` ...) becomes one ``[LL, UL]`` column in the lower one's place."""
     pairs = {low: (high, head) for low, high, head in apa.ci_columns(df.columns)}
     highs = {high for high, _ in pairs.values()}
     header, cols = [], []
@@ -112,7 +131,8 @@ def frame_cells(df: pd.DataFrame, digits: int = 3) -> tuple[list[str], list[list
                          for lo, hi in zip(df[c], df[high])])
         else:
             header.append(str(c))
-            cols.append([fmt_cell(x, digits) for x in df[c]])
+            whole = whole_numbers(df[c])
+            cols.append([fmt_cell(int(x) if whole and math.isfinite(x) else x, digits) for x in df[c]])
     return header, [list(r) for r in zip(*cols)] if cols else []
 
 

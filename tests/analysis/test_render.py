@@ -34,6 +34,14 @@ def test_frame_cells_keeps_column_order_and_formats_per_type():
     assert rows == [["a", "0.50", "3", "yes"], ["b", "", "4", "no"]]
 
 
+def test_frame_cells_print_whole_numbers_as_integers():
+    """Counts held as floats (a pivot of counts, a count column with a missing value read back from CSV) print as
+    integers (APA), in every writer that starts from the frame; a column with any fraction keeps its decimals."""
+    df = pd.DataFrame({"red_stops": [5.0, 4.0, np.nan], "share": [0.5, 1.0, 2.0], "n": [3, 4, 5]})
+    header, rows = frame_cells(df, digits=3)
+    assert [r[0] for r in rows] == ["5", "4", ""] and [r[1] for r in rows] == ["0.500", "1.000", "2.000"]
+
+
 # ---------------------------------------------------------------------------------------------- LaTeX
 def test_tex_escape_is_one_pass():
     # a backslash becomes \textbackslash{} whose braces must not be escaped again
