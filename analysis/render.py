@@ -96,9 +96,28 @@ def fmt_cell(x, digits: int = 3, missing: str = "") -> str:
     return str(x)
 
 
+def whole_numbers(col: pd.Series) -> bool:
+    """Whether a float column holds whole numbers only (at least one): counts that a frame or a CSV read back holds
+    as floats (a count column with a missing value, a pivot of counts). APA prints integer-valued quantities as
+    integers.
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> from analysis.render import whole_numbers
+    >>> whole_numbers(pd.Series([7.0, None, 0.0])), whole_numbers(pd.Series([7.0, 0.5])), whole_numbers(pd.Series([7]))
+    (True, False, False)
+    """
+    if not pd.api.types.is_float_dtype(col):
+        return False
+    finite = col[np.isfinite(col)]
+    return len(finite) > 0 and bool((finite == np.round(finite)).all())
+
+
 def frame_cells(df: pd.DataFrame, digits: int = 3) -> tuple[list[str], list[list[str]]]:
-    """Header and string cells of a tidy frame (floats to `digits` decimals, missing as empty); a pair of lower and
-    upper confidence limits (``ci_low``/``ci_high`` ...) becomes one ``[LL, UL]`` column in the lower one's place."""
+    """Header and string cells of a tidy frame (floats to `digits` decimals, a float column of whole numbers as
+    integers (:func:`whole_numbers`), missing as empty); a pair of lower and upper confidence limits
+    (``ci_low``/``ci_high`` ...) becomes one ``[LL, UL]`` column in the lower one's place."""
     pairs = {low: (high, head) for low, high, head in apa.ci_columns(df.columns)}
     highs = {high for high, _ in pairs.values()}
     header, cols = [], []
@@ -112,7 +131,8 @@ def frame_cells(df: pd.DataFrame, digits: int = 3) -> tuple[list[str], list[list
                          for lo, hi in zip(df[c], df[high])])
         else:
             header.append(str(c))
-            cols.append([fmt_cell(x, digits) for x in df[c]])
+            whole = whole_numbers(df[c])
+            cols.append([fmt_cell(int(x) if whole and math.isfinite(x) else x, digits) for x in df[c]])
     return header, [list(r) for r in zip(*cols)] if cols else []
 
 
@@ -243,14 +263,68 @@ def tex_cell(c) -> str:
     return tex_escape(c)
 
 
+_PATH_RE = re.compile(r"\S*/\S*")
+_EXTENSION_RE = re.compile(r"\.[A-Za-z]\w*[^\w]*$")
+
+
+def tex_breakable(tex: str) -> str:
+    r"""Escaped LaTeX text with places to break a line where it has no space: after each ``/`` of a file path (a
+    word with two slashes or ending in a file name's extension; ``m/s`` stays whole) and after each ``\_`` of an
+    identifier. For running text in a narrow measure: notes, captions, wrapped cells.
+
+    Examples
+    --------
+    >>> from analysis.render import tex_breakable, tex_escape
+    >>> print(tex_breakable(tex_escape("see (data/reference/README.md), in m/s, per_participant")))
+    see (data/\allowbreak reference/\allowbreak README.md), in m/s, per\_\allowbreak participant
+    """
+    def path(m: re.Match) -> str:
+        word = m.group(0)
+        return word.replace("/", "/\\allowbreak ") if word.count("/") > 1 or _EXTENSION_RE.search(word) else word
+
+    return _PATH_RE.sub(path, tex).replace(r"\_", "\\_\\allowbreak ")
+
+
+def tex_text(s: str) -> str:
+    """Plain running text (a caption, a note) as LaTeX: :func:`tex_escape`, then :func:`tex_breakable`."""
+    return tex_breakable(tex_escape(s))
+
+
 # ---------------------------------------------------------------------------------------------- LaTeX layout
-#: the page of a two-column article (10 pt, `\documentclass[twocolumn]{article}`), the strictest common journal
-#: layout, in TeX points: one column, both columns (`table*`), a landscape page (`sidewaystable*`)
+#: the page of a two-column article (10 pt, `\documentclass[twocolumn]{article}`, US letter), the strictest common
+#: journal layout, in TeX points: one column, both columns (`table*`; also the line of the one-column pages a
+#: `longtable` needs) and the text height (the most a float may take; the line of a landscape page, whose height
+#: is the text width)
 COLUMN_PT, TEXT_PT, PAGE_PT = 229.5, 469.0, 550.0
 #: the packages a table of :func:`latex_table` needs in the preamble
-LATEX_PACKAGES = ("booktabs", "threeparttable", "siunitx", "array", "makecell", "rotating", "adjustbox")
-_TAB_SEP_PT = 12.0  # 2 \tabcolsep
-_WRAP_MIN_PT = 80.0  # a wrapped text column keeps at least this (or its widest cell), so that labels stay readable
+LATEX_PACKAGES = ("booktabs", "threeparttable", "longtable", "siunitx", "array", "makecell", "rotating",
+                  "pdflscape")
+
+
+@dataclass(frozen=True)
+class TableStyle:
+    """How densely a table is set: font size, its character widths relative to \\small (\\footnotesize digits are
+    0.919 of \\small's, measured with pdflatex), baseline skip (pt), the space between columns (2 \\tabcolsep, pt)
+    and the least width of a wrapped text column (pt; its longest word in any case)."""
+
+    size: str
+    scale: float
+    skip: float
+    sep: float
+    wrap_min: float
+
+
+#: the styles a table is tried in, loosest first: the body text's \small, \footnotesize, \footnotesize with half
+#: the space between columns and text columns down to their longest word
+SMALL = TableStyle("small", 1.0, 11.0, 12.0, 80.0)
+FOOTNOTE = TableStyle("footnotesize", 0.92, 9.5, 12.0, 80.0 * 0.92)
+TIGHT = TableStyle("footnotesize", 0.92, 9.5, 6.0, 0.0)
+#: the share of a page a float may take by the estimate of its height (:func:`table_height`, within 0-6 % above
+#: the typeset height of the paper study's 37 float tables); a taller table is set as a `longtable`, which breaks
+#: across pages (a float cannot: it would run off the page or jam the float queue)
+_FLOAT_SHARE = 0.93
+_RULES_PT = 8.0  # booktabs' three rules with the space around them
+_CAPTION_SKIP_PT = 10.0  # \abovecaptionskip
 # character widths at \small (T1 Computer Modern, measured with pdflatex), in points; any other character (λ, β, †,
 # the minus sign) counts 5.5; bold text is 15 % wider. 3 % on top, so that an estimate errs towards wrapping
 _CHAR_PT = {ch: pt for chars, pt in (("il!',.:;[]`|", 2.5), ("fj- ", 3.0), ("rstI()", 3.5), ("cez", 4.0),
@@ -286,6 +360,20 @@ def _two_lines(header: str) -> tuple[str, ...]:
     return " ".join(words[:cut]), " ".join(words[cut:])
 
 
+def _lines(text: str, width: float, scale: float = 1.0) -> int:
+    """Lines a text takes in a measure `width` pt wide (at `scale` times \\small), broken greedily at its spaces and
+    after ; and _."""
+    space = text_width_pt(" ") * scale
+    lines, used = 1, 0.0
+    for word in _BREAK_RE.sub(" ", _plain(text)).split():
+        w = text_width_pt(word) * scale
+        if used and used + space + w > width:
+            lines, used = lines + 1, w
+        else:
+            used += (space if used else 0.0) + w
+    return lines
+
+
 @dataclass(frozen=True)
 class _Column:
     numeric: bool
@@ -295,70 +383,159 @@ class _Column:
     fmt: str = ""        # siunitx table-format of a numeric column
     zero: bool = True    # whether numbers below 1 keep their leading zero as written
     post: str = ""       # the longest run of marks after a number (*, †), space kept for it
+    sep: float = SMALL.sep  # the space between columns counted in the widths
 
 
-def _column(header: str, cells: list[str], letter: str) -> _Column:
-    widths = [text_width_pt(c.strip()) for c in cells]
+def _column(header: str, cells: list[str], letter: str, style: TableStyle = SMALL) -> _Column:
+    scale, sep = style.scale, style.sep
+    widths = [text_width_pt(c.strip()) * scale for c in cells]
     cells = [_plain(c).strip() for c in cells]
     filled = [c for c in cells if c not in ("", "–", "—", "-")]
     nums = [_number(c) for c in filled]
-    head_one = text_width_pt(header)
-    head_two = max(text_width_pt(x) for x in _two_lines(header))
+    head_one = text_width_pt(header) * scale
+    head_two = max(text_width_pt(x) for x in _two_lines(header)) * scale
     if filled and all(nums) and letter != "l":
         ints = max(len(m.group("int")) or 1 for m in nums)
         decs = max(len(m.group("dec") or "") for m in nums)
         signed = any(m.group("sign") in ("-", "−") for m in nums)
         post = max(len(m.group("post")) for m in nums)  # a dagger is narrower than a digit: counted as one
-        body = text_width_pt("0" * (ints + decs + (1 if decs else 0) + (1 if signed else 0) + post))
+        body = text_width_pt("0" * (ints + decs + (1 if decs else 0) + (1 if signed else 0) + post)) * scale
         zero = not any(m.group("int") == "" for m in nums)
         fmt = f"{'-' if signed else ''}{ints}.{decs}" if decs else f"{'-' if signed else ''}{ints}"
         marks = max((m.group("post") for m in nums), key=len)
-        return _Column(True, "S", max(head_one, body) + _TAB_SEP_PT, max(head_two, body) + _TAB_SEP_PT, fmt, zero,
-                       marks)
+        return _Column(True, "S", max(head_one, body) + sep, max(head_two, body) + sep, fmt, zero, marks, sep)
     body = max(widths, default=0.0)
-    word = max((text_width_pt(w) for c in [*cells, header] for w in _BREAK_RE.sub(" ", c).split()), default=0.0)
+    word = max((text_width_pt(w) * scale for c in [*cells, header] for w in _BREAK_RE.sub(" ", c).split()),
+               default=0.0)
     # text reads from the left (APA); a column asked to be centred stays so
-    return _Column(False, "l" if letter == "r" else letter, max(head_one, body) + _TAB_SEP_PT,
-                   max(min(body, _WRAP_MIN_PT), word, min(head_two, head_one)) + _TAB_SEP_PT)
+    return _Column(False, "l" if letter == "r" else letter, max(head_one, body) + sep,
+                   max(min(body, style.wrap_min), word, min(head_two, head_one)) + sep, sep=sep)
+
+
+#: a part of a table: its columns (indices), their widths (pt; None: the column's natural width) and whether the
+#: headers are on two lines
+Part = tuple[tuple[int, ...], tuple[float | None, ...], bool]
 
 
 @dataclass(frozen=True)
 class TableLayout:
-    """Where a table goes and how wide its columns are: env "table" (one column), "table*" (both columns) or
-    "sidewaystable*" (a landscape page); `widths`: pt per column (None: the column's natural width); `scaled`: the
-    table is wider than a landscape page even wrapped and is shrunk to fit it; `split_header`: headers on two
-    lines."""
+    """How a table is set. `env`: a float, "table" (one column), "table*" (both columns) or "sidewaystable*" (a
+    landscape page), or "longtable" (breaks across pages, one-column pages; `landscape`: on landscape pages).
+    `columns`: every column in `style`; `parts`: the column groups set one after the other (one part with every
+    column, unless the table is wider than a landscape page even wrapped)."""
 
     env: str
-    widths: tuple[float | None, ...]
-    scaled: bool = False
-    split_header: bool = False
+    columns: tuple[_Column, ...]
+    parts: tuple[Part, ...]
+    landscape: bool = False
+    style: TableStyle = SMALL
 
 
-def table_layout(columns: Sequence[_Column]) -> TableLayout:
-    """The narrowest place a table fits in (one column, both columns, a landscape page), wrapping its widest text
-    columns (water-filling: the widest first, down to their longest word) and breaking long headers when needed."""
-    natural = sum(c.natural for c in columns)
-    for env, room in (("table", COLUMN_PT), ("table*", TEXT_PT), ("sidewaystable*", PAGE_PT)):
-        if natural <= room:
-            return TableLayout(env, (None,) * len(columns))
-        if sum(c.narrow for c in columns) > room:
+def _fit(columns: Sequence[_Column], room: float) -> tuple[tuple[float | None, ...], bool] | None:
+    """Column widths (None: natural) and whether the headers go on two lines, for the table to fit `room` pt,
+    wrapping its widest text columns (water-filling: the widest first, down to their longest word); None when it
+    does not fit even so."""
+    if sum(c.natural for c in columns) <= room:
+        return (None,) * len(columns), False
+    if sum(c.narrow for c in columns) > room:
+        return None
+    fixed = sum(c.narrow for c in columns if c.numeric)
+    text = [c for c in columns if not c.numeric]
+    if not text:  # numbers only: their headers on two lines are what makes the table fit
+        return (None,) * len(columns), True
+    lo, hi = 0.0, max(c.natural for c in text)  # the cap on text widths: largest with the table in the room
+    for _ in range(40):
+        mid = (lo + hi) / 2
+        if fixed + sum(min(c.natural, max(c.narrow, mid)) for c in text) <= room:
+            lo = mid
+        else:
+            hi = mid
+    return tuple(None if c.numeric else min(c.natural, max(c.narrow, lo)) for c in columns), True
+
+
+def _wrapped(col: _Column, width: float | None) -> bool:
+    return width is not None and not col.numeric and width < col.natural - 0.01
+
+
+def table_width(columns: Sequence[_Column], widths: Sequence[float | None]) -> float:
+    """Estimated width of a table (pt) with these column widths."""
+    return sum(c.natural if w is None else w for c, w in zip(columns, widths))
+
+
+def table_height(columns: Sequence[_Column], widths: Sequence[float | None], split: bool, header: Sequence[str],
+                 rows: Sequence[Sequence[str]], title: str = "", notes: Sequence[str] = (), style: TableStyle = SMALL
+                 ) -> float:
+    """Estimated height of a table (pt): the caption ("Table A10: " and the title, wrapped to the table's width),
+    the header (one or two lines), each row as many lines as its most wrapped cell, the rules, the notes at
+    \\footnotesize."""
+    width = table_width(columns, widths)
+    lines = 2 if split and any(" " in str(h) for h in header) else 1
+    lines += sum(max([1] + [_lines(str(x), w - c.sep, style.scale) for x, c, w in zip(r, columns, widths)
+                            if _wrapped(c, w)]) for r in rows)
+    caption = _lines(f"Table A10: {title}", width, style.scale) * style.skip + _CAPTION_SKIP_PT if title else 0.0
+    note = sum(_lines(n, width, FOOTNOTE.scale) for n in notes) * FOOTNOTE.skip
+    return lines * style.skip + caption + note + _RULES_PT
+
+
+def _parts(columns: Sequence[_Column], room: float) -> tuple[Part, ...]:
+    """A table too wide for `room` even wrapped, as column groups that fit it: its leading text columns (the row
+    labels) in each, the others in order, as few groups as fit and of about equal count."""
+    keys = []
+    for j, c in enumerate(columns[:-1]):
+        if c.numeric:
+            break
+        keys.append(j)
+    if not keys or _fit([columns[k] for k in keys], room / 2) is None:
+        keys = [0]
+    rest = [j for j in range(len(columns)) if j not in keys]
+
+    def fit(group):
+        return _fit([columns[j] for j in (*keys, *group)], room)
+
+    greedy: list[list[int]] = [[]]
+    for j in rest:
+        if greedy[-1] and fit([*greedy[-1], j]) is None:
+            greedy.append([])
+        greedy[-1].append(j)
+    k = len(greedy)
+    even = [rest[i * len(rest) // k:(i + 1) * len(rest) // k] for i in range(k)]
+    groups = even if all(fit(g) is not None for g in even) else greedy
+    parts = []
+    for g in groups:
+        idx = (*keys, *g)
+        # a column wider than the room on its own: as narrow as it gets
+        widths, split = fit(g) or (tuple(columns[j].narrow for j in idx), True)
+        parts.append((idx, widths, split))
+    return tuple(parts)
+
+
+def table_layout(header: Sequence[str], rows: Sequence[Sequence[str]], align: str | None = None, title: str = "",
+                 notes: Sequence[str] = ()) -> TableLayout:
+    """Where a table goes: the narrowest float it fits in (one column, both columns, a landscape page), wrapping its
+    widest text columns and breaking long headers when needed, if it is no taller than 93 % of that page
+    (:func:`table_height`); otherwise a `longtable` (one-column pages) at the text width, else on landscape pages
+    (:data:`SMALL`), else on landscape pages in :data:`FOOTNOTE`, then :data:`TIGHT`, else in column groups
+    (:func:`_parts`) on landscape pages in :data:`TIGHT`."""
+    align = align or "l" + "r" * (len(header) - 1)
+
+    def columns(style: TableStyle) -> tuple[_Column, ...]:
+        return tuple(_column(str(h), [str(r[j]) for r in rows], align[j], style) for j, h in enumerate(header))
+
+    small, every = columns(SMALL), tuple(range(len(header)))
+    for env, room, height in (("table", COLUMN_PT, PAGE_PT), ("table*", TEXT_PT, PAGE_PT),
+                              ("sidewaystable*", PAGE_PT, TEXT_PT)):
+        fit = _fit(small, room)
+        if fit is None:
             continue
-        fixed = sum(c.narrow for c in columns if c.numeric)
-        text = [c for c in columns if not c.numeric]
-        if not text:  # numbers only: their headers on two lines are what makes the table fit
-            return TableLayout(env, (None,) * len(columns), split_header=True)
-        lo, hi = 0.0, max(c.natural for c in text)  # the cap on text widths: largest with the table in the room
-        for _ in range(40):
-            mid = (lo + hi) / 2
-            if fixed + sum(min(c.natural, max(c.narrow, mid)) for c in text) <= room:
-                lo = mid
-            else:
-                hi = mid
-        widths = tuple(None if c.numeric else min(c.natural, max(c.narrow, lo)) for c in columns)
-        return TableLayout(env, widths, split_header=True)
-    return TableLayout("sidewaystable*", tuple(None if c.numeric else c.narrow for c in columns), scaled=True,
-                       split_header=True)
+        if table_height(small, *fit, header, rows, title, notes) <= _FLOAT_SHARE * height:
+            return TableLayout(env, small, ((every, *fit),))
+        break  # too tall for a page: a longtable (a wider place is no taller)
+    for style, landscape in ((SMALL, False), (SMALL, True), (FOOTNOTE, True), (TIGHT, True)):
+        cols = small if style == SMALL else columns(style)
+        fit = _fit(cols, PAGE_PT if landscape else TEXT_PT)
+        if fit is not None:
+            return TableLayout("longtable", cols, ((every, *fit),), landscape, style)
+    return TableLayout("longtable", cols, _parts(cols, PAGE_PT), True, TIGHT)
 
 
 def _colspec(col: _Column, width: float | None) -> str:
@@ -366,8 +543,8 @@ def _colspec(col: _Column, width: float | None) -> str:
         zero = "" if col.zero else ", print-zero-integer=false"
         post = f", table-space-text-post={{{tex_escape(col.post)}}}" if col.post else ""
         return f"S[table-format={col.fmt}{zero}{post}]"
-    if width is not None and width < col.natural - 0.01:
-        return rf">{{\raggedright\arraybackslash}}p{{{width - _TAB_SEP_PT:.1f}pt}}"
+    if _wrapped(col, width):
+        return rf">{{\raggedright\arraybackslash}}p{{{width - col.sep:.1f}pt}}"
     return col.letter
 
 
@@ -390,16 +567,69 @@ def _tex_number(cell: str) -> str:
     return num + (f"{{{post}}}" if post else "")
 
 
+def _tex_cell(x, col: _Column, width: float | None) -> str:
+    if col.numeric:
+        return _tex_number(x)
+    return tex_breakable(tex_cell(x)).replace(";", r";\allowbreak ") if _wrapped(col, width) else tex_cell(x)
+
+
+def _tabular(lay: TableLayout, part: Part, header: Sequence[str], rows: Sequence[Sequence[str]]
+             ) -> tuple[str, str, list[str]]:
+    """Column specification, header row and body rows of one part of a table."""
+    idx, widths, split = part
+    cols = [lay.columns[j] for j in idx]
+    spec = "".join(_colspec(c, w) for c, w in zip(cols, widths))
+    head = " & ".join(_tex_header(str(header[j]), c, split) for j, c in zip(idx, cols)) + r" \\"
+    body = [" & ".join(_tex_cell(r[j], c, w) for j, c, w in zip(idx, cols, widths)) + r" \\" for r in rows]
+    return spec, head, body
+
+
+def _tex_notes(notes: Sequence[str]) -> list[str]:
+    items = [tex_text(n) for n in notes]
+    if items and items[0].startswith("Note."):
+        items[0] = r"\textit{Note.}" + items[0][len("Note."):]
+    return items
+
+
+def _longtable(lay: TableLayout, header, rows, title: str, notes: Sequence[str], label: str) -> list[str]:
+    r"""A `longtable` per part (one number: the later parts step the counter back), the caption above, the header
+    repeated on each page (`\endhead`, "Table A1 (continued)" above it), the notes below the last row, as wide as
+    the table and never widening it (a zero-width box)."""
+    room = PAGE_PT if lay.landscape else TEXT_PT
+    out = [r"\begin{landscape}"] if lay.landscape else []
+    out.append(rf"\begingroup\{lay.style.size}" + (rf"\setlength{{\tabcolsep}}{{{lay.style.sep / 2:g}pt}}"
+                                                     if lay.style.sep != SMALL.sep else ""))
+    for k, part in enumerate(lay.parts):
+        spec, head, body = _tabular(lay, part, header, rows)
+        width = min(room, table_width([lay.columns[j] for j in part[0]], part[1]))
+        cont = [r"\caption*{Table \thetable{} (continued)}\\"] if title else []
+        mark = rf"\label{{{label}}}" if label and not k else ""   # the number is the first part's
+        first = [rf"\caption{{{tex_text(title)}}}{mark}\\"] if title and not k else cont
+        last = [r"\bottomrule"]
+        if notes and k == len(lay.parts) - 1:
+            text = r"\par ".join(_tex_notes(notes))
+            last += [rf"\multicolumn{{{len(part[0])}}}{{@{{}}l@{{}}}}{{\rule{{0pt}}{{2.5ex}}\makebox[0pt][l]"
+                     rf"{{\parbox[t]{{{width:.1f}pt}}{{\footnotesize\raggedright {text}}}}}}}\\"]
+        out += ([r"\addtocounter{table}{-1}"] if k else []) + [
+            rf"\setlength{{\LTcapwidth}}{{{width:.1f}pt}}", rf"\begin{{longtable}}{{{spec}}}",
+            *first, r"\toprule", ("" if title else mark) + head, r"\midrule", r"\endfirsthead",
+            *cont, r"\toprule", head, r"\midrule", r"\endhead",
+            r"\bottomrule", r"\endfoot", *last, r"\endlastfoot", *body, r"\end{longtable}"]
+    out.append(r"\endgroup")
+    return out + ([r"\end{landscape}"] if lay.landscape else [])
+
+
 def latex_table(header: Sequence[str], rows: Sequence[Sequence[str]], title: str = "", notes: Sequence[str] = (),
                 label: str = "", align: str | None = None) -> str:
-    r"""A table for a journal: `threeparttable` with the caption above, booktabs rules, the notes left-aligned
-    below (a first note "Note. ..." with "Note." in italics); numeric columns as `siunitx` S columns aligned on the
-    decimal point (a leading zero printed as written: none where the column has none, APA); the smallest place it
-    fits in (:func:`table_layout`): `table` in one column of a two-column article, `table*` across both, or
-    `sidewaystable*` on a landscape page, wrapping wide text columns; a table too wide even for that is shrunk
-    (`adjustbox`). `align` (l/c/r per column, default l then r) keeps a column given as `l` as text; a text column
-    given as `r` is set left. Needs the
-    packages of :data:`LATEX_PACKAGES`.
+    r"""A table for a journal, placed by :func:`table_layout`. A float that fits a page: `threeparttable` with the
+    caption above, booktabs rules, the notes left-aligned below (a first note "Note. ..." with "Note." in italics),
+    as `table` in one column of a two-column article, `table*` across both or `sidewaystable*` on a landscape page,
+    wrapping wide text columns. A table taller than a page or wider than a landscape page: a `longtable` (one-column
+    pages only; on landscape pages when it is wider than the text) with the header repeated on each page and the
+    notes after the last row; a table wider than a landscape page even at \footnotesize in column groups, each
+    with the row labels. Numeric columns as `siunitx` S columns aligned on the decimal point (a leading zero printed
+    as written: none where the column has none, APA). `align` (l/c/r per column, default l then r) keeps a column
+    given as `l` as text; a text column given as `r` is set left. Needs the packages of :data:`LATEX_PACKAGES`.
 
     Examples
     --------
@@ -424,34 +654,22 @@ def latex_table(header: Sequence[str], rows: Sequence[Sequence[str]], title: str
     header, rows = apa.table_cells(header, rows)
     if len(align) != len(header):
         raise ValueError(f"align {align!r} has {len(align)} letters for {len(header)} columns")
-    columns = [_column(str(h), [str(r[j]) for r in rows], align[j]) for j, h in enumerate(header)]
-    lay = table_layout(columns)
-    out = [rf"\begin{{{lay.env}}}[{'p' if lay.env.startswith('sideways') else 'tbp'}]", r"\centering\small"]
-    # shrunk as a whole: threeparttable measures its tabular, which it cannot do inside a box of its own
-    out += [r"\begin{adjustbox}{max width=\linewidth}"] if lay.scaled else []
-    out.append(r"\begin{threeparttable}")
+    rows = [[str(x) for x in r] for r in rows]
+    lay = table_layout(header, rows, align, title, notes)
+    if lay.env == "longtable":
+        return "\n".join(_longtable(lay, header, rows, title, notes, label)) + "\n"
+    spec, head, body = _tabular(lay, lay.parts[0], header, rows)
+    out = [rf"\begin{{{lay.env}}}[{'p' if lay.env.startswith('sideways') else 'tbp'}]", r"\centering\small",
+           r"\begin{threeparttable}"]
     if title:
-        out.append(rf"\caption{{{tex_escape(title)}}}")
+        out.append(rf"\caption{{{tex_text(title)}}}")
     if label:
         out.append(rf"\label{{{label}}}")
-    spec = "".join(_colspec(c, w) for c, w in zip(columns, lay.widths))
-    out += [rf"\begin{{tabular}}{{{spec}}}", r"\toprule",
-            " & ".join(_tex_header(str(h), c, lay.split_header) for h, c in zip(header, columns)) + r" \\",
-            r"\midrule"]
-    wrapped = [w is not None and w < c.natural - 0.01 for c, w in zip(columns, lay.widths)]
-
-    def text(x, wrap: bool) -> str:
-        return tex_cell(x).replace(";", r";\allowbreak ").replace(r"\_", r"\_\allowbreak ") if wrap else tex_cell(x)
-
-    out += [" & ".join(_tex_number(x) if c.numeric else text(x, w) for x, c, w in zip(r, columns, wrapped))
-            + r" \\" for r in rows]
-    out += [r"\bottomrule", r"\end{tabular}"]
+    out += [rf"\begin{{tabular}}{{{spec}}}", r"\toprule", head, r"\midrule", *body, r"\bottomrule", r"\end{tabular}"]
     if notes:
-        items = [tex_escape(n) for n in notes]
-        if items[0].startswith("Note."):
-            items[0] = r"\textit{Note.}" + items[0][len("Note."):]
-        out += [r"\begin{tablenotes}[flushleft]\footnotesize", *(rf"\item {n}" for n in items), r"\end{tablenotes}"]
-    out += [r"\end{threeparttable}", *([r"\end{adjustbox}"] if lay.scaled else []), rf"\end{{{lay.env}}}"]
+        out += [r"\begin{tablenotes}[flushleft]\footnotesize\raggedright",
+                *(rf"\item {n}" for n in _tex_notes(notes)), r"\end{tablenotes}"]
+    out += [r"\end{threeparttable}", rf"\end{{{lay.env}}}"]
     return "\n".join(out) + "\n"
 
 

@@ -87,7 +87,8 @@ def exhibit_cells(out: Path, ex: Exhibit) -> tuple[list[str], list[list[str]]]:
 PREAMBLE = r"""% the packages and settings the tables and figures of results.tex need
 \usepackage[T1]{fontenc}
 \usepackage{graphicx}
-\usepackage{booktabs,threeparttable,array,makecell,rotating,adjustbox}
+\usepackage[export]{adjustbox}  % max width/height of a figure: drawn size, shrunk to the line if wider
+\usepackage{booktabs,threeparttable,longtable,array,makecell,rotating,pdflscape}
 \usepackage{siunitx}
 \sisetup{group-digits=false, table-align-text-after=false}
 \extrafloats{200}  % results.tex is floats only: more than LaTeX's 18 may wait at once
@@ -125,22 +126,25 @@ def _figure_inches(path: Path) -> float:
 
 
 def latex_figure_of(out: Path, ex: Exhibit) -> str:
-    from analysis.render import tex_escape
+    """A figure exhibit as LaTeX: `figure` (or `figure*` when drawn wider than :data:`WIDE_FIGURE_IN`) with the
+    figure's PDF at its drawn size, shrunk to the line (and 80 % of the page's height) if larger, caption and note."""
+    from analysis.render import tex_text
 
     png = Path(out) / ex.files["png"] if "png" in ex.files else None
     env = "figure*" if png is not None and png.exists() and _figure_inches(png) > WIDE_FIGURE_IN else "figure"
     return "\n".join([rf"\begin{{{env}}}[tbp]", r"\centering",
-                      rf"\includegraphics[width=\linewidth,height=0.8\textheight,keepaspectratio]{{figures/{ex.stem}}}",
-                      rf"\caption{{{tex_escape(ex.title)}}}", rf"\label{{fig:{ex.stem}}}",
-                      *([r"\par\smallskip\footnotesize\raggedright " + tex_escape(_note(ex)[0]).replace(
+                      rf"\includegraphics[max width=\linewidth,max height=0.8\textheight]{{figures/{ex.stem}}}",
+                      rf"\caption{{{tex_text(ex.title)}}}", rf"\label{{fig:{ex.stem}}}",
+                      *([r"\par\smallskip\footnotesize\raggedright " + tex_text(_note(ex)[0]).replace(
                           "Note.", r"\textit{Note.}", 1)] if ex.note else []),
                       rf"\end{{{env}}}"]) + "\n"
 
 
 def latex_files(out: Path, exhibits: list[Exhibit]) -> dict[str, bytes]:
     """The LaTeX of the results, by path under ``latex/``: ``tables/<stem>.tex`` per table, ``figures/<stem>.pdf``
-    per figure, ``results.tex`` (the exhibits in reading order, main text then appendix with A-numbers, to
-    ``\\input`` into a manuscript), ``preamble.tex`` (the packages they need) and ``example.tex`` (both in a
+    per figure, ``results.tex`` (the exhibits in reading order to ``\\input`` into a manuscript: the main text in
+    the document's two columns, a table that breaks across pages on one-column pages of its own; then the appendix,
+    on one-column pages, with A-numbers), ``preamble.tex`` (the packages they need) and ``example.tex`` (both in a
     two-column article)."""
     from analysis.render import tex_escape
 
@@ -151,15 +155,24 @@ def latex_files(out: Path, exhibits: list[Exhibit]) -> dict[str, bytes]:
         if ex.part != part:
             part = ex.part
             if part == "appendix":
-                body += [r"\clearpage", r"\appendix", r"\section*{Appendix}", r"\setcounter{table}{0}\setcounter{figure}{0}",
+                # one column: long tables (longtable) need it, and an appendix of tables reads as one
+                body += [r"\onecolumn", r"\appendix", r"\section*{Appendix}",
+                         r"\setcounter{table}{0}\setcounter{figure}{0}",
                          r"\renewcommand{\thetable}{A\arabic{table}}\renewcommand{\thefigure}{A\arabic{figure}}"]
             section = ""
         if ex.section != section:
             section = ex.section
             body.append(rf"\subsection*{{{tex_escape(section)}}}")
         if ex.kind == "table":
-            files[f"tables/{ex.stem}.tex"] = latex_table_of(out, ex).encode()
-            body.append(rf"\input{{tables/{ex.stem}}}")
+            tex = latex_table_of(out, ex)
+            files[f"tables/{ex.stem}.tex"] = tex.encode()
+            put = rf"\input{{tables/{ex.stem}}}"
+            if r"\begin{longtable}" not in tex:
+                body.append(put)
+            elif part == "appendix":  # after the floats before it, which come first in reading order
+                body += [r"\clearpage", put]
+            else:  # a longtable cannot be set in two columns
+                body += [r"\onecolumn", put, r"\twocolumn"]
         else:
             if "pdf" in ex.files and (out / ex.files["pdf"]).exists():
                 files[f"figures/{ex.stem}.pdf"] = (out / ex.files["pdf"]).read_bytes()
@@ -195,8 +208,9 @@ def manuscript_files(out: Path) -> dict[str, bytes]:
     files["README.md"] = (f"# Manuscript outputs\n\n{tables} tables and {len(exhibits) - tables} figures, from {how}."
                           "\n\n- `results.docx`: main text and appendix, numbered tables (title, note) and figures "
                           "(caption), A4, APA style.\n- `latex/results.tex`: the same in LaTeX to `\\input` into "
-                          "a manuscript; `latex/preamble.tex`: the packages it needs; `latex/example.tex`: both in a "
-                          "two-column article.\n").encode()
+                          "a manuscript (the appendix on one-column pages: its long tables break across pages); "
+                          "`latex/preamble.tex`: the packages it needs; `latex/example.tex`: both in a two-column "
+                          "article.\n").encode()
     return files
 
 

@@ -21,8 +21,8 @@ def _table(out, stem: str, columns: int = 3, rows: int = 3, title: str = "T") ->
     return {"md": f"tables/{stem}.md"}
 
 
-def _figure(out, stem: str) -> dict:
-    fig, ax = pyplot().subplots(figsize=(3, 2))
+def _figure(out, stem: str, width: float = 3) -> dict:
+    fig, ax = pyplot().subplots(figsize=(width, 2))
     ax.plot([0, 1], [0, 1])
     save_figure(fig, out / "figures", stem)
     return {ext: f"figures/{stem}.{ext}" for ext in ("png", "svg", "pdf")}
@@ -96,29 +96,80 @@ def test_latex_results_in_order_with_appendix_numbers(report):
     assert body.index(r"\input{tables/flow}") < body.index("figures/savings") < body.index(r"\input{tables/bands}") \
         < body.index(r"\appendix") < body.index(r"\input{tables/per_participant}")
     assert r"\renewcommand{\thetable}{A\arabic{table}}" in body
+    # the appendix on one-column pages: its long and wide tables are longtables, which two columns cannot hold
+    assert body.index(r"\onecolumn") < body.index(r"\appendix")
     assert files["figures/savings.pdf"] == (out / "figures" / "savings.pdf").read_bytes()
     flow = files["tables/flow.tex"].decode()
     assert r"\caption{Participant flow}" in flow and r"\item \textit{Note.} N = 40." in flow
-    assert files["tables/per_participant.tex"].decode().startswith(r"\begin{sidewaystable*}")
+    # 14 columns: wider than a landscape page at \small, on landscape pages at \footnotesize
+    assert files["tables/per_participant.tex"].decode().startswith("\\begin{landscape}\n\\begingroup\\footnotesize")
+
+
+def _compile_example(out, ex, work) -> str:
+    """results.tex with its preamble and figures, as shipped (latex/example.tex), compiled; the log."""
+    from tests.latex_fit import compile_tex
+
+    for rel, data in latex_files(out, ex).items():
+        (work / rel).parent.mkdir(parents=True, exist_ok=True)
+        (work / rel).write_bytes(data)
+    return compile_tex(work, "example")
 
 
 def test_latex_results_compile_in_a_two_column_article(report, tmp_path):
-    """results.tex with its preamble and figures, as shipped (latex/example.tex): compiles, nothing overfull."""
-    import subprocess
-
-    from tests.latex_fit import overfull, pdflatex
+    """The shipped example compiles, nothing overfull."""
+    from tests.latex_fit import misfits, pdflatex
 
     if pdflatex() is None:
         return
     out, ex = report
-    work = tmp_path / "latex"
-    for rel, data in latex_files(out, ex).items():
-        (work / rel).parent.mkdir(parents=True, exist_ok=True)
-        (work / rel).write_bytes(data)
-    p = subprocess.run([pdflatex(), "-interaction=nonstopmode", "-halt-on-error", "example.tex"], cwd=work,
-                       capture_output=True, text=True, timeout=300)
-    assert p.returncode == 0, p.stdout[-3000:]
-    assert overfull((work / "example.log").read_text(errors="replace")) == []
+    assert misfits(_compile_example(out, ex, tmp_path / "latex")) == {"overfull": 0, "float too large": 0,
+                                                                       "output loop": 0}
+
+
+@pytest.fixture
+def long_report(tmp_path):
+    """A report shaped like the paper study's: figures narrow and wide in both parts, a main-text table taller than
+    a page; in the appendix a table of 120 rows, one of 36 columns (wider than a landscape page), figures after them;
+    notes with a file path in a table one column wide."""
+    out = tmp_path / "long"
+    path_note = "Note. Data: reconstructed answers fitted to the published tables (data/reference/README.md), " \
+                "not the original participants' answers."
+    ex = [Exhibit("table", "Table 1", "main", "Sample", "flow", "Participant flow", path_note, _table(out, "flow", 2)),
+          *[Exhibit("figure", f"Figure {k}", "main", "Drives", f"main{k}", f"Figure {k} of the results", "",
+                    _figure(out, f"main{k}", 3 if k % 2 else 6)) for k in range(1, 4)],
+          Exhibit("table", "Table 2", "main", "Drives", "tall", "A main-text table taller than a page", "",
+                  _table(out, "tall", 3, rows=70)),
+          *[Exhibit("figure", f"Figure {k}", "main", "Drives", f"main{k}", f"Figure {k} of the results", "",
+                    _figure(out, f"main{k}", 3 if k % 2 else 6)) for k in range(4, 7)],
+          Exhibit("table", "Table A1", "appendix", "Drives", "per_drive", "KPIs per drive",
+                  "Note. One row per drive.", _table(out, "per_drive", columns=8, rows=120)),
+          Exhibit("table", "Table A2", "appendix", "Drives", "per_participant", "KPIs per participant",
+                  path_note, _table(out, "per_participant", columns=36, rows=34)),
+          *[Exhibit("figure", f"Figure A{k}", "appendix", "Simulation core", f"core{k}", f"Core figure {k}", "",
+                    _figure(out, f"core{k}", 6)) for k in range(1, 9)],
+          Exhibit("table", "Table A3", "appendix", "Reproduction", "audit", "Audit", path_note,
+                  _table(out, "audit", columns=3, rows=10))]
+    write_exhibits(out, ex)
+    return out, ex
+
+
+def test_latex_results_with_long_and_wide_appendix_tables_compile(long_report, tmp_path):
+    """A table taller than a page and one wider than a landscape page, with figures before and after them: the
+    example compiles (a float taller than the page jammed the float queue: "Output loop"), no float runs off its
+    page ("Float too large"), nothing is wider than its room (a note's file path breaks at its slashes)."""
+    from tests.latex_fit import misfits, overfull, pdflatex
+
+    out, ex = long_report
+    files = latex_files(out, ex)
+    assert r"\begin{longtable}" in files["tables/per_drive.tex"].decode()
+    assert files["tables/per_participant.tex"].decode().count(r"\begin{longtable}") > 1   # column groups
+    body = files["results.tex"].decode()   # two columns around a main-text longtable, one for the appendix
+    assert "\\onecolumn\n\\input{tables/tall}\n\\twocolumn\n" in body
+    assert "\\clearpage\n\\input{tables/per_drive}\n" in body and body.count(r"\onecolumn") == 2
+    if pdflatex() is None:
+        return
+    log = _compile_example(out, ex, tmp_path / "latex")
+    assert misfits(log) == {"overfull": 0, "float too large": 0, "output loop": 0}, overfull(log)
 
 
 def test_without_exhibits_json_the_document_order_is_used(report):

@@ -6,7 +6,7 @@ import pandas as pd
 import pytest
 
 from analysis.render import (fmt_cell, frame_cells, latex_table, markdown_table, md_cell, pyplot, save_figure,
-                             tex_cell, tex_escape, write_table)
+                             tex_breakable, tex_cell, tex_escape, write_table)
 
 
 # ---------------------------------------------------------------------------------------------- cells
@@ -34,6 +34,14 @@ def test_frame_cells_keeps_column_order_and_formats_per_type():
     assert rows == [["a", "0.50", "3", "yes"], ["b", "", "4", "no"]]
 
 
+def test_frame_cells_print_whole_numbers_as_integers():
+    """Counts held as floats (a pivot of counts, a count column with a missing value read back from CSV) print as
+    integers (APA), in every writer that starts from the frame; a column with any fraction keeps its decimals."""
+    df = pd.DataFrame({"red_stops": [5.0, 4.0, np.nan], "share": [0.5, 1.0, 2.0], "n": [3, 4, 5]})
+    header, rows = frame_cells(df, digits=3)
+    assert [r[0] for r in rows] == ["5", "4", ""] and [r[1] for r in rows] == ["0.500", "1.000", "2.000"]
+
+
 # ---------------------------------------------------------------------------------------------- LaTeX
 def test_tex_escape_is_one_pass():
     # a backslash becomes \textbackslash{} whose braces must not be escaped again
@@ -45,6 +53,15 @@ def test_tex_escape_symbols():
     assert tex_escape("λ, Cα, β, ΔR²") == r"$\lambda$, C$\alpha$, $\beta$, $\Delta$R$^2$"
     assert tex_escape("PEoU3† 0.1 – 0.2, PU -> BI") == r"PEoU3$^\dagger$ 0.1 -- 0.2, PU $\rightarrow$ BI"
     assert tex_escape("≈ 0.5 ± 0.1 × 2 − 1") == r"$\approx$ 0.5 $\pm$ 0.1 $\times$ 2 $-$ 1"
+
+
+def test_tex_breakable_paths_and_identifiers():
+    """A file path or an identifier in a note may break after / and _; units and ratios stay whole."""
+    assert tex_breakable(tex_escape("(data/reference/README.md),")) == \
+        r"(data/\allowbreak reference/\allowbreak README.md),"
+    assert tex_breakable(tex_escape("m/s, 1/40, Wh/km")) == "m/s, 1/40, Wh/km"
+    assert tex_breakable(tex_escape("see docs/sweep.md")) == r"see docs/\allowbreak sweep.md"
+    assert tex_breakable(tex_escape("per_participant")) == r"per\_\allowbreak participant"
 
 
 def test_tex_cell_bold_and_stars():
@@ -62,7 +79,8 @@ def test_latex_table_structure():
         r"\label{tab:l}", r"\begin{tabular}{lS[table-format=1.3, print-zero-integer=false]}", r"\toprule",
         r"Item & {$\lambda$} \\",
         r"\midrule", r"PU1 & .800 \\", r"x\_y & {\textbf{0.9}} \\", r"\bottomrule", r"\end{tabular}",
-        r"\begin{tablenotes}[flushleft]\footnotesize", r"\item \textit{Note.} N = 40.", r"\item * p < .05",
+        r"\begin{tablenotes}[flushleft]\footnotesize\raggedright", r"\item \textit{Note.} N = 40.",
+        r"\item * p < .05",
         r"\end{tablenotes}", r"\end{threeparttable}", r"\end{table}"]
     assert r"\begin{tabular}{lll}" in latex_table(["a", "b", "c"], [])  # no numbers: text, set left
     with pytest.raises(ValueError):
@@ -85,9 +103,23 @@ def _label_table(columns: int, label: str = "Perceived usefulness of the advice"
 def test_latex_table_goes_where_it_fits():
     assert latex_table(*_label_table(2)).startswith(r"\begin{table}[tbp]")
     assert latex_table(*_label_table(6)).startswith(r"\begin{table*}[tbp]")
-    assert latex_table(*_label_table(12)).startswith(r"\begin{sidewaystable*}[p]")
-    wide = latex_table(*_label_table(30))
-    assert wide.startswith(r"\begin{sidewaystable*}[p]") and r"\begin{adjustbox}{max width=\linewidth}" in wide
+    assert latex_table(*_label_table(10)).startswith(r"\begin{sidewaystable*}[p]")
+    # wider than a landscape page at \small: landscape pages at \footnotesize (with less space between columns)
+    dense = latex_table(*_label_table(12))
+    assert dense.startswith("\\begin{landscape}\n\\begingroup\\footnotesize") and dense.count(r"\begin{longtable}") == 1
+    # wider than a landscape page even so: in column groups that each repeat
+    # the row labels and fit the page (no shrinking to an unreadable size)
+    wide = latex_table(*_label_table(30), title="Wide")
+    assert wide.startswith("\\begin{landscape}\n\\begingroup\\footnotesize") and "adjustbox" not in wide
+    parts = wide.count(r"\begin{longtable}")
+    assert parts > 1 and wide.count(r"\addtocounter{table}{-1}") == parts - 1
+    assert wide.count("Perceived usefulness of the advice 3 &") == parts
+    # taller than a page: a longtable, the header repeated on every page, the notes after the last row
+    tall = latex_table(*_label_table(4, rows=120), title="Tall", notes=["Note. N = 40."], label="tab:tall")
+    assert tall.startswith("\\begingroup\\small") and tall.count(r"\begin{longtable}") == 1
+    assert r"\caption{Tall}\label{tab:tall}\\" in tall and r"\caption*{Table \thetable{} (continued)}\\" in tall
+    assert tall.index(r"\endhead") < tall.index(r"\textit{Note.} N = 40.") < tall.index(r"\endlastfoot") < \
+        tall.index("Perceived usefulness of the advice 0 &")
     # a long label wraps (p column) rather than pushing the table out of its column
     header, rows = _label_table(3, label="A label long enough to need more than one line in one column of a page")
     narrow = latex_table(header, rows)
@@ -95,19 +127,21 @@ def test_latex_table_goes_where_it_fits():
 
 
 def test_latex_tables_fit_a_two_column_article(tmp_path):
-    """Compiled in a two-column article, none of the tables is wider than its room (0 overfull boxes)."""
-    from tests.latex_fit import compile_tables, overfull, pdflatex
+    """Compiled in a two-column article, none of the tables is wider than its room (0 overfull boxes) or taller
+    than its page (a float that is, "Float too large", runs off the page)."""
+    from tests.latex_fit import compile_tables, misfits, overfull, pdflatex
 
     if pdflatex() is None:
         return
     tables = [latex_table(*_label_table(n), title=f"{n} columns", notes=["Note. A note long enough to wrap " * 3])
               for n in (2, 4, 6, 9, 12, 30)]
+    tables.append(latex_table(*_label_table(6, rows=120), title="Tall", notes=["Note. A note (data/a/b/README.md)."]))
     header, rows = _label_table(3, label="A label long enough to need more than one line in one column of a page")
     tables.append(latex_table(header, rows, title="wrapped"))
     tables.append(latex_table(["Item", "β", "p"], [["PU → BI", ".41**", "< .001"], ["SN → BI", "−.07", ".512"]],
                               notes=["Note. ** p < .01."]))
     log = compile_tables(tables, tmp_path)
-    assert overfull(log) == []
+    assert misfits(log) == {"overfull": 0, "float too large": 0, "output loop": 0}, overfull(log)
 
 
 # ---------------------------------------------------------------------------------------------- Markdown
