@@ -46,6 +46,7 @@ HEADERS = {
     "above_50": "Above 50 %", "n_components_eigen_gt_1": "Components with eigenvalue > 1", "chain": "Path",
     "x": "From", "y": "To", "estimator": "Estimator", "f_min": "Fit function minimum", "converged": "Converged",
     "admissible": "Admissible", "n_failed": "Failed resamples", "method": "Method", "band": "Band", "note": "Note",
+    "hypothesis": "Hypothesis", "path": "Path", "supported": "Supported", "step": "Step",
 }
 #: pairs of lower/upper columns written as one "[LL, UL]" column, with that column's header
 CI_PAIRS = (("boot_ci_low", "boot_ci_high", "Bootstrap 95 % CI"), ("alpha_ci_low", "alpha_ci_high", "95 % CI of α"),

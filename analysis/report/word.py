@@ -20,6 +20,10 @@ _EPOCH = (1980, 1, 1, 0, 0, 0)
 A4_CM = (21.0, 29.7)
 MARGIN_CM = 2.54
 LANDSCAPE_COLUMNS = 9  # a table with more columns than this gets a landscape page
+# so does a table whose row labels would get less than this share of their width on a portrait page: they would wrap
+# to a word a line (the hierarchical regression table's "Step 2: Dependent Variable - ATT"); a wrapped text column
+# further right (a note, an explanation) reads well and stays portrait
+LABEL_SHARE = 0.6
 FIGURE_MAX_CM = 16.0   # the text width of an A4 page with 2.54 cm margins
 _NUMERIC = re.compile(r"^[-−+]?(\d+\.?\d*|\.\d+)[*†‡]{0,3}$|^[<>≤≥] ?[-−]?(\d+\.?\d*|\.\d+)$")
 
@@ -83,18 +87,25 @@ def _label(doc, ex: Exhibit) -> None:
     doc.add_paragraph(style="Exhibit title").add_run(ex.title).italic = True
 
 
+def _cell_width(text: str) -> float:
+    """The width (pt) of a cell's text in Word: the LaTeX estimate (\\small, about 9 pt) scaled to the cells' 10 pt
+    with 8 % to spare, plus Word's cell margins (0.19 cm on each side) and a little more."""
+    from analysis.render import text_width_pt
+
+    return 1.2 * text_width_pt(text) + 14.0
+
+
+def natural_widths(header: list[str], rows: list[list[str]]) -> list[float]:
+    """Each column's width (pt) with no cell wrapped (header words may wrap)."""
+    return [max([_cell_width(r[j]) for r in rows] + [max(map(_cell_width, str(h).split() or [""]))])
+            for j, h in enumerate(header)]
+
+
 def column_widths(header: list[str], rows: list[list[str]], room_pt: float) -> list[float]:
     """Column widths (pt) of a table in `room_pt`: each column as wide as its widest cell (header words may wrap);
     when they do not fit, the widest columns wrap first (water-filling), none below its longest word."""
-    from analysis.render import text_width_pt
-
-    def width(text: str) -> float:
-        # the LaTeX estimate (\\small, about 9 pt) scaled to the cells' 10 pt with 8 % to spare, plus Word's cell
-        # margins (0.19 cm on each side) and a little more
-        return 1.2 * text_width_pt(text) + 14.0
-
-    natural = [max([width(r[j]) for r in rows] + [max(map(width, str(h).split() or [""]))])
-               for j, h in enumerate(header)]
+    width = _cell_width
+    natural = natural_widths(header, rows)
     least = [max(width(w) for c in [h, *(r[j] for r in rows)] for w in re.split(r"\s+|(?<=[;_])", str(c)))
              for j, h in enumerate(header)]
     if sum(natural) <= room_pt:
@@ -166,6 +177,11 @@ def _styles(doc) -> None:
         pf.space_before, pf.space_after, pf.keep_with_next = Pt(before), Pt(after), keep
 
 
+def _room_pt(landscape: bool) -> float:
+    """The text width (pt) of an A4 page with the margins, portrait or landscape."""
+    return (A4_CM[1 if landscape else 0] - 2 * MARGIN_CM) / 2.54 * 72.0
+
+
 def _page(section, landscape: bool) -> None:
     from docx.enum.section import WD_ORIENT
     from docx.shared import Cm
@@ -205,12 +221,13 @@ def results_docx(out: Path, exhibits: list[Exhibit], title: str = "Results") -> 
             doc.add_heading(section, level=2)
         if ex.kind == "table" and "md" in ex.files and (out / ex.files["md"]).exists():
             _, header, rows, _ = parse_markdown_table((out / ex.files["md"]).read_text(encoding="utf-8"))
-            wide = len(header) > LANDSCAPE_COLUMNS
+            wide = (len(header) > LANDSCAPE_COLUMNS or column_widths(header, rows, _room_pt(landscape=False))[0]
+                    < LABEL_SHARE * natural_widths(header, rows)[0])
             if wide != landscape:
                 landscape = wide
                 _page(doc.add_section(WD_SECTION.NEW_PAGE), landscape)
             _label(doc, ex)
-            _table(doc, header, rows, (A4_CM[1 if wide else 0] - 2 * MARGIN_CM) / 2.54 * 72.0)
+            _table(doc, header, rows, _room_pt(wide))
             _note(doc, ex.note)
         elif ex.kind == "figure" and "png" in ex.files and (out / ex.files["png"]).exists():
             if landscape:

@@ -37,7 +37,7 @@ def test_cells_by_column_kind():
     head, rows = apa.table_cells(["path", "beta", "p", "df", "b", "cfi"],
                                  [["PU -> BI", "0.517**", "0.000", "2.000", "-1.250", "0.907"],
                                   ["ATT -> BI", "-0.120", "0.011", "16.432", "0.5", "1.000"]])
-    assert head == ["path", "β", "p", "df", "B", "CFI"]
+    assert head == ["Path", "β", "p", "df", "B", "CFI"]
     assert rows == [["PU -> BI", ".517**", "< .001", "2", f"{M}1.250", ".907"],
                     ["ATT -> BI", f"{M}.120", ".011", "16.43", "0.5", "1.000"]]
     # idempotent: a table formatted twice stays the same
@@ -49,5 +49,5 @@ def test_writers_apply_apa():
     head, rows = frame_cells(df)
     assert head == ["path", "beta", "95 % CI", "p"] and rows == [["PU -> BI", "0.512", f"[{M}0.200, 0.310]", "0.000"]]
     md = markdown_table(head, rows)
-    assert f"| PU -> BI | .512 | [{M}0.200, 0.310] | < .001 |" in md and "| path | β | 95 % CI | p |" in md
+    assert f"| PU -> BI | .512 | [{M}0.200, 0.310] | < .001 |" in md and "| Path | β | 95 % CI | p |" in md
     assert r"$-$0.200" in latex_table(head, rows)
