@@ -8,7 +8,10 @@ driver imperfection by SUMO's RNG seeded with the same seed. Same seed -> same t
 
 The ego vehicle follows the speed set every step with ``vehicle.setSpeed``; speed mode 32 switches off all of
 SUMO's own checks (safe speed, acceleration bounds, right of way, red lights) so that SUMO never silently
-corrects the driver model: safety is checked by the drive loop, not hidden by the simulator.
+corrects the driver model: safety is checked by the drive loop, not hidden by the simulator. The drive loop reads
+what it needs each step (time, the ego's odometer, speed and leader, collisions, arrivals) from libsumo
+subscriptions (:meth:`Traffic.subscribe_ego`, :meth:`Traffic.observe`, :meth:`Traffic.advance`): the getters'
+values, with two calls a step instead of seven.
 
 The network, routes, vehicle types and demand are those of a traffic scenario (:mod:`pedas.scenario`). In the
 motorway scenario the ego enters the motorway on an acceleration lane and leaves it by SUMO's strategic lane change
@@ -188,6 +191,7 @@ class Traffic:
         self._ego_in = False
         self._removed = False  # the last step's prune removed vehicles (the subscribed leader predates it)
         self._sub = None       # subscription result getters and variable ids (subscribe_ego)
+        self._sim = None       # the simulation's subscription results read by advance() after the last step
         routes = route_edges(self.scenario.routes)
         self._ego_edges = {e: i for i, e in enumerate(routes[EGO_ROUTE])}
         self._route_join = join_index(routes)
@@ -255,6 +259,7 @@ class Traffic:
         self._ls.simulationStep()
         self._steps += 1
         self._removed = False
+        self._sim = None
         if self._steps % PRUNE_EVERY == 0 and self._ego_in:
             self.prune()
 
@@ -373,6 +378,7 @@ class Traffic:
         self._sub = _Subscription(ls.vehicle.getSubscriptionResults, ls.simulation.getSubscriptionResults,
                                   float(lookahead), tc.VAR_DISTANCE, tc.VAR_SPEED, tc.VAR_LEADER, tc.VAR_TIME,
                                   tc.VAR_ARRIVED_VEHICLES_IDS, tc.VAR_COLLIDING_VEHICLES_IDS)
+        self._sim = None
 
     def observe(self) -> tuple[float, float, float, Leader | None, bool]:
         """(t s, s m, v m/s, leader, collided) now: the values of :attr:`time`, :meth:`ego_state`, :meth:`leader`
@@ -380,7 +386,7 @@ class Traffic:
         end of its step, before :meth:`prune`; after a step whose prune removed vehicles the leader is asked again
         (removing other vehicles changes neither the ego's own values nor the simulation's lists)."""
         sub = self._sub
-        ego, sim = sub.ego(EGO_ID), sub.sim()
+        ego, sim = sub.ego(EGO_ID), sub.sim() if self._sim is None else self._sim
         res = self._ls.vehicle.getLeader(EGO_ID, sub.lookahead) if self._removed else ego[sub.leader]
         return (float(sim[sub.time]), float(ego[sub.distance]) + self._s_offset, float(ego[sub.speed]),
                 self._leader(res, sub.lookahead), EGO_ID in sim[sub.colliding])
@@ -391,4 +397,5 @@ class Traffic:
         :meth:`subscribe_ego`)."""
         self._ls.vehicle.setSpeed(EGO_ID, max(float(v), 0.0))
         self.step()
-        return EGO_ID in self._sub.sim()[self._sub.arrived]
+        self._sim = self._sub.sim()   # what the next observe() reads as well: nothing steps in between
+        return EGO_ID in self._sim[self._sub.arrived]
