@@ -11,7 +11,7 @@ SUMO's own checks (safe speed, acceleration bounds, right of way, red lights) so
 corrects the driver model: safety is checked by the drive loop, not hidden by the simulator. The drive loop reads
 what it needs each step (time, the ego's odometer, speed and leader, collisions, arrivals) from libsumo
 subscriptions (:meth:`Traffic.subscribe_ego`, :meth:`Traffic.observe`, :meth:`Traffic.advance`): the getters'
-values, with two calls a step instead of seven.
+values, with two calls a step instead of six.
 
 The network, routes, vehicle types and demand are those of a traffic scenario (:mod:`pedas.scenario`). In the
 motorway scenario the ego enters the motorway on an acceleration lane and leaves it by SUMO's strategic lane change
