@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from bisect import bisect_left
+from bisect import bisect_left, bisect_right
 from collections.abc import Mapping
 from dataclasses import dataclass
 from math import isfinite
@@ -41,6 +41,7 @@ from pedas.mpc import INF, MpcPlan, Scalars, vehicle_model
 from pedas.mpc_cf import CarFollowingMpc
 from pedas.mpc_rt import ReferenceTrackingMpc
 from pedas.params import CONTROLLER, LEAF, ControllerParams, VehicleParams
+from pedas.records import fast_init
 from pedas.route import StopSign, TrafficLight, braking_envelope
 from pedas.speed_correction import corrected_speed
 
@@ -51,6 +52,7 @@ except ImportError:   # pragma: no cover - numpy < 2
 _max = np.maximum.reduce
 
 
+@fast_init
 @dataclass(frozen=True)
 class Advisory:
     """One controller output (the drive log stores these).
@@ -132,6 +134,7 @@ class _Objects(NamedTuple):
     d_ss: float | None        # m to its stop line
     tl_near: bool             # the light is within spat_range (green wave and red-light logic apply)
     tl_remaining: float | None  # s left in the light's phase (SPaT), None beyond spat_range
+    tl_state: str | None      # the light's phase now (SPaT), None beyond spat_range
     go: bool                  # the light will be passed (green long enough, or yellow too close to stop)
     stop_d: float | None      # m to the stop line that constrains d_ITS (None: no stop required)
     d_hard: np.ndarray | None  # k = 1..N: 0 where d_ITS >= 0 is enforced, -inf elsewhere
@@ -212,6 +215,7 @@ class PedasController:
         self._stops = tuple(route.stops)
         self._d_sits = float(route.d_stopline)
         self._k = np.arange(1, n + 1)
+        self._dtk = dt * self._k   # s, the horizon's sample times after now
         # the horizon ramps of the settings, once per controller (same products as (a dt) k per step)
         self._depart = settings.a_depart * dt * self._k
         self._reach = settings.a_reach * dt * self._k
@@ -231,6 +235,7 @@ class PedasController:
         # constant operands of the step's elementwise operations, as 0-d arrays (pedas.mpc.Scalars)
         self._k0 = Scalars(zero=0.0, dt=dt, two_a_stop=2 * settings.a_stop, safe_backoff=settings.safe_backoff)
         self._curve_list = self._curve_s.tolist()
+        self._s_list = self._s.tolist()
         self.reset()
 
     def reset(self) -> None:
@@ -354,7 +359,7 @@ class PedasController:
         d_hard = None
         go = False
         tl_near = tl is not None and d_tl <= cfg.spat_range
-        tl_remaining = None
+        state = tl_remaining = None
         if tl_near:
             state, tl_remaining, changes = tl.spat(t, N * self.dt)
             mask = self._nongreen(state, changes, t)
@@ -373,7 +378,7 @@ class PedasController:
             stop_kind = "ss"
         else:
             stop_kind = "tl" if stop_d is not None else None
-        return _Objects(tl, d_tl, ss, d_ss, tl_near, tl_remaining, go, stop_d, d_hard, stop_kind)
+        return _Objects(tl, d_tl, ss, d_ss, tl_near, tl_remaining, state, go, stop_d, d_hard, stop_kind)
 
     def _green_wave(self, t: float, s: float, pred: _Prediction, obj: _Objects) -> tuple[float | None, bool]:
         """(v_ref,min of eq. (1) or None, stop at the light expected) for the light within spat_range."""
@@ -525,7 +530,7 @@ class PedasController:
     def _legal_limit(self, s: float) -> float:
         """The legal limit in force at s (m/s): that of the last route grid point at or before s, the sign the car
         has passed (never a value interpolated between two limits, which no sign shows)."""
-        i = int(np.searchsorted(self._s, s, side="right")) - 1
+        i = bisect_right(self._s_list, s) - 1   # np.searchsorted(self._s, s, side="right") - 1, on a list
         return float(self._limit[min(max(i, 0), self._limit.size - 1)])
 
     def _hud_context(self, s: float, v: float, pred: _Prediction, obj: _Objects, sol: _Solution) -> HudContext:
@@ -537,16 +542,16 @@ class PedasController:
                 curve_d = float(self._curve_s[j] - s)
         return HudContext(mode=sol.mode, tl_distance=obj.d_tl, tl_remaining=obj.tl_remaining, stop_distance=obj.d_ss,
                           curve_distance=curve_d, psi=sol.psi, speed_limit=self._legal_limit(s),
-                          tl_state=obj.tl.state_at(self._t_prev) if obj.tl_remaining is not None else None)
+                          tl_state=obj.tl_state)
 
     # ------------------------------------------------------------------------------------------------------
     def _nongreen(self, state: str, changes: list[tuple[float, str]], t: float) -> np.ndarray:
         """Mask over k=1..N: the light (in `state` at t, then the phase `changes` (time, state)) is not green at
         t + k dt."""
-        tk = t + self.dt * self._k
+        tk = (t + self._dtk).tolist()
         mask = np.full(self.n, state != "green")
-        for tc, st in changes:
-            mask[tk >= tc] = st != "green"
+        for tc, st in changes:   # tk ascends: the steps with tk >= tc are the tail from the first of them
+            mask[bisect_left(tk, tc):] = st != "green"
         return mask
 
     # ------------------------------------------------------------------------------------------------------

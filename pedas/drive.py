@@ -50,6 +50,10 @@ LOG_COLUMNS = ("t", "s", "v", "segment", "speed_limit", "a", "grade", "ft", "fb"
                "d_tl", "leader_gap", "leader_v", "v_advice", "controller", "hud_arrow", "hud_in_band", "warning")
 #: the HUD channels a pEDAS drive carries after LOG_COLUMNS (what the HUD displayed, pedas.hud_log)
 HUD_LOG_COLUMNS = tuple(name for name, _, _ in HUD_CHANNELS)
+#: what the drive loop records per sample (the rest of LOG_COLUMNS follows from the route and the trace)
+ROW_FIELDS = ("t", "s", "v", "a", "tl_id", "tl_state", "d_tl", "leader_gap", "leader_v", "v_advice", "controller",
+              "hud_arrow", "hud_in_band", "warning")
+_NO_ADVICE = (math.nan, "none", None, None, None)   # the ROW_FIELDS from v_advice on of a sample without advice
 HALT_CHECK = 0.1  # m/s, standing still for the stop-sign invariant
 STOP_CHECK_BAND = 10.0  # m, the halt must happen this close before the stop line
 MAX_DURATION = 3600.0  # s of simulated driving after which a drive is declared stuck
@@ -127,22 +131,23 @@ class SafetyGuard:
         """Check the step that ended at (t, s, v)."""
         if collided or (leader_gap is not None and leader_gap <= 0.0):
             raise SafetyViolation(f"collision at t={t:.1f} s, s={s:.1f} m (gap {leader_gap})", "collision")
-        for i, ss in enumerate(self._stops):
-            d = ss.s - s
-            if v <= HALT_CHECK and -0.01 <= d <= STOP_CHECK_BAND:
-                self._halted[i] = True
+        if v <= HALT_CHECK:
+            for i, ss in enumerate(self._stops):
+                if -0.01 <= ss.s - s <= STOP_CHECK_BAND:
+                    self._halted[i] = True
         if self._prev is not None:
             t0, s0 = self._prev
             if s < s0 - 1e-6:
                 raise SafetyViolation(f"the ego vehicle moved backwards at t={t:.1f} s, s={s:.1f} m", "backwards")
-            for tl in self._lights:
-                if s0 < tl.s <= s and tl.state_at(t0) == "red":
-                    raise SafetyViolation(f"red light {tl.tl_id} crossed at t={t0:.1f}-{t:.1f} s (s={tl.s:.1f} m)",
-                                          "red_light")
-            for i, ss in enumerate(self._stops):
-                if s0 < ss.s <= s and not self._halted[i]:
-                    raise SafetyViolation(f"stop sign {ss.ss_id} passed without a full stop at t={t:.1f} s, "
-                                          f"s={s:.1f} m", "stop_sign")
+            if s > s0:   # a line at x was crossed when s0 < x <= s: none while standing
+                for tl in self._lights:
+                    if s0 < tl.s <= s and tl.state_at(t0) == "red":
+                        raise SafetyViolation(f"red light {tl.tl_id} crossed at t={t0:.1f}-{t:.1f} s "
+                                              f"(s={tl.s:.1f} m)", "red_light")
+                for i, ss in enumerate(self._stops):
+                    if s0 < ss.s <= s and not self._halted[i]:
+                        raise SafetyViolation(f"stop sign {ss.ss_id} passed without a full stop at t={t:.1f} s, "
+                                              f"s={s:.1f} m", "stop_sign")
         self._prev = (t, s)
 
 
@@ -235,23 +240,20 @@ def drive(participant_seed: int, style: str, condition: str, *, traffic_seed: in
     guard = SafetyGuard(route)
     alive = LivenessGuard()
     lights = tuple(route.lights)
-    cols: dict[str, list] = {c: [] for c in ("t", "s", "v", "a", "tl_id", "tl_state", "d_tl", "leader_gap",
-                                             "leader_v", "v_advice", "controller", "hud_arrow", "hud_in_band",
-                                             "warning")}
-    if assisted and (controller is None if hud_channels is None else hud_channels):
-        cols["hud"] = []   # channel_values of the frame shown at each sample
+    rows: list[tuple] = []   # one ROW_FIELDS tuple per sample
+    hud = [] if assisted and (controller is None if hud_channels is None else hud_channels) else None
     wall0 = time.perf_counter()
     try:
         demand = wi.demand(load_demand(scenario=sc))
         with Traffic(tseed, net_file, demand=demand, scenario=sc) as tr:
-            steps, max_veh, t_ins = _loop(tr, lights, human, ctrl, guard, alive, cols, max_duration)
+            steps, max_veh, t_ins = _loop(tr, lights, human, ctrl, guard, alive, rows, hud, max_duration)
     except DriveError as exc:
         raise exc.named(drive_name(participant_seed, style, condition, tseed)) from None
     except Exception as exc:  # any other failure still says which drive it was
         raise DriveError(f"{drive_name(participant_seed, style, condition, tseed)}: {type(exc).__name__}: "
                          f"{exc}") from exc
     wall = time.perf_counter() - wall0
-    df = _log_frame(cols, route)
+    df = _log_frame(rows, hud, route)
     info = DriveInfo(int(participant_seed), style, condition, tseed, sc.name, drv.as_dict(), float(t_ins),
                      float(df["t"].iloc[-1]), wall, steps, max_veh, dict(ctrl.stats) if ctrl is not None else None)
     df.attrs["drive"] = info.__dict__
@@ -260,68 +262,64 @@ def drive(participant_seed: int, style: str, condition: str, *, traffic_seed: in
     return df
 
 
-def _loop(tr: Traffic, lights, human: HumanDriver, ctrl, guard: SafetyGuard, alive: LivenessGuard, cols: dict,
-          max_duration: float) -> tuple[int, int, float]:
-    """Step the drive until the ego arrives; fills `cols` (and the HUD channels when it has a "hud" list);
-    returns (steps, max vehicles, SUMO insertion time)."""
+def _loop(tr: Traffic, lights, human: HumanDriver, ctrl, guard: SafetyGuard, alive: LivenessGuard, rows: list,
+          hud: list | None, max_duration: float) -> tuple[int, int, float]:
+    """Step the drive until the ego arrives; appends one ROW_FIELDS tuple per sample to `rows` (and the HUD channels
+    of the frame shown to `hud` unless it is None); returns (steps, max vehicles, SUMO insertion time)."""
     steps = 0
     max_veh = 0
     t_ins = tr.insert_ego()
+    tr.subscribe_ego()
+    observe, advance, act = tr.observe, tr.advance, human.act
+    n_lights = len(lights)
     tl_i = 0
     while True:
-        t = tr.time
-        s, v = tr.ego_state()
-        lead = tr.leader()
-        gap = lead.gap if lead is not None else None
-        guard.check(t, s, v, gap, tr.ego_collided())
-        while tl_i < len(lights) and lights[tl_i].s < s:
+        t, s, v, lead, collided = observe()
+        if lead is not None:
+            gap, lead_v, lead_a = lead.gap, lead.v, lead.a
+        else:
+            gap = lead_v = None
+            lead_a = 0.0
+        guard.check(t, s, v, gap, collided)
+        while tl_i < n_lights and lights[tl_i].s < s:
             tl_i += 1
-        tl = lights[tl_i] if tl_i < len(lights) else None
-        tl_state = tl.state_at(t) if tl is not None else None
-        d_tl = tl.s - s if tl is not None else None
+        if tl_i < n_lights:
+            tl = lights[tl_i]
+            tl_id, d_tl = tl.tl_id, tl.s - s
+            tl_state, tl_left = tl.state_remaining(t)
+        else:
+            tl_id = tl_state = d_tl = tl_left = None
         alive.check(t - t_ins, s, v, gap, tl_state, d_tl)
-        adv = None
         if ctrl is not None:
-            adv = ctrl.step(t, s, v, (lead.gap, lead.v) if lead is not None else None)
-        obs = Perception(t, gap, lead.v if lead is not None else None, tl_state,
-                         tl.remaining(t) if tl is not None else None,
-                         adv.v_advice if adv is not None else None, bool(adv.warning) if adv is not None else False,
-                         s=s, leader_a=lead.a if lead is not None else 0.0)
-        a = human.act(t, s, v, obs)
+            adv = ctrl.step(t, s, v, (gap, lead_v) if lead is not None else None)
+            advice = (adv.v_advice, adv.controller, adv.hud_arrow, adv.hud_in_band, adv.warning)
+            obs = Perception(t, gap, lead_v, tl_state, tl_left, adv.v_advice, bool(adv.warning), s=s, leader_a=lead_a)
+        else:
+            adv, advice = None, _NO_ADVICE
+            obs = Perception(t, gap, lead_v, tl_state, tl_left, None, False, s=s, leader_a=lead_a)
+        a = act(t, s, v, obs)
         v_next = max(v + a * DT, 0.0)
         a = (v_next - v) / DT
-        cols["t"].append(t - t_ins)
-        cols["s"].append(s)
-        cols["v"].append(v)
-        cols["a"].append(a)
-        cols["tl_id"].append(tl.tl_id if tl is not None else None)
-        cols["tl_state"].append(tl_state)
-        cols["d_tl"].append(d_tl if d_tl is not None else math.nan)
-        cols["leader_gap"].append(gap if gap is not None else math.nan)
-        cols["leader_v"].append(lead.v if lead is not None else math.nan)
-        cols["v_advice"].append(adv.v_advice if adv is not None else math.nan)
-        cols["controller"].append(adv.controller if adv is not None else "none")
-        cols["hud_arrow"].append(adv.hud_arrow if adv is not None else None)
-        cols["hud_in_band"].append(adv.hud_in_band if adv is not None else None)
-        cols["warning"].append(adv.warning if adv is not None else None)
-        if "hud" in cols:   # the frame the driver saw: measured speed and this step's advice
-            cols["hud"].append(channel_values(hud_frame(v, adv, None if lead is None or gap is None else (gap, lead.v))))
+        rows.append((t - t_ins, s, v, a, tl_id, tl_state, math.nan if d_tl is None else d_tl,
+                     math.nan if gap is None else gap, math.nan if lead_v is None else lead_v, *advice))
+        if hud is not None:   # the frame the driver saw: measured speed and this step's advice
+            hud.append(channel_values(hud_frame(v, adv, None if lead is None else (gap, lead_v))))
         steps += 1
         if steps % 50 == 0:
             max_veh = max(max_veh, tr.vehicle_count())
         if t - t_ins > max_duration:
             raise DriveTimeout(f"did not finish within {max_duration:.0f} s (at t={t - t_ins:.1f} s, "
                                f"s={s:.1f} m)")
-        tr.set_ego_speed(v_next)
-        tr.step()
-        if tr.ego_arrived():
+        if advance(v_next):
             return steps, max_veh, t_ins
 
 
-def _log_frame(cols: dict, route) -> pd.DataFrame:
-    """Assemble the drive log: route columns by position, forces and battery power from the trace."""
+def _log_frame(rows: list, hud: list | None, route) -> pd.DataFrame:
+    """Assemble the drive log from the loop's ROW_FIELDS tuples (and HUD channels): route columns by position,
+    forces and battery power from the trace."""
     from pedas.power import fill_drive_columns
 
+    cols = {name: list(col) for name, col in zip(ROW_FIELDS, zip(*rows))}
     s = np.asarray(cols["s"], float)
     idx = np.clip(np.searchsorted(route.s, s, side="right") - 1, 0, route.s.size - 1)
     df = pd.DataFrame({
@@ -345,9 +343,8 @@ def _log_frame(cols: dict, route) -> pd.DataFrame:
     df["hud_in_band"] = pd.array(cols["hud_in_band"], dtype="boolean")
     df["warning"] = pd.array(cols["warning"], dtype="boolean")
     df = df[list(LOG_COLUMNS)]
-    if "hud" in cols:
-        hud = pd.DataFrame.from_records(cols["hud"], columns=list(HUD_LOG_COLUMNS)).astype("float64")
-        df = pd.concat([df, hud], axis=1)
+    if hud is not None:
+        df = pd.concat([df, pd.DataFrame.from_records(hud, columns=list(HUD_LOG_COLUMNS)).astype("float64")], axis=1)
     return df
 
 

@@ -200,9 +200,11 @@ class HumanDriver:
         self.route, self.p, self.assisted, self.vehicle, self.dt = route, params, assisted, vehicle, dt
         self.band = band  # m/s, the HUD's coast band (the same the HUD uses: ControllerParams.hud_band)
         self._s = np.asarray(route.s, float)
-        self._v0 = desired_speed_profile(route, params)
-        self._v_curve = curve_speed_profile(route, params)
-        self._grade = np.asarray(route.grade, float)
+        # the profiles looked up every step, as lists: an index gives a Python float (the same value) instead of
+        # a numpy scalar, and the driver's scalar arithmetic stays on Python floats
+        self._v0 = desired_speed_profile(route, params).tolist()
+        self._v_curve = curve_speed_profile(route, params).tolist()
+        self._grade = np.asarray(route.grade, float).tolist()
         self._n = self._s.size
         self._inv_ds = 1.0 / float(self._s[1] - self._s[0])
         vp = vehicle
@@ -214,7 +216,7 @@ class HumanDriver:
         self._tracking = False  # assisted: closing a gap to the target (pedal hysteresis)
         self._warned_until = -math.inf  # assisted: follows the advice fully until then (after a warning tone)
         self.compliance = params.compliance  # grows with every warning tone (params.warn_learning)
-        self._v_min = np.asarray(route.v_min, float)
+        self._v_min = np.asarray(route.v_min, float).tolist()
         self._t = 0.0
         self._lights = tuple(route.lights)
         self._stops = tuple(route.stops)
@@ -235,7 +237,7 @@ class HumanDriver:
 
     def v_wish(self, s: float) -> float:
         """Anticipated wish speed at s (m/s)."""
-        return float(self._v0[self._idx(s)])
+        return self._v0[self._idx(s)]
 
     def _road_load(self, v: float, s: float) -> float:
         """F_res (N) at speed v and position s (eq. 2, scalar form of pedas.vehicle.resistance)."""
@@ -301,7 +303,7 @@ class HumanDriver:
                 # light): the mean of v and the anticipated wish at the line, not v
                 need = v * v / (2.0 * max(d - STOP_MARGIN, 0.1))
                 left = (seen.tl_remaining or 0.0) - lag
-                v_go = 0.5 * (v + min(v, float(self._v0[self._idx(tl.s)])))
+                v_go = 0.5 * (v + min(v, self._v0[self._idx(tl.s)]))
                 decision = "stop" if (need <= p.yellow_decel or v_go * max(left, 0.0) < d + 1.0) else "go"
                 self._tl_decision[tl.tl_id] = decision
                 self.events.append((t, tl.tl_id, f"yellow:{decision}"))
@@ -396,4 +398,4 @@ class HumanDriver:
             else:
                 a = self.coast_accel(v, s)
         # never faster through a curve than the own comfort allows (IDM free term on the curve envelope)
-        return min(a, idm_free(v, float(self._v_curve[self._idx(s)]), p.a_max))
+        return min(a, idm_free(v, self._v_curve[self._idx(s)], p.a_max))

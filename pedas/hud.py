@@ -34,6 +34,7 @@ from typing import Sequence
 
 from pedas.constants import HUD_TL_COUNTDOWN
 from pedas.params import CONTROLLER
+from pedas.records import fast_init
 
 
 def wants_start(v: float, v_target: float, *, standstill: float = CONTROLLER.standstill,
@@ -42,6 +43,7 @@ def wants_start(v: float, v_target: float, *, standstill: float = CONTROLLER.sta
     return v < standstill and v_target - v > start_min
 
 
+@fast_init
 @dataclass(frozen=True)
 class HudState:
     """Measured host state: speed v (m/s), acceleration a (m/s^2) and how long a slow-down advice has gone
@@ -52,6 +54,7 @@ class HudState:
     slow_unfollowed: float = 0.0
 
 
+@fast_init
 @dataclass(frozen=True)
 class HudContext:
     """Route context at the current position.
@@ -77,6 +80,7 @@ class HudContext:
 ICONS = ("green_wave", "stop_sign", "yield_sign", "curve")
 
 
+@fast_init
 @dataclass(frozen=True)
 class HudAdvice:
     """What the HUD shows: v_opt (m/s), hud_arrow -1|0|1, arrow_len 0..1, hud_in_band (black digits, coast),

@@ -23,6 +23,7 @@ from pathlib import Path
 from pedas.constants import HUD_BAND, KMH
 from pedas.hud import HudContext, HudState, advisory
 from pedas.params import CONTROLLER
+from pedas.records import fast_init
 
 #: m/s^2, a deceleration most drivers find comfortable: AASHTO, A Policy on Geometric Design of Highways and
 #: Streets (2011), Sec. 3.2.6: 3.4 m/s^2 (11.2 ft/s^2), the deceleration of its stopping-sight-distance rule
@@ -34,6 +35,7 @@ def display_kmh(v_ms: float | None) -> int | None:
     return None if v_ms is None else int(math.floor(v_ms / KMH + 0.5))
 
 
+@fast_init
 @dataclass(frozen=True)
 class HudFrame:
     """One HUD frame. speed, advice, limit: km/h (integers as displayed; advice None = no advice, as in a baseline

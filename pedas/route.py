@@ -94,6 +94,12 @@ class TrafficLight:
         i, start, _ = self._locate(t)
         return start + self.phases[i][1] - t
 
+    def state_remaining(self, t: float) -> tuple[str, float]:
+        """(:meth:`state_at`, :meth:`remaining`) at time t from one look-up of the active phase: the same values."""
+        i, start, _ = self._locate(t)
+        state, dur = self.phases[i]
+        return state, start + dur - t
+
     def phase_starts(self, t0: float, t1: float) -> list[tuple[float, str]]:
         """All phase starts (time, state) with t0 < time <= t1, plus the phase active at t0 as (its start, state)."""
         i, start, _ = self._locate(t0)

@@ -8,7 +8,10 @@ driver imperfection by SUMO's RNG seeded with the same seed. Same seed -> same t
 
 The ego vehicle follows the speed set every step with ``vehicle.setSpeed``; speed mode 32 switches off all of
 SUMO's own checks (safe speed, acceleration bounds, right of way, red lights) so that SUMO never silently
-corrects the driver model: safety is checked by the drive loop, not hidden by the simulator.
+corrects the driver model: safety is checked by the drive loop, not hidden by the simulator. The drive loop reads
+what it needs each step (time, the ego's odometer, speed and leader, collisions, arrivals) from libsumo
+subscriptions (:meth:`Traffic.subscribe_ego`, :meth:`Traffic.observe`, :meth:`Traffic.advance`): the getters'
+values, with two calls a step instead of six.
 
 The network, routes, vehicle types and demand are those of a traffic scenario (:mod:`pedas.scenario`). In the
 motorway scenario the ego enters the motorway on an acceleration lane and leaves it by SUMO's strategic lane change
@@ -27,12 +30,14 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable, NamedTuple
 
 import numpy as np
 import pandas as pd
 
 from pedas.constants import DT
 from pedas.network import build_network
+from pedas.records import fast_init
 from pedas.scenario import get_scenario
 
 EGO_ID = "ego"
@@ -52,14 +57,24 @@ def load_demand(path: Path | None = None, scenario=None) -> dict:
     return json.loads(Path(path or get_scenario(scenario).demand).read_text())
 
 
+DEPARTURE_FIELDS = ("veh_id", "route", "type", "depart", "depart_speed", "depart_lane")
+
+
 def departures(seed: int, demand: dict | None = None) -> pd.DataFrame:
     """Seeded departures of the surrounding traffic: tidy frame veh_id, route, type, depart (s), depart_speed,
-    depart_lane (SUMO's departLane, the flow's `depart_lane`, default "first").
+    depart_lane (SUMO's departLane, the flow's `depart_lane`, default "first"); the rows of
+    :func:`departure_rows`.
 
     Per flow, headways are min_headway + Exp(mean 3600/rate - min_headway) so that the mean rate is `rate` veh/h
     and no two vehicles of a flow depart closer than min_headway; a flow with `period` (s) runs to a timetable
     with that headway and a seeded phase.
     """
+    return pd.DataFrame(departure_rows(seed, demand), columns=list(DEPARTURE_FIELDS))
+
+
+def departure_rows(seed: int, demand: dict | None = None) -> list[tuple]:
+    """The departures of :func:`departures` as DEPARTURE_FIELDS tuples, ordered by departure time, then vehicle id
+    (what :meth:`Traffic.start` adds to SUMO, without building a frame)."""
     demand = demand or load_demand()
     rng = np.random.default_rng([int(seed), 0x7AFF1C])
     h_min = float(demand.get("min_headway", 2.0))
@@ -76,8 +91,8 @@ def departures(seed: int, demand: dict | None = None) -> pd.DataFrame:
         for i, (t, vtype) in enumerate(zip(times, types)):
             rows.append((f"f{k}.{i}", f["route"], vtype, round(t, 1), str(f.get("depart_speed", "max")),
                          str(f.get("depart_lane", "first"))))
-    df = pd.DataFrame(rows, columns=["veh_id", "route", "type", "depart", "depart_speed", "depart_lane"])
-    return df.sort_values(["depart", "veh_id"], kind="stable").reset_index(drop=True)
+    rows.sort(key=lambda r: (r[3], r[0]))   # (depart, veh_id): unique, so any sort gives this order
+    return rows
 
 
 def _vehicle_types(flow: dict, n: int, rng: np.random.Generator) -> list[str]:
@@ -128,6 +143,7 @@ def leave_index(routes: dict[str, list[str]], ego_route: str = EGO_ROUTE) -> dic
             for rid, edges in routes.items() if any(e in position for e in edges)}
 
 
+@fast_init
 @dataclass(frozen=True)
 class Leader:
     """The vehicle ahead of the ego on its route: id, bumper-to-bumper gap (m), speed (m/s), acceleration
@@ -137,6 +153,20 @@ class Leader:
     gap: float
     v: float
     a: float = 0.0
+
+
+class _Subscription(NamedTuple):
+    """The subscription result getters of :meth:`Traffic.subscribe_ego` and the TraCI variable ids they key by."""
+
+    ego: Callable[[str], dict]
+    sim: Callable[[], dict]
+    lookahead: float
+    distance: int
+    speed: int
+    leader: int
+    time: int
+    arrived: int
+    colliding: int
 
 
 class Traffic:
@@ -159,6 +189,9 @@ class Traffic:
         self._ls = None
         self._steps = 0
         self._ego_in = False
+        self._removed = False  # the last step's prune removed vehicles (the subscribed leader predates it)
+        self._sub = None       # subscription result getters and variable ids (subscribe_ego)
+        self._sim = None       # the simulation's subscription results read by advance() after the last step
         routes = route_edges(self.scenario.routes)
         self._ego_edges = {e: i for i, e in enumerate(routes[EGO_ROUTE])}
         self._route_join = join_index(routes)
@@ -189,11 +222,11 @@ class Traffic:
         self._ls = libsumo
         multi = [i for e, i in self._ego_edges.items() if libsumo.edge.getLaneNumber(e) > 1]
         self._overtaking_from = min(multi, default=len(self._ego_edges))
-        for row in departures(self.seed, self.demand).itertuples(index=False):
-            if row.route in self._route_join and self._route_leave[row.route] < self._overtaking_from:
-                self._join[row.veh_id] = self._route_join[row.route]
-            libsumo.vehicle.add(row.veh_id, row.route, typeID=row.type, depart=f"{row.depart:.1f}",
-                                departLane=row.depart_lane, departPos="base", departSpeed=row.depart_speed)
+        for veh_id, route, vtype, depart, depart_speed, depart_lane in departure_rows(self.seed, self.demand):
+            if route in self._route_join and self._route_leave[route] < self._overtaking_from:
+                self._join[veh_id] = self._route_join[route]
+            libsumo.vehicle.add(veh_id, route, typeID=vtype, depart=f"{depart:.1f}", departLane=depart_lane,
+                                departPos="base", departSpeed=depart_speed)
         libsumo.vehicle.add(EGO_ID, EGO_ROUTE, typeID=EGO_TYPE, depart=f"{self.ego_depart:.1f}", departLane="first",
                             departPos="0", departSpeed="0")
         self.ego_min_gap = float(libsumo.vehicletype.getMinGap(EGO_TYPE))
@@ -225,6 +258,8 @@ class Traffic:
         """Advance one step of `step_length` s (every PRUNE_EVERY steps with the ego in the network: :meth:`prune`)."""
         self._ls.simulationStep()
         self._steps += 1
+        self._removed = False
+        self._sim = None
         if self._steps % PRUNE_EVERY == 0 and self._ego_in:
             self.prune()
 
@@ -267,6 +302,7 @@ class Traffic:
         for vid in gone:
             v.remove(vid)
             del self._join[vid]
+        self._removed = self._removed or bool(gone)
         return len(gone)
 
     def insert_ego(self, max_wait: float = 120.0) -> float:
@@ -304,14 +340,17 @@ class Traffic:
         getLeader reports the gap minus the ego's minGap; it is added back to give the bumper-to-bumper gap, and a
         vehicle whose bumper-to-bumper gap is beyond `lookahead` (getLeader searches a little further) is None.
         """
-        ls = self._ls
-        res = ls.vehicle.getLeader(EGO_ID, lookahead)
+        return self._leader(self._ls.vehicle.getLeader(EGO_ID, lookahead), lookahead)
+
+    def _leader(self, res, lookahead: float) -> Leader | None:
+        """The Leader of a getLeader result (vehicle id, gap less the ego's minGap; an empty id or None: none)."""
         if not res or not res[0]:
             return None
         vid, gap = res[0], float(res[1]) + self.ego_min_gap
         if gap > lookahead:
             return None
-        return Leader(vid, gap, float(ls.vehicle.getSpeed(vid)), float(ls.vehicle.getAcceleration(vid)))
+        v = self._ls.vehicle
+        return Leader(vid, gap, float(v.getSpeed(vid)), float(v.getAcceleration(vid)))
 
     def set_ego_speed(self, v: float) -> None:
         """Command the ego's speed (m/s) for the next step."""
@@ -324,3 +363,39 @@ class Traffic:
     def vehicle_count(self) -> int:
         """Vehicles currently in the network (incl. the ego)."""
         return int(self._ls.vehicle.getIDCount())
+
+    # --- the drive loop's per-step exchange (subscriptions) ------------------------------------------------------
+    def subscribe_ego(self, lookahead: float = LEADER_LOOKAHEAD) -> None:
+        """Have SUMO collect, after every step, the ego's odometer, speed and leader within `lookahead` m and the
+        simulation's time, arrivals and collisions (libsumo subscriptions): :meth:`observe` and :meth:`advance` then
+        read them with one call each instead of one getter call per value. Call after :meth:`insert_ego`."""
+        from libsumo import constants as tc
+
+        ls = self._ls
+        ls.vehicle.subscribe(EGO_ID, [tc.VAR_DISTANCE, tc.VAR_SPEED, tc.VAR_LEADER],
+                             parameters={tc.VAR_LEADER: float(lookahead)})
+        ls.simulation.subscribe([tc.VAR_TIME, tc.VAR_ARRIVED_VEHICLES_IDS, tc.VAR_COLLIDING_VEHICLES_IDS])
+        self._sub = _Subscription(ls.vehicle.getSubscriptionResults, ls.simulation.getSubscriptionResults,
+                                  float(lookahead), tc.VAR_DISTANCE, tc.VAR_SPEED, tc.VAR_LEADER, tc.VAR_TIME,
+                                  tc.VAR_ARRIVED_VEHICLES_IDS, tc.VAR_COLLIDING_VEHICLES_IDS)
+        self._sim = None
+
+    def observe(self) -> tuple[float, float, float, Leader | None, bool]:
+        """(t s, s m, v m/s, leader, collided) now: the values of :attr:`time`, :meth:`ego_state`, :meth:`leader`
+        and :meth:`ego_collided`, read from the subscriptions of :meth:`subscribe_ego`. SUMO collects them at the
+        end of its step, before :meth:`prune`; after a step whose prune removed vehicles the leader is asked again
+        (removing other vehicles changes neither the ego's own values nor the simulation's lists)."""
+        sub = self._sub
+        ego, sim = sub.ego(EGO_ID), sub.sim() if self._sim is None else self._sim
+        res = self._ls.vehicle.getLeader(EGO_ID, sub.lookahead) if self._removed else ego[sub.leader]
+        return (float(sim[sub.time]), float(ego[sub.distance]) + self._s_offset, float(ego[sub.speed]),
+                self._leader(res, sub.lookahead), EGO_ID in sim[sub.colliding])
+
+    def advance(self, v: float) -> bool:
+        """Command the ego's speed v (m/s), step, and whether the ego has arrived: :meth:`set_ego_speed`,
+        :meth:`step` and :meth:`ego_arrived` in one call (the arrivals from the subscription of
+        :meth:`subscribe_ego`)."""
+        self._ls.vehicle.setSpeed(EGO_ID, max(float(v), 0.0))
+        self.step()
+        self._sim = self._sub.sim()   # what the next observe() reads as well: nothing steps in between
+        return EGO_ID in self._sim[self._sub.arrived]

@@ -10,7 +10,9 @@ independent, so two workers share them evenly).
 The traffic simulation alone is the floor under every drive of a scenario: the baseline drive's logged speeds are
 replayed into a fresh SUMO run of the same traffic seed (:func:`traffic_alone`), and only the commands a drive sends
 SUMO each step are timed (set the ego's speed, step, did it arrive). No driver model, controller, invariant or log
-runs, so no drive of that scenario, assisted or not, can run faster than this.
+runs, so no drive of that scenario, assisted or not, can run faster than this. SUMO's start (network, the seeded
+traffic) and the steps before the ego is inserted are timed apart (``start_s``): a drive's wall time counts them
+too, once per drive.
 """
 from __future__ import annotations
 
@@ -63,8 +65,9 @@ def bench_drive(repeats: int = 1, cohort: int = 3, seed: int = 1, style: str = "
 
 def traffic_alone(log, repeats: int = 1) -> dict:
     """Time SUMO alone on a drive: replay the drive log's speeds (m/s) as the ego's speed commands into a new
-    simulation of the drive's scenario and traffic seed. {'ms_per_step', 'rtf_median', 'steps', 'repeats'}, medians
-    over `repeats` replays.
+    simulation of the drive's scenario and traffic seed. {'ms_per_step', 'rtf_median', 'steps', 'repeats',
+    'start_s'}, medians over `repeats` replays; 'start_s': SUMO's start and the steps up to the ego's insertion (s),
+    which the replay's steps do not count and a drive's wall time does.
 
     The replay must reproduce the drive: the ego has to arrive after exactly the logged number of steps (SUMO is
     deterministic for a seed), else RuntimeError, because a replay that drove elsewhere timed something else.
@@ -75,12 +78,14 @@ def traffic_alone(log, repeats: int = 1) -> dict:
     v = log["v"].to_numpy(float)
     # the command of step k is the speed logged at step k + 1; the last one is the logged a applied once more
     cmds = [*v[1:].tolist(), max(float(v[-1] + log["a"].iloc[-1] * DT), 0.0)]
-    walls = []
+    walls, starts = [], []
     for _ in range(repeats):
+        t_start = time.perf_counter()
         with Traffic(info["traffic_seed"], scenario=info["scenario"]) as tr:
             tr.insert_ego()
             steps, arrived = 0, False
             t0 = time.perf_counter()
+            starts.append(t0 - t_start)
             for cmd in cmds:
                 tr.set_ego_speed(cmd)
                 tr.step()
@@ -94,7 +99,7 @@ def traffic_alone(log, repeats: int = 1) -> dict:
                                f"did not reproduce it: {steps} steps of {info['steps']}")
     wall = statistics.median(walls)
     return {"ms_per_step": 1000.0 * wall / info["steps"], "rtf_median": info["duration_s"] / wall,
-            "steps": info["steps"], "repeats": repeats}
+            "steps": info["steps"], "repeats": repeats, "start_s": statistics.median(starts)}
 
 
 def _cohort_speedup(n: int, seed: int, scenario: str) -> dict:

@@ -130,6 +130,8 @@ def _drive(args) -> int:
     ta = res["traffic_alone"]
     print(f"traffic alone (SUMO replaying the baseline drive): {ta['ms_per_step']:.2f} ms/step -> "
           f"{ta['rtf_median']:.0f}x real time, the ceiling of any drive in this scenario")
+    print(f"  + SUMO's start and the steps before the ego's insertion: {ta['start_s']:.2f} s per drive (in every "
+          f"drive's wall time, not in the ms/step above)")
     c = res.get("cohort")
     if c:
         print(f"cohort of {c['drives']} drives: 1 worker {c['wall_1']:.1f} s, 2 workers {c['wall_2']:.1f} s "

@@ -189,7 +189,7 @@ def test_traffic_alone_replays_the_drive_it_times(baseline_log):
     from pedas_study.bench.drive import traffic_alone
 
     res = traffic_alone(baseline_log)
-    assert res["steps"] == baseline_log.attrs["drive"]["steps"] and res["ms_per_step"] > 0
+    assert res["steps"] == baseline_log.attrs["drive"]["steps"] and res["ms_per_step"] > 0 and res["start_s"] > 0
     slower = baseline_log.copy()
     slower.attrs = baseline_log.attrs
     slower["v"] = slower["v"] * 0.9
@@ -206,3 +206,4 @@ def test_bench_drive_reports_the_traffic_alone(cli):
     m = re.search(r"^traffic alone \(SUMO replaying the baseline drive\): ([\d.]+) ms/step -> (\d+)x real time",
                   r.out, re.M)
     assert m and float(m[1]) > 0 and int(m[2]) > 0, r.out
+    assert re.search(r"^  \+ SUMO's start and the steps before the ego's insertion: [\d.]+ s per drive", r.out, re.M)

@@ -78,6 +78,7 @@ def test_spat_is_the_three_calls_from_one_look_up(t, horizon):
     """The controller's one look-up per step gives the very numbers of state_at, remaining, next_phase_starts."""
     assert TL.spat(t, horizon) == (TL.state_at(t), TL.remaining(t), TL.next_phase_starts(t, horizon))
     assert TL.spat(5.0, 25.0) == ("green", 20.0, [(25.0, "yellow"), (28.0, "red")])
+    assert TL.state_remaining(t) == (TL.state_at(t), TL.remaining(t))   # the drive loop's look-up
 
 @settings(max_examples=80, deadline=None)
 @given(t=st.floats(-500.0, 5000.0))
