@@ -274,8 +274,8 @@ def _reading_flow(out: Path, _study) -> str | None:
     n = {r.stage: int(r.n) for r in df.itertuples() if not isinstance(r.reason, str)}
     if "enrolled" not in n:
         return None
-    drives = f" and {n['drive sample']} in the drive sample" if n.get("drive sample") else ""
-    return f"{n['enrolled']} enrolled; {n.get('survey sample', 0)} in the survey sample{drives}."
+    samples = [f"{n[k]} in the {k}" for k in ("survey sample", "drive sample") if k in n]
+    return f"{n['enrolled']} enrolled" + (f"; {' and '.join(samples)}." if samples else ".")
 
 
 def _reading_likert(out: Path, study) -> str | None:

@@ -24,14 +24,27 @@ class ParticipantFlow:
     excluded_subjective: pd.Series   # reason -> count (scope subjective)
     excluded_objective: pd.Series    # reason -> count (scope objective)
     objective_sample: int
+    # the branches the store has data for: a study without survey answers has no survey sample, one without drives
+    # no drive sample (the flow shows only the analyses that can run)
+    has_survey: bool = True
+    has_drives: bool = True
 
     def frame(self) -> pd.DataFrame:
         rows = [("enrolled", "", self.enrolled)]
         rows += [("excluded (all analyses)", r, int(n)) for r, n in self.excluded_all.items()]
-        rows += [("excluded (survey)", r, int(n)) for r, n in self.excluded_subjective.items()]
-        rows += [("excluded (drives)", r, int(n)) for r, n in self.excluded_objective.items()]
-        rows += [("survey sample", "", self.subjective_sample), ("drive sample", "", self.objective_sample)]
+        if self.has_survey:
+            rows += [("excluded (survey)", r, int(n)) for r, n in self.excluded_subjective.items()]
+        if self.has_drives:
+            rows += [("excluded (drives)", r, int(n)) for r, n in self.excluded_objective.items()]
+        rows += [("survey sample", "", self.subjective_sample)] if self.has_survey else []
+        rows += [("drive sample", "", self.objective_sample)] if self.has_drives else []
         return pd.DataFrame(rows, columns=["stage", "reason", "n"])
+
+    def branches(self) -> list[tuple[str, pd.Series, int]]:
+        """(label, exclusion reasons, sample size) of each analysed sample the store has data for."""
+        return ([("Survey (subjective) sample", self.excluded_subjective, self.subjective_sample)]
+                if self.has_survey else []) + \
+            ([("Drive (objective) sample", self.excluded_objective, self.objective_sample)] if self.has_drives else [])
 
 
 def participant_flow(st) -> ParticipantFlow:
@@ -50,6 +63,8 @@ def participant_flow(st) -> ParticipantFlow:
         excluded_subjective=reasons("subjective"),
         excluded_objective=reasons("objective"),
         objective_sample=len(included_participants(st, "objective")),
+        has_survey=bool(st.one("SELECT count(*) FROM responses")),
+        has_drives=bool(st.one("SELECT count(*) FROM drives")),
     )
 
 
@@ -58,8 +73,8 @@ def _fmt(reasons: pd.Series) -> str:
 
 
 def plot_participant_flow(flow: ParticipantFlow, out_dir: Path, stem: str = "participant_flow") -> list[Path]:
-    """CONSORT-style flow: enrolled -> (excluded from all) -> took part -> survey and drive branches, each with its
-    own exclusions beside the arrow."""
+    """CONSORT-style flow: enrolled -> (excluded from all) -> took part -> the survey and drive branches the store
+    has data for (:meth:`ParticipantFlow.branches`), each with its own exclusions beside the arrow."""
     took_part = flow.enrolled - int(flow.excluded_all.sum())
     fig, ax = plt.subplots(figsize=(8.5, 5.2))
     ax.set_axis_off()
@@ -73,10 +88,10 @@ def plot_participant_flow(flow: ParticipantFlow, out_dir: Path, stem: str = "par
     ax.annotate(f"Excluded from all analyses\n{_fmt(flow.excluded_all)}", xy=(0.5, 0.77), xytext=(0.84, 0.77),
                 ha="center", va="center", bbox=side, fontsize=9, arrowprops=into_box)
     ax.text(0.5, 0.58, f"Took part\nN = {took_part}", ha="center", va="center", bbox=box, fontsize=11)
-    for x, sx, label, reasons, n in ((0.3, 0.1, "Survey (subjective) sample", flow.excluded_subjective,
-                                      flow.subjective_sample),
-                                     (0.7, 0.9, "Drive (objective) sample", flow.excluded_objective,
-                                      flow.objective_sample)):
+    branches = flow.branches()
+    # two samples side by side, their exclusions outside; one sample straight below, its exclusions to the right
+    places = [(0.3, 0.1), (0.7, 0.9)] if len(branches) == 2 else [(0.5, 0.84)]
+    for (x, sx), (label, reasons, n) in zip(places, branches):
         ax.annotate("", xy=(x, 0.45), xytext=(0.5, 0.52), arrowprops=line)
         ax.annotate("", xy=(x, 0.14), xytext=(x, 0.45), arrowprops=arrow)
         ax.annotate(f"Excluded\n{_fmt(reasons)}", xy=(x, 0.31), xytext=(sx, 0.31), ha="center", va="center",

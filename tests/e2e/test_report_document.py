@@ -121,6 +121,9 @@ def test_document_reads_top_to_bottom(lk_report):
     assert pngs == ["figures/likert_items.png", "figures/participant_flow.png", "figures/path_diagram.png"]
     assert sorted(outline.images) == pngs
     assert "24 enrolled; 22 in the survey sample" in doc
+    # no drives in this study: the flow has no drive branch (figure and table)
+    stages = set(pd.read_csv(out / "tables" / "participant_flow.csv")["stage"])
+    assert "survey sample" in stages and "drive sample" not in stages and "excluded (drives)" not in stages
     # self-contained: no scripts, no external resources, every relative link points at a written file
     assert "script" not in outline.tags and "link" not in outline.tags
     for ref in outline.refs:
