@@ -92,8 +92,9 @@ def plot_participant_flow(flow: ParticipantFlow, out_dir: Path, stem: str = "par
     # two samples side by side, their exclusions outside; one sample straight below, its exclusions to the right
     places = [(0.3, 0.1), (0.7, 0.9)] if len(branches) == 2 else [(0.5, 0.84)]
     for (x, sx), (label, reasons, n) in zip(places, branches):
-        ax.annotate("", xy=(x, 0.45), xytext=(0.5, 0.52), arrowprops=line)
-        ax.annotate("", xy=(x, 0.14), xytext=(x, 0.45), arrowprops=arrow)
+        if len(branches) > 1:   # the fork; a single sample's arrow starts at the box
+            ax.annotate("", xy=(x, 0.45), xytext=(0.5, 0.52), arrowprops=line)
+        ax.annotate("", xy=(x, 0.14), xytext=(x, 0.45 if len(branches) > 1 else 0.52), arrowprops=arrow)
         ax.annotate(f"Excluded\n{_fmt(reasons)}", xy=(x, 0.31), xytext=(sx, 0.31), ha="center", va="center",
                     bbox=side, fontsize=8.5, arrowprops=into_box)
         ax.text(x, 0.08, f"{label}\nN = {n}", ha="center", va="center", bbox=box, fontsize=10)
