@@ -192,7 +192,7 @@ def test_report_on_reduced_reference_cohort(tmp_path, tmp_path_factory):
     assert sides.set_index(["scenario", "band"]).loc["motorway", "our_value"].tolist() == \
         pytest.approx(pd.read_csv(out / "drives" / "bands.csv")["our_value"].tolist(), rel=1e-10)
     assert (out / "scenarios" / "single-lane" / "per_participant.csv").exists()
-    assert "Reproduction bands by traffic scenario" in html
+    assert "Objective KPI Targets of the Paper by Traffic Scenario" in html   # the scenarios_bands table
     assert "## The same cohort in the single-lane scenario" in (out / "reproduction.md").read_text()
     # the committed what-if sweep, re-analysed, beside both scenarios' bands
     for stem in ("sweep_bands", "sweep_indices", "sweep_region"):
