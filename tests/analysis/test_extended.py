@@ -225,6 +225,7 @@ def test_cli_extended_refuses_a_small_group_and_writes_nothing(cli, tmp_path):
     assert r.err.strip().count("\n") == 0 and "too small" in r.err
 
 
+@pytest.mark.slow
 def test_cli_extended_from_the_paper_store(cli, paper_db, tmp_path):
     people = pd.read_csv(REPO / "data" / "reference" / "participants.csv", dtype={"participant_id": str})
     survey_ids = set(pd.read_csv(REPO / "data" / "reference" / "survey.csv", dtype={"participant_id": str})

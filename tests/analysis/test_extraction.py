@@ -124,6 +124,7 @@ def test_witness_is_checked(table):
     assert F.is_solution(w.witness, np.array([.464, -.034, .249, .687, .579, .817, .82, .802, .743]), "pca")
 
 
+@pytest.mark.slow
 def test_audit_has_the_extraction_finding():
     audit = A.run_audit()
     f = A.findings(audit)

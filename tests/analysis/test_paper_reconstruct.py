@@ -53,6 +53,7 @@ def test_peou3_is_written_unreversed(shipped, scored):
     assert scored["PEoU3"].mean() == pytest.approx(3.65)   # Table 3 prints the scored item
 
 
+@pytest.mark.slow
 def test_table5_within_tolerance_checked_with_statsmodels(scored):
     targets = R.build_targets()
     comp = R.composite_scores(scored, targets.retained)
@@ -95,6 +96,7 @@ def test_two_item_alpha_lattice_choice():
     assert abs(reach - 0.792) < 0.01 and reach == pytest.approx(0.8014, abs=1e-4)
 
 
+@pytest.mark.slow
 def test_targets_are_a_correlation_matrix():
     t = R.build_targets()
     assert np.allclose(np.diag(t.item_r), 1) and np.allclose(t.item_r, t.item_r.T)

@@ -61,6 +61,7 @@ def within_store(tmp_path_factory):
     return db
 
 
+@pytest.mark.slow
 def test_within_sentences_carry_the_declared_unit(within_store):
     """Means, SDs, paired differences and the mixed model's effects of the takeover time in the declared (made-up)
     unit, the built-in mean speed in m/s; the F, p and effect sizes have none."""

@@ -75,6 +75,7 @@ def cohort_db(tmp_path_factory):
     return db
 
 
+@pytest.mark.slow
 def test_analyze_drives_writes_tables_figures_and_bands(cli, cohort_db, tmp_path):
     out = tmp_path / "drives"
     r = cli("analyze", "drives", "--out", out, db=cohort_db)
@@ -136,6 +137,7 @@ def test_analyze_drives_writes_tables_figures_and_bands(cli, cohort_db, tmp_path
         (OUTPUT / f"drives_{stem}.png").write_bytes((out / "figures" / f"{stem}.png").read_bytes())
 
 
+@pytest.mark.slow
 def test_analyze_drives_other_participant_and_store_unchanged(cli, cohort_db, tmp_path):
     from study.store.store import Store
 

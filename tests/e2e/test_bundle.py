@@ -36,6 +36,7 @@ def _store(tmp: Path) -> Path:
     return db
 
 
+@pytest.mark.slow
 def test_bundle_contents_and_determinism(tmp_path):
     from study.store.store import Store
 
@@ -112,6 +113,7 @@ def _report(tmp: Path) -> Path:
     return out
 
 
+@pytest.mark.slow
 def test_main_text_tables_fit_a_column_of_a_two_column_article(tmp_path):
     """Every main-text table of the manuscript's LaTeX, compiled in a two-column article: 0 overfull boxes (a table
     in one column or, wide, across both); the appendix tables too."""

@@ -145,6 +145,7 @@ def start_server(db: Path | None, *extra: str):
     return start_live_server(db, *route, *extra, cwd=REPO)
 
 
+@pytest.mark.slow
 def test_killed_session_keeps_what_was_logged(paper_db, cli_proc):
     from websockets.sync.client import connect
 
@@ -197,6 +198,7 @@ def doc_udp_client():
     return space["LiveUdp"]
 
 
+@pytest.mark.slow
 def test_udp_and_the_hud_page_feed(cli_proc):
     """A simulator speaking UDP (the client of docs/hud.md) gets the advice; the feed of the HUD page paired with
     its session gets each frame. A datagram from the session's address without its secret, or with another, is
@@ -288,6 +290,7 @@ def _until(what, timeout: float = 20.0):
     return got
 
 
+@pytest.mark.slow
 def test_one_simulator_per_drive(paper_db, live):
     """A second hello for the drive a session logs is refused in one line (the console says so) and deletes
     nothing: the first session's partial drive grows in the store each second, the refused session is advised

@@ -219,6 +219,7 @@ def test_report_on_reduced_reference_cohort(tmp_path, tmp_path_factory):
     assert {p: p.stat().st_mtime_ns for p in drive_cache} == stamps
 
 
+@pytest.mark.slow
 def test_report_on_a_lab_store_without_paper_comparison(cli, tmp_path):
     """A lab's own store: its survey is analysed, no paper audit or reproduction unless asked."""
     from analysis.report.build import load_reference
@@ -286,6 +287,7 @@ def test_a_store_without_a_study_is_one_line_error(cli, tmp_path):
     assert not (tmp_path / "r").exists()
 
 
+@pytest.mark.slow
 def test_missing_data_skips_its_part_with_a_reason_and_the_rest_is_produced(cli, paper_db, tmp_path):
     """The paper's study with registered participants but no survey answers and no drives: the survey and drive
     parts are skipped with their reasons (printed and in the document), the participant flow is still drawn."""

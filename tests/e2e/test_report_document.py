@@ -81,6 +81,7 @@ class _Outline(HTMLParser):
             self.headings[-1] = (tag, text + data)
 
 
+@pytest.mark.slow
 def test_document_reads_top_to_bottom(lk_report):
     out, _ = lk_report
     doc = (out / "index.html").read_text(encoding="utf-8")
@@ -158,6 +159,7 @@ def test_document_reads_top_to_bottom(lk_report):
     assert not re.search(r"p [=<] 0\.", doc) and not re.search(r"\d – [−\d]", doc) and "−" in doc
 
 
+@pytest.mark.slow
 def test_document_bytes_are_deterministic(lk_report, tmp_path):
     """A second run with nothing changed renders the same bytes (no times, no absolute paths)."""
     out, db = lk_report

@@ -72,7 +72,7 @@ def _backend(kind: str, mpc):
 DAQP_KINDS = ["daqp-condensed", "daqp-regularised"]
 
 
-@pytest.mark.parametrize("kind", DAQP_KINDS + ["osqp"])
+@pytest.mark.parametrize("kind", DAQP_KINDS + [pytest.param("osqp", marks=pytest.mark.slow)])
 def test_recorded_qps_agree_with_clarabel(recorded, kind):
     steps, mpcs = recorded
     sel = set(_selection(steps))

@@ -251,6 +251,7 @@ def paper_24(cli, paper_db, tmp_path):
     return paper_db
 
 
+@pytest.mark.slow
 def test_an_events_file_walks_24_participants_as_the_single_commands_do(cli, paper_24, tmp_path):
     events = paper_events()
     single = tmp_path / "single.duckdb"

@@ -15,6 +15,8 @@ import urllib.parse
 import urllib.request
 from concurrent.futures import ThreadPoolExecutor
 
+import pytest
+
 from study.survey import answers as sv
 from study.people.participants import add_participant
 from study.store.store import Store
@@ -50,6 +52,7 @@ def _waits(text: str) -> list[tuple[float, int]]:
     return [(float(s), int(n)) for s, n in WAITED.findall(text)]
 
 
+@pytest.mark.slow
 def test_server_and_cli_share_the_store(paper_db, tmp_path):
     web = [f"P{100 + i}" for i in range(N_WEB)]
     drivers = [f"P{200 + i}" for i in range(N_DRIVES)]

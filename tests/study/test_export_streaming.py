@@ -184,6 +184,7 @@ def test_size_bytes():
     assert size_bytes("lots") is None and size_bytes("") is None
 
 
+@pytest.mark.slow
 def test_bench_export_on_a_small_store(cli):
     """`bench export` end to end on a tiny store: every operation ran in its own process and counted its rows (the
     export's files: the samples plus the other tables' rows; the import: the log's rows); no timing is asserted."""

@@ -63,6 +63,7 @@ def _bad(lab_dir: Path) -> list[tuple[list[str], str]]:
     ]
 
 
+@pytest.mark.slow
 def test_each_bad_input_one_line_exit_2_store_unchanged(lab, cli_proc):
     db, d = lab
     before = content(db)

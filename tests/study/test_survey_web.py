@@ -292,6 +292,7 @@ def http(url: str, data: dict | None = None, timeout: float = 60) -> tuple[int, 
         return e.code, e.read().decode()
 
 
+@pytest.mark.slow
 def test_twenty_concurrent_submissions(paper_db):
     n = 20
     st = Store.open(paper_db, actor="lab")

@@ -225,6 +225,7 @@ def requests(draw, route, links):
             "route": (rule, tuple(sorted(methods)))}
 
 
+@pytest.mark.slow
 def test_no_request_is_answered_5xx_and_refusals_change_nothing(served):
     store, app, server, links = served
     client = Client(app, server)
