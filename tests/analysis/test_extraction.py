@@ -99,10 +99,17 @@ def test_the_linear_system_holds_at_the_extraction(lam, method):
 # ---- the feasibility test on the paper's Table 3
 
 @pytest.fixture(scope="module")
-def table():
-    return F.feasibility_table(F.feasibility()).set_index(["construct", "method", "item_set"])
+def feasible():
+    return F.feasibility()
 
 
+@pytest.fixture(scope="module")
+def table(feasible):
+    return F.feasibility_table(feasible).set_index(["construct", "method", "item_set"])
+
+
+# one worker computes the feasibility once for both tests
+@pytest.mark.xdist_group("extraction_feasibility")
 def test_pca_fits_the_determined_constructs_and_factor_models_do_not(table):
     for c in ("PBC", "SN", "BI"):
         assert table.loc[(c, "pca", "retained"), "status"] == "fits"
@@ -118,8 +125,9 @@ def test_pca_fits_the_determined_constructs_and_factor_models_do_not(table):
     assert not (table.xs("PEoU")["status"] == "fits").any()
 
 
-def test_witness_is_checked(table):
-    res = {(r.construct, r.method, r.item_set): r for r in F.feasibility()}
+@pytest.mark.xdist_group("extraction_feasibility")
+def test_witness_is_checked(feasible):
+    res = {(r.construct, r.method, r.item_set): r for r in feasible}
     w = res[("ATT", "pca", "all")]
     assert F.is_solution(w.witness, np.array([.464, -.034, .249, .687, .579, .817, .82, .802, .743]), "pca")
 

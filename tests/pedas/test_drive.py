@@ -12,6 +12,7 @@ from pedas.route import Route, StopSign, TrafficLight
 pytestmark = pytest.mark.sumo
 
 
+# the tests of this drive are in one xdist group: one worker drives it once
 @pytest.fixture(scope="module")
 def baseline_log():
     return drive(21, "normal", "baseline")
@@ -41,6 +42,7 @@ def check_log(df: pd.DataFrame) -> None:
         assert (df["v"].to_numpy()[near] < 0.1).any()
 
 
+@pytest.mark.xdist_group("baseline_log")
 def test_baseline_drive_log(baseline_log):
     df = baseline_log
     check_log(df)
@@ -63,6 +65,7 @@ def test_baseline_drive_log(baseline_log):
     assert ignored == () and len(frame) == len(df)
 
 
+@pytest.mark.xdist_group("baseline_log")
 def test_traffic_is_met_in_town_and_on_the_highway(baseline_log):
     df = baseline_log
     follow = df["leader_gap"] < 100.0
@@ -70,6 +73,7 @@ def test_traffic_is_met_in_town_and_on_the_highway(baseline_log):
     assert follow[df["segment"] == "highway"].mean() > 0.1
 
 
+@pytest.mark.xdist_group("baseline_log")
 def test_same_seed_gives_a_byte_identical_log(baseline_log, tmp_path):
     again = drive(21, "normal", "baseline")
     a, b = tmp_path / "a.csv", tmp_path / "b.csv"
@@ -183,6 +187,7 @@ def test_car_following_happens_in_both_conditions(participant, style):
             assert (df["controller"] == "cf").mean() > 0.1
 
 
+@pytest.mark.xdist_group("baseline_log")
 def test_traffic_alone_replays_the_drive_it_times(baseline_log):
     """bench drive's floor: the baseline drive's speeds replayed into SUMO arrive after the logged steps; a log
     whose speeds were changed does not, and is refused instead of timed."""

@@ -90,8 +90,9 @@ def seed() -> pd.DataFrame:
 def tor(cli, tmp_path):
     """A store of the takeover study with the participants of items.csv registered."""
     assert cli("init", "--study", write_study(tmp_path / "takeover")).code == 0
-    for pid in sorted(seed()["participant"].unique()):
-        assert cli("participant", "add", pid).code == 0
+    roster = tmp_path / "roster.csv"
+    pd.DataFrame({"participant_id": sorted(seed()["participant"].unique())}).to_csv(roster, index=False)
+    assert cli("participant", "import", roster).code == 0
     return cli
 
 
