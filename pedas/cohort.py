@@ -159,14 +159,18 @@ def simulate_cohort(tasks: list[DriveTask], workers: int | None = None, schedule
 
     cdir = Path(cache_dir or default_cache_dir())
     out: dict[tuple[str, str], pd.DataFrame] = {}
-    todo: list[DriveTask] = []
+    # tasks not in the cache, by key: tasks with the same key (two sweep points with the same settings, two people
+    # with the same seed and style) are the same drive, simulated once
+    todo: dict[str, list[DriveTask]] = {}
     for task in tasks:
-        hit = load_cached(task, cdir)
+        key = task_key(task)
+        hit = load_cached(task, cdir, key)
         if hit is not None:
             out[(task.participant_id, task.condition)] = hit
         else:
-            todo.append(task)
-    bar = tqdm(total=len(tasks), initial=len(tasks) - len(todo), desc="drives", unit="drive", disable=not progress)
+            todo.setdefault(key, []).append(task)
+    missing = sum(map(len, todo.values()))
+    bar = tqdm(total=len(tasks), initial=len(tasks) - missing, desc="drives", unit="drive", disable=not progress)
     try:
         if not todo:
             return out
@@ -177,28 +181,29 @@ def simulate_cohort(tasks: list[DriveTask], workers: int | None = None, schedule
             own = client is None
             cl = client or Client(scheduler)
             try:
-                futs = {cl.submit(_run_task_keyed, t, str(cdir), task_key(t), pure=False): t for t in todo}
+                futs = {cl.submit(_run_task_keyed, same[0], str(cdir), key, pure=False): same
+                        for key, same in todo.items()}
                 for fut in dask_completed(futs):
                     _collect(futs[fut], fut.result, out, failures)
-                    bar.update(1)
+                    bar.update(len(futs[fut]))
             finally:
                 if own:
                     cl.close()
         else:
             n = max(1, min(int(workers or os.cpu_count() or 1), len(todo)))
             with ProcessPoolExecutor(max_workers=n, mp_context=get_context("spawn")) as pool:
-                futs = {pool.submit(_run_task_keyed, t, str(cdir), task_key(t)): t for t in todo}
+                futs = {pool.submit(_run_task_keyed, same[0], str(cdir), key): same for key, same in todo.items()}
                 for fut in as_completed(futs):
                     _collect(futs[fut], fut.result, out, failures)
-                    bar.update(1)
+                    bar.update(len(futs[fut]))
     finally:
         bar.close()
     return out
 
 
-def _collect(task: DriveTask, result, out: dict, failures: list | None) -> None:
-    """Put a finished drive (`result()`) into `out`, or its DriveError into `failures` (re-raised when that is
-    None)."""
+def _collect(same: list[DriveTask], result, out: dict, failures: list | None) -> None:
+    """Put a finished drive (`result()`) into `out` for every task of its key (`same`), or its DriveError into
+    `failures` once per task (re-raised when that is None)."""
     from pedas.drive import DriveError
 
     try:
@@ -206,9 +211,12 @@ def _collect(task: DriveTask, result, out: dict, failures: list | None) -> None:
     except DriveError as exc:
         if failures is None:
             raise
-        failures.append((task, exc))
+        failures.append((same[0], exc))
+        failures.extend((task, exc.named(f"{task.participant_id} (the same drive as {same[0].participant_id})"))
+                        for task in same[1:])
         return
-    out[(task.participant_id, task.condition)] = df
+    for i, task in enumerate(same):
+        out[(task.participant_id, task.condition)] = df if i == 0 else df.copy()
 
 
 def cohort_tasks(participants: pd.DataFrame, base_seed: int = 0,

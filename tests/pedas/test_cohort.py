@@ -144,9 +144,37 @@ def test_a_failed_drive_is_recorded_when_asked_and_raised_otherwise():
         raise SafetyViolation("red light TL4 crossed", "red_light")
 
     out, failures = {}, []
-    _collect(task, boom, out, failures)
+    _collect([task], boom, out, failures)
     assert out == {} and failures[0][0] == task and failures[0][1].kind == "red_light"
     with pytest.raises(SafetyViolation, match="TL4"):
-        _collect(task, boom, out, None)
-    _collect(task, lambda: (task, "log"), out, failures)
-    assert out == {("P001", "baseline"): "log"} and len(failures) == 1
+        _collect([task], boom, out, None)
+    _collect([task], lambda: (task, pd.DataFrame({"v": [1.0]})), out, failures)
+    assert list(out) == [("P001", "baseline")] and len(failures) == 1
+    # a failed drive shared by two tasks is a failure of each, named after each
+    twin = DriveTask("P002", 5, "normal", "baseline")
+    _collect([task, twin], boom, out, failures)
+    assert [f[0] for f in failures[1:]] == [task, twin] and failures[2][1].kind == "red_light"
+    assert str(failures[2][1]).startswith("P002 (the same drive as P001): ")
+
+
+def test_tasks_with_one_key_are_one_drive(tmp_path, monkeypatch):
+    """Two tasks that differ only in the participant id (two sweep points with the same settings) have one cache
+    key: the pool simulates it once and both get the log."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from pedas import cohort
+
+    ran = []
+
+    def fake_run(task, cache_dir, key):
+        ran.append(key)
+        return task, pd.DataFrame({"t": [0.0, 0.2], "v": [0.0, 1.0]})
+
+    monkeypatch.setattr(cohort, "_run_task_keyed", fake_run)
+    monkeypatch.setattr(cohort, "ProcessPoolExecutor", lambda max_workers, mp_context: ThreadPoolExecutor(max_workers))
+    tasks = [DriveTask("S001", 7, "normal", "pedas"), DriveTask("S002", 7, "normal", "pedas"),
+             DriveTask("S003", 8, "normal", "pedas")]
+    out = simulate_cohort(tasks, workers=2, cache_dir=tmp_path, progress=False)
+    assert sorted(ran) == sorted({task_key(t) for t in tasks}) and len(ran) == 2
+    assert set(out) == {(t.participant_id, "pedas") for t in tasks}
+    assert out[("S001", "pedas")].equals(out[("S002", "pedas")]) and out[("S001", "pedas")] is not out[("S002", "pedas")]
