@@ -169,8 +169,7 @@ def simulate_cohort(tasks: list[DriveTask], workers: int | None = None, schedule
             out[(task.participant_id, task.condition)] = hit
         else:
             todo.setdefault(key, []).append(task)
-    missing = sum(map(len, todo.values()))
-    bar = tqdm(total=len(tasks), initial=len(tasks) - missing, desc="drives", unit="drive", disable=not progress)
+    bar = tqdm(total=len(tasks), initial=len(out), desc="drives", unit="drive", disable=not progress)
     try:
         if not todo:
             return out
