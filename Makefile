@@ -1,5 +1,6 @@
 # Every target sets up .venv by itself: python3 -m venv, the exact versions of requirements.lock, then the project
-# itself (editable, no second resolution). `make lock` regenerates the lock from pyproject.toml's ranges.
+# itself (editable, no second resolution; this builds the compiled kernel pedas/_qpkernel.c with the machine's C
+# compiler, and an edit of that file builds it again). `make lock` regenerates the lock from pyproject.toml's ranges.
 PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
@@ -21,7 +22,7 @@ LOCK_ARGS ?=
 # writes them; where uv cannot install (no index it can reach), pip installs the same hashed lock
 UV_INSTALL = $(BIN)/uv pip install -q --python $(BIN)/python --compile-bytecode
 
-$(STAMP): pyproject.toml $(LOCK)
+$(STAMP): pyproject.toml $(LOCK) pedas/_qpkernel.c
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -q uv==$(UV_VERSION)
 	$(UV_INSTALL) --require-hashes -r $(LOCK) || $(BIN)/python -m pip install -q --require-hashes -r $(LOCK)
@@ -84,5 +85,6 @@ serve: $(STAMP)
 	$(BIN)/pedas-study survey serve
 
 clean:
+	rm -f pedas/_qpkernel.*.so
 	rm -rf $(VENV) reports data/study.duckdb data/study.duckdb.wal data/network/build .pytest_cache .report-cache
 	find . -name __pycache__ -type d -prune -exec rm -rf {} +

@@ -54,8 +54,9 @@ def code_version() -> str:
     """Hash of everything a simulated drive depends on: the simulation modules and the network/traffic sources."""
     h = hashlib.sha256()
     pkg = Path(__file__).resolve().parent
-    # every module and data file of the simulation core: a list of names would miss the next new module
-    for p in sorted([*pkg.glob("*.py"), *pkg.glob("*.json")]):
+    # every module, compiled kernel source and data file of the simulation core: a list of names would miss the next
+    # new module
+    for p in sorted([*pkg.glob("*.py"), *pkg.glob("*.c"), *pkg.glob("*.json")]):
         h.update(p.name.encode())
         h.update(p.read_bytes())
     # every network and traffic source of every scenario (not the built networks)

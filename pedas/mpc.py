@@ -271,27 +271,21 @@ class SparseMpc:
             self.l[R["safe"]] = w.d_min / LU
             self.u[R["comfort"]] = w.d_min / LU
         self.dFt = w.dFt_max / KN
-        # views of the blocks of q, l, u that change per step, index of the scalar rows, work vectors: set_step
-        # writes through these (no slicing, no temporaries)
-        rs, q_, l_, u_ = self._rs, self.q, self.l, self.u
-        self._q_v0, self._q_v1, self._q_ft = q_[self._sv0], q_[self._sv1], q_[self._sft]
-        self._l_dynv, self._u_dynv = l_[rs["dyn_v"]], u_[rs["dyn_v"]]
-        self._l_vlim, self._u_vlim = l_[rs["v_lim"]], u_[rs["v_lim"]]
-        self._l_dhard, self._u_dsoft = l_[rs["d_hard"]], u_[rs["d_soft"]]
-        self._i_v0, self._i_d0 = rs["init_v"].start, rs["init_d"].start
-        self._j_up, self._j_dn = rs["jerk_up"].start, rs["jerk_dn"].start
-        if follow:
-            self._i_r0 = rs["init_r"].start
-            self._l_dynr, self._u_dynr, self._l_safe = l_[rs["dyn_r"]], u_[rs["dyn_r"]], l_[rs["safe"]]
-        self._two_zv = 2.0 * w.zeta_v
-        # the constant operands of set_step's elementwise operations (Scalars: 0-d arrays)
-        self._k0 = Scalars(c_r=model.c_r, c_grade=self._c_grade, c_const=self.c_const, neg_big=-BIG, big=BIG,
-                            d_min=w.d_min, lu=LU, kn=KN, pa10=self.pa10, pa01=self.pa01, pa11=self.pa11,
-                            two_pa20=2.0 * self.pa20, two_pa02=2.0 * self.pa02, two_z1=2.0 * w.zeta1)
-        self._w1, self._w2 = np.empty(N), np.empty(N)
         # this step's linearisation point and reference, kept for the objective constant (:attr:`const`)
         self._v_lin, self._fb_lin, self._v_ref = np.empty(N), np.empty(N), np.empty(N)
         self._v_p = 0.0
+        # set_step, compiled (pedas/_qpkernel.c): the blocks of q, l, u that change per step, written in place
+        from pedas._qpkernel import Stepper
+
+        rs = self._rs
+        at = lambda name: rs[name].start if name in rs else -1  # noqa: E731
+        self._stepper = Stepper(
+            self.q, self.l, self.u, self._v_lin, self._fb_lin, self._v_ref,
+            (at("init_v"), at("init_d"), at("dyn_v"), at("v_lim"), at("jerk_up"), at("jerk_dn"), at("d_hard"),
+             at("d_soft"), at("init_r"), at("dyn_r"), at("safe"), self._sv0.start, self._sft.start, self._ivN),
+            (follow, self.power_convex, self.lin_v2, self.lin_f2, w.zeta_v > 0),
+            (model.c_r, self._c_grade, self.c_const, BIG, self.dFt, KN, LU, dt, w.d_min, self.pa10, self.pa01,
+             self.pa11, 2.0 * self.pa20, 2.0 * self.pa02, 2.0 * w.zeta1, 2.0 * w.zeta_v))
         self._Pfull = CsrProduct(P + P.T - sp.diags(P.diagonal()))
         self._wx = np.empty(self.nx)
         # unpack: x times one scale vector (1 on speeds, KN on forces, LU on distances), the plan's arrays are views
@@ -330,68 +324,18 @@ class SparseMpc:
         and -inf elsewhere. ``v_lin``/``ft_lin`` (N entries, SI) is the linearisation trajectory of the power term.
         ``safe_margin`` (m, scalar or N values for k=1..N, car following) shifts the hard safe-distance row to
         d_rel - h_s v >= d_min + margin: a positive back-off keeps solver-tolerance violations outside d_s, a
-        negative value (psi < 0) relaxes it while the speed correction eq. (11) acts."""
-        l, u = self.l, self.u
-        w1, w2 = self._w1, self._w2
-        l[self._i_v0] = u[self._i_v0] = v0
-        l[self._i_d0] = u[self._i_d0] = d_its0 / LU
-        # eq. (3a) right-hand side with grade theta_k (rolling + gradient resistance):
-        # c = c_const - c_grade (c_r cos(theta) + sin(theta)), elementwise into the dyn_v rows
-        k = self._k0
-        np.cos(grade, w1)
-        np.multiply(w1, k.c_r, w1)
-        np.add(w1, np.sin(grade, w2), w1)
-        np.multiply(w1, k.c_grade, w1)
-        np.subtract(k.c_const, w1, self._l_dynv)
-        self._u_dynv[...] = self._l_dynv
-        np.maximum(v_lo, k.neg_big, out=self._l_vlim)
-        np.minimum(v_hi, k.big, out=self._u_vlim)
-        if ft_prev is None:
-            u[self._j_up] = BIG
-            l[self._j_dn] = -BIG
-        else:
-            u[self._j_up] = self.dFt + ft_prev / KN
-            l[self._j_dn] = -self.dFt + ft_prev / KN
-        if d_hard_lo is None:
-            self._l_dhard.fill(-BIG)
-        else:
-            np.maximum(d_hard_lo, k.neg_big, out=self._l_dhard)
-        self._u_dsoft.fill(min(d_s_its / LU, BIG))
-        if self.follow:
-            l[self._i_r0] = u[self._i_r0] = d_rel0 / LU
-            self._l_dynr.fill(self.dt * v_p / LU)
-            self._u_dynr.fill(self.dt * v_p / LU)
-            np.divide(np.add(safe_margin, k.d_min, self._l_safe), k.lu, self._l_safe)
-        # linear cost: power (eq. 5) on k=0..N-1 and tracking on v_1..v_N; other entries of q stay 0. The constant
-        # terms are not needed for the solve: :attr:`const` computes them on demand from the kept vb, Fbar, v_ref.
-        q_v0, q_ft = self._q_v0, self._q_ft
-        if self.power_convex:
-            q_v0.fill(self.pa10)
-            q_ft.fill(self.pa01)
-        else:
-            vb, fb_ = self._v_lin, self._fb_lin
-            if v_lin is None:
-                vb.fill(v0)
-            else:
-                vb[...] = v_lin
-            if ft_lin is None:
-                fb_.fill(0.0)
-            else:
-                np.divide(ft_lin, k.kn, fb_)
-            # a11 v F ~ a11 (vbar F + Fbar v - vbar Fbar): first-order Taylor at the previous trajectory
-            np.add(np.multiply(fb_, k.pa11, w1), k.pa10, q_v0)
-            np.add(np.multiply(vb, k.pa11, w1), k.pa01, q_ft)
-            if self.lin_v2:
-                np.add(q_v0, np.multiply(vb, k.two_pa20, w1), q_v0)
-            if self.lin_f2:
-                np.add(q_ft, np.multiply(fb_, k.two_pa02, w1), q_ft)
-        self.q[self._ivN] = 0.0
-        if not self.follow:
-            q_v1 = self._q_v1                                          # zeta1 (v_{k+1} - v_ref,k)^2, eq. (9a)
-            np.subtract(q_v1, np.multiply(v_ref, k.two_z1, w1), q_v1)
-            self._v_ref[...] = v_ref
-        elif self.w.zeta_v > 0:
-            np.subtract(self._q_v1, self._two_zv * v_p, out=self._q_v1)   # zeta_v (v_{k+1} - v_p)^2
+        negative value (psi < 0) relaxes it while the speed correction eq. (11) acts.
+
+        What it writes: the initial states; eq. (3a)'s right-hand side ``c_k = c_const - c_grade (c_r cos theta_k +
+        sin theta_k)``; the speed bounds (6c); the jerk rows' k = 0 with the previously applied force (8a/b); the
+        d_ITS rows (8c, 8d); with a leader the gap's initial value, its dynamics ``dt v_p`` (3c) and the safe distance
+        ``d_min + margin`` (7a); the linear cost, power eq. (5) with ``a11 v F ~ a11 (vbar F + Fbar v - vbar Fbar)``
+        at the kept linearisation point and tracking eq. (9a) / speed matching (10a). One compiled call
+        (:mod:`pedas._qpkernel`, ``Stepper``): the numbers numpy's elementwise operations gave,
+        bit for bit (tests/pedas/test_qp_kernel.py keeps that formulation as the reference). Arrays are float64
+        with N entries; another shape or type is a ValueError."""
+        self._stepper.set(v0, v_lo, v_hi, grade, v_ref, d_its0, d_hard_lo, d_s_its, ft_prev, d_rel0, v_p, v_lin,
+                          ft_lin, safe_margin)
         self._v_p = v_p
 
     @property

@@ -118,6 +118,12 @@ class CsrProduct:
         return ax
 
 
+def _require_every_column(A: sp.spmatrix) -> None:
+    """Every variable appears in a row of A (then a non-finite x makes A x, and the residual, non-finite)."""
+    if not (abs(sp.csc_matrix(A)).sum(axis=0) > 0).all():
+        raise ValueError("a variable of the QP appears in no row of A")
+
+
 class _Residual:
     """:func:`residual` for one constant A, without the floor at 0: ``max(max(l - Ax), max(Ax - u))`` in one
     reduction over a preallocated ``[l - Ax | Ax - u]`` (which keeps a NaN). A non-finite entry of x makes
@@ -125,8 +131,7 @@ class _Residual:
     finiteness check as well."""
 
     def __init__(self, A: sp.spmatrix) -> None:
-        if not (abs(sp.csc_matrix(A)).sum(axis=0) > 0).all():
-            raise ValueError("a variable of the QP appears in no row of A")
+        _require_every_column(A)
         self._Ax = CsrProduct(A)
         m = A.shape[0]
         self._t = np.empty(2 * m)
@@ -297,8 +302,10 @@ class OsqpBackend:
 class _DaqpBase:
     """What both DAQP formulations share: the checked solve, the cold retry after a failure, the hot start.
 
-    A subclass sets ``model`` (a set-up ``daqp.Model``), ``_sense0``, ``settings`` and ``_residual`` and implements
-    ``_fill`` (this step's DAQP vectors from q, l, u) and ``_primal`` (x in the QP's variables from DAQP's solution).
+    A subclass sets ``model`` (a set-up ``daqp.Model``), ``_sense0`` and ``settings``; it has ``_prepare`` (the data
+    check and this step's DAQP vectors from q, l, u) and ``_check`` (x in the QP's variables from DAQP's solution, its
+    residual and the KKT measures): the base's from ``_fill``, ``_primal``, ``_residual`` and ``_kkt`` in numpy, or
+    the condensed backend's compiled kernel.
     After any failed solve the working set is cleared and the solve is repeated once from a cold start (a stale
     working set can make the active-set method fail on a feasible problem); a second failure is reported as such.
     Non-finite data are refused before DAQP sees them (working set untouched). A solution DAQP calls optimal passes
@@ -318,7 +325,6 @@ class _DaqpBase:
         s.update(primal_tol=self.settings.primal_tol, iter_limit=self.settings.iter_limit, eps_prox=0.0)
         self.model.settings = s
         self._cold = False
-        self._kkt = _Kkt(H, Ag, H.shape[0], float(self.settings.bound), drop_infinite=False)
 
     def _bounds(self, A: sp.csr_matrix, eq_rows: np.ndarray, nx: int) -> tuple[np.ndarray, np.ndarray]:
         """Split the rows of A into DAQP simple bounds (a single coefficient 1: one row per variable) and general
@@ -347,18 +353,31 @@ class _DaqpBase:
         self._lo, self._hi = self._lohi[:nb], self._lohi[nb:]
         return general, perm
 
-    def _gather_setup(self, rows: np.ndarray, m: int) -> None:
-        """DAQP's bounds by one gather (np.take) from a work buffer ``[l (m rows) | -inf | u | +inf]``: constraint i
-        takes row rows[i] (m: unbounded; the clip to +-bound makes the infinities +-bound)."""
-        self._src = np.empty(2 * (m + 1))
-        self._src_l, self._src_u = self._src[:m], self._src[m + 1:2 * m + 1]
-        self._src[m], self._src[2 * m + 1] = -np.inf, np.inf
-        self._gather = np.concatenate([rows, rows + m + 1])
+    @staticmethod
+    def _gather_index(rows: np.ndarray, m: int) -> np.ndarray:
+        """DAQP's bounds are one gather from a work buffer ``[l (m rows) | -inf | u | +inf]``: constraint i takes
+        row rows[i] (m: unbounded; the clip to +-bound makes the infinities +-bound). The indices of that gather."""
+        return np.concatenate([rows, rows + m + 1]).astype(np.int64)
+
+    def _prepare(self, q: np.ndarray, l: np.ndarray, u: np.ndarray) -> bool:
+        """The data check, then this step's DAQP vectors (``_fill``); False, with nothing written, if q, l or u is
+        not finite."""
+        if not _finite_data(q, l, u):
+            return False
+        self._fill(q, l, u)
+        return True
+
+    def _check(self, z: np.ndarray, lam: np.ndarray | None, l: np.ndarray, u: np.ndarray
+               ) -> tuple[np.ndarray, float, float, float]:
+        """(x, its violation of l <= A x <= u, KKT stationarity, KKT gap) of DAQP's (z, lam); the KKT measures are
+        NaN without lam (no certificate)."""
+        x = self._primal(z)   # a non-finite z gives a non-finite x (each y is one entry of x)
+        stat, gap = (float("nan"), float("nan")) if lam is None else self._kkt(self._f, self._lo, self._hi, z, lam)
+        return x, self._residual(l, u, x), stat, gap
 
     def solve(self, q: np.ndarray, l: np.ndarray, u: np.ndarray) -> QpResult:
-        if not _finite_data(q, l, u):
+        if not self._prepare(q, l, u):
             return QpResult("rejected:non-finite data", False, None, 0, 0.0)
-        self._fill(q, l, u)
         res = self._solve_checked(l, u)
         if not res.ok:
             self.cold_start()
@@ -381,12 +400,10 @@ class _DaqpBase:
         status = _DAQP_STATUS.get(flag) or f"daqp exit {flag}"
         x = None
         if status == "solved":
-            x = self._primal(z)   # a non-finite z gives a non-finite x (each y is one entry of x)
-            status = _postcondition(status, x, self._residual(l, u, x), self.settings.residual_tol)
-        if status == "solved":
-            lam = info.get("lam")
-            stat, gap = (float("nan"), float("nan")) if lam is None else self._kkt(self._f, self._lo, self._hi, z, lam)
-            status = _kkt_status(status, stat, gap, KKT_STAT_TOL["daqp"], KKT_GAP_TOL["daqp"])
+            x, violation, stat, gap = self._check(z, info.get("lam"), l, u)
+            status = _postcondition(status, x, violation, self.settings.residual_tol)
+            if status == "solved":
+                status = _kkt_status(status, stat, gap, KKT_STAT_TOL["daqp"], KKT_GAP_TOL["daqp"])
         if status != "solved":
             return QpResult(status, False, None, iters, run_time)
         return QpResult(status, True, x, iters, run_time)
@@ -414,7 +431,11 @@ class DaqpBackend(_DaqpBase):
         rho = float(settings.rho)
         Acsr = sp.csr_matrix(A)
         general, perm = self._bounds(Acsr, eq_rows, nx)
-        self._gather_setup(perm, Acsr.shape[0])
+        m = Acsr.shape[0]
+        self._gather = self._gather_index(perm, m)
+        self._src = np.empty(2 * (m + 1))
+        self._src_l, self._src_u = self._src[:m], self._src[m + 1:2 * m + 1]
+        self._src[m], self._src[2 * m + 1] = -np.inf, np.inf
         Aeq = sp.csr_matrix(Acsr[eq_rows])
         self._eq_rows = np.asarray(eq_rows)
         self._AeqT = CsrProduct(sp.csr_matrix(Aeq.T) * rho)   # its product kernel computes rho A_eq' b_eq
@@ -423,7 +444,9 @@ class DaqpBackend(_DaqpBase):
         self._beq = np.empty(self._eq_rows.size)
         self._f = np.empty(nx)
         self._fill(np.zeros(nx), l, u)
-        self._setup(self.H, Acsr[general].toarray())
+        Ag = Acsr[general].toarray()
+        self._setup(self.H, Ag)
+        self._kkt = _Kkt(self.H, Ag, nx, self.bound, drop_infinite=False)
 
     def _fill(self, q: np.ndarray, l: np.ndarray, u: np.ndarray) -> None:
         """f = q - rho A_eq' b_eq and the DAQP bounds (simple bounds first, then general rows), clipped to +-bound."""
@@ -449,11 +472,15 @@ class DaqpCondensedBackend(_DaqpBase):
     ``K = A_in E``. ``Z'PZ``, ``Z'PE``, ``A_in Z`` and ``K`` are constant: built once, by elementwise substitution
     and sparse products (no BLAS: the same bits on every kernel); per step only b_eq, q and the bounds change. The
     solution is mapped back to x and checked against the full ``l <= A x <= u``, equality rows included.
+
+    The per-step work around DAQP's calls is compiled (:mod:`pedas._qpkernel`, ``Kernel``): ``fill`` (data check, f,
+    the bounds) and ``check`` (x, its residual, the KKT measures), each one call. They compute f, the bounds and x as
+    scipy's CSR product and numpy's elementwise operations did, bit for bit (tests/pedas/test_qp_kernel.py).
     """
 
     def __init__(self, P: sp.csc_matrix, A: sp.csc_matrix, l: np.ndarray, u: np.ndarray, eq_rows: np.ndarray,
                  basic: np.ndarray, settings: DaqpSettings) -> None:
-        self._residual = _Residual(A)
+        _require_every_column(A)   # the residual check is the finiteness check as well
         self.settings = settings
         Acsr = sp.csr_matrix(A)
         m, nx = Acsr.shape
@@ -478,45 +505,39 @@ class DaqpCondensedBackend(_DaqpBase):
         nf, neq = free.size, eq_rows.size
         general, perm = self._bounds(A_in, np.zeros(0, dtype=int), nf)
         # DAQP constraint i is inequality row perm[i] (ineq.size: none), i.e. row rows[i] of l, u (m: none)
-        self._gather_setup(np.append(ineq, m)[perm], m)
+        gather = self._gather_index(np.append(ineq, m)[perm], m)
         # K's rows in DAQP's order (an empty row for none), so that the shift of the gathered bounds needs no gather
         K = sp.vstack([Acsr[ineq] @ E, sp.csr_matrix((1, neq))], format="csr")[perm]
-        # the per-step products, each set in one block-diagonal product (one kernel call; every row is the row of its
-        # block, summed in the same order: the same bits as separate products):
+        # the per-step products, each set in one block-diagonal product (every row is the row of its block, summed in
+        # the same order: the same bits as separate products):
         # [Z'q | Z'PE b_eq | K b_eq] from [q | b_eq], and [E b_eq | Z y] from [b_eq | y]
-        self._vec = CsrProduct(_block_diag_csr(ZT, sp.vstack([ZT @ self.P @ E, K], format="csr")))
-        self._map = CsrProduct(_block_diag_csr(E, Z))
-        # one work vector [q | b_eq | y]: the first product reads [q | b_eq], the second [b_eq | y] (b_eq taken once)
-        self._in = np.empty(nx + neq + nf)
-        self._in_vec, self._in_map = self._in[:nx + neq], self._in[nx:]
-        self._q_in, self._beq, self._y_in = self._in[:nx], self._in[nx:nx + neq], self._in[nx + neq:]
-        # views of the products' result vectors (CsrProduct writes into the same vector each call)
-        vec, xmap = self._vec.product_vector, self._map.product_vector
-        self._zq, self._zpe, self._kb = vec[:nf], vec[nf:2 * nf], vec[2 * nf:]
-        self._eb, self._zy = xmap[:nx], xmap[nx:]
-        self._eq_rows = eq_rows
-        self._lohi2 = self._lohi.reshape(2, -1)     # [lower; upper] as two rows: one broadcast subtraction
+        self.vec = _block_diag_csr(ZT, sp.vstack([ZT @ self.P @ E, K], format="csr"))
+        self.map = _block_diag_csr(E, Z)
+        self._eq_rows, self._gather = eq_rows.astype(np.int64), gather
+        Hs, self.G = sp.csr_matrix(self.H), sp.csr_matrix(A_in[general])   # G: DAQP's general rows
+        Hs.sort_indices()
+        self.G.sort_indices()
         self._f = np.empty(nf)
-        self._fill(np.zeros(nx), l, u)
-        self._setup(self.H, A_in[general].toarray())
+        # fill and the checks in one compiled kernel each (pedas/_qpkernel.c): ~5 us a step against ~40 us in numpy
+        from pedas._qpkernel import Kernel
 
-    def _fill(self, q: np.ndarray, l: np.ndarray, u: np.ndarray) -> None:
-        """f = Z'q + Z'PE b_eq and the shifted inequality bounds (simple first, then general), clipped to +-bound."""
-        self._q_in[...] = q
-        l.take(self._eq_rows, None, self._beq)
-        self._vec.product(self._in_vec)
-        np.add(self._zq, self._zpe, self._f)
-        self._src_l[...] = l
-        self._src_u[...] = u
-        self._src.take(self._gather, None, self._lohi)
-        np.subtract(self._lohi2, self._kb, self._lohi2)      # l - K b_eq, u - K b_eq in DAQP's order
-        _clip(self._lohi, self._bound_lo, self._bound_hi, self._lohi)
+        csr = lambda c: (c.indptr.astype(np.int64), c.indices.astype(np.int64), c.data, *c.shape)  # noqa: E731
+        self.kernel = Kernel(nx, m, self.bound, self._eq_rows, gather, csr(self.vec), csr(self.map),
+                             csr(Acsr if Acsr.has_sorted_indices else Acsr.sorted_indices()), csr(Hs), csr(self.G),
+                             self._f, self._lohi)
+        self._prepare = self.kernel.fill   # fill(q, l, u) -> bool: the data check, f and the bounds
+        self._nx = nx
+        if not self._prepare(np.zeros(nx), l, u):
+            raise ValueError("the QP's initial bounds are not finite")
+        self._setup(self.H, self.G.toarray())
 
-    def _primal(self, z: np.ndarray) -> np.ndarray:
-        """x = E b_eq + Z y, a new array (the plan keeps it)."""
-        self._y_in[...] = z
-        self._map.product(self._in_map)
-        return np.add(self._eb, self._zy)
+    def _check(self, z: np.ndarray, lam: np.ndarray | None, l: np.ndarray, u: np.ndarray
+               ) -> tuple[np.ndarray, float, float, float]:
+        """x = E b_eq + Z y (a new array: the plan keeps it), its violation of the full l <= A x <= u (the kernel's
+        copy of this step's l, u) and the KKT measures, in one kernel call."""
+        x = np.empty(self._nx)
+        violation, stat, gap = self.kernel.check(z, lam, x)
+        return x, violation, stat, gap
 
 
 def _block_diag_csr(*blocks: sp.spmatrix) -> sp.csr_matrix:

@@ -1,0 +1,583 @@
+/* The per-step work of the MPCs around the QP solver's own calls, compiled: what numpy did in ~25-30 calls of
+ * ~0.5-1 us each is one loop nest per stage here.
+ *
+ * Stepper (pedas/mpc.py, SparseMpc.set_step): this step's q, l, u of eq. (9) / (10) written in place.
+ *   set(v0, v_lo, v_hi, grade, v_ref, d_its0, d_hard_lo, d_s_its, ft_prev, d_rel0, v_p, v_lin, ft_lin,
+ *       safe_margin)
+ *
+ * Kernel (pedas/qp.py, DaqpCondensedBackend):
+ *   fill(q, l, u)        finiteness of the data; f = Z'q + Z'PE b_eq and DAQP's bounds l - K b_eq, u - K b_eq
+ *                        (simple bounds first, then general rows), clipped to +-bound. False (nothing written)
+ *                        when q, l or u is not finite.
+ *   check(z, lam, x)     x = E b_eq + Z z (into x), the largest violation of l <= A x <= u, and the KKT measures
+ *                        (stationarity, duality gap) of DAQP's (z, lam) on its QP in z. Returns the 3 floats.
+ *
+ * The numbers that reach a drive (q, l, u, f, the bounds, x) are computed as scipy's CSR product kernel and numpy's
+ * elementwise operations compute them (the same operations in the same order; cos and sin are the C library's,
+ * which numpy's float64 cos and sin call): each row summed from +0.0 in the order of its stored entries, then one
+ * addition; no FMA contraction (built with -ffp-contract=off), no reassociation. So they are the same bits as the
+ * numpy formulation (tests/pedas/test_qp_kernel.py compares them with it on random data). The check values decide a
+ * verdict only (pedas.qp: tolerances with margins of many orders of magnitude). No BLAS anywhere: the same bits on
+ * every x86-64 machine.
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+typedef struct {      /* a CSR matrix, copied in at construction */
+    Py_ssize_t rows, cols;
+    int64_t *indptr, *indices;
+    double *data;
+} Csr;
+
+/* ---- Kernel: DaqpCondensedBackend's fill and check ------------------------------------------------------------- */
+
+typedef struct {
+    PyObject_HEAD
+    Py_ssize_t nx, m, neq, nf, nb;   /* QP variables and rows; equality rows; DAQP variables and constraints */
+    double bound;
+    int64_t *eq_rows, *gather;       /* b_eq = l[eq_rows]; DAQP bound i = src[gather[i]] */
+    Csr vec, map, A, H, G;           /* [Z' | Z'PE; K], [E | Z], the QP's A, DAQP's H, DAQP's general rows */
+    double *in, *vec_out, *map_out, *src, *ax, *r;   /* work vectors */
+    Py_buffer f, lohi;               /* DAQP's f and [lower | upper] bounds: numpy arrays DAQP reads */
+    int have_f, have_lohi;
+} Kernel;
+
+static void csr_free(Csr *c) {
+    free(c->indptr);
+    free(c->indices);
+    free(c->data);
+}
+
+/* y = C x, each row from +0.0 in stored order (scipy's csr_matvec on a zero-filled y) */
+static void csr_product(const Csr *c, const double *x, double *y) {
+    for (Py_ssize_t i = 0; i < c->rows; i++) {
+        double sum = 0.0;
+        for (int64_t k = c->indptr[i]; k < c->indptr[i + 1]; k++)
+            sum += c->data[k] * x[c->indices[k]];
+        y[i] = sum;
+    }
+}
+
+/* a C-contiguous buffer of n items of the given struct format ('d' or 'q'/'l' for int64), or an error */
+static int get_buffer(PyObject *obj, Py_buffer *view, const char *fmt, Py_ssize_t n, const char *name, int writable) {
+    if (PyObject_GetBuffer(obj, view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0)) < 0)
+        return -1;
+    const char *f = view->format ? view->format : "B";
+    if (*f == '<' || *f == '=' || *f == '@') f++;
+    int ok;
+    if (fmt[0] == 'd')
+        ok = strcmp(f, "d") == 0 && view->itemsize == 8;
+    else
+        ok = (strcmp(f, "q") == 0 || strcmp(f, "l") == 0) && view->itemsize == 8;
+    if (!ok || (n >= 0 && view->len / view->itemsize != n)) {
+        PyErr_Format(PyExc_ValueError, "%s: expected %zd contiguous %s values", name, n,
+                     fmt[0] == 'd' ? "float64" : "int64");
+        PyBuffer_Release(view);
+        return -1;
+    }
+    return 0;
+}
+
+/* a copy of a 1-d array (n items, or any length if n < 0; the length into *len) */
+static void *copy_array(PyObject *obj, const char *fmt, Py_ssize_t n, const char *name, Py_ssize_t *len) {
+    Py_buffer view;
+    if (get_buffer(obj, &view, fmt, n, name, 0) < 0)
+        return NULL;
+    size_t bytes = view.len > 0 ? (size_t)view.len : 1;
+    void *out = malloc(bytes);
+    if (out == NULL) {
+        PyBuffer_Release(&view);
+        PyErr_NoMemory();
+        return NULL;
+    }
+    memcpy(out, view.buf, (size_t)view.len);
+    if (len) *len = view.len / view.itemsize;
+    PyBuffer_Release(&view);
+    return out;
+}
+
+/* a CSR matrix from the tuple (indptr, indices, data, rows, cols), checked: indices in range, indptr monotone */
+static int csr_from(PyObject *t, Csr *c, const char *name) {
+    PyObject *ip, *ix, *dt;
+    Py_ssize_t rows, cols, nnz, nd, nip;
+    if (!PyArg_ParseTuple(t, "OOOnn", &ip, &ix, &dt, &rows, &cols))
+        return -1;
+    c->rows = rows;
+    c->cols = cols;
+    if (!(c->indptr = copy_array(ip, "q", rows + 1, name, &nip))) return -1;
+    if (!(c->indices = copy_array(ix, "q", -1, name, &nnz))) return -1;
+    if (!(c->data = copy_array(dt, "d", nnz, name, &nd))) return -1;
+    if (c->indptr[0] != 0 || c->indptr[rows] != nnz) goto bad;
+    for (Py_ssize_t i = 0; i < rows; i++)
+        if (c->indptr[i + 1] < c->indptr[i]) goto bad;
+    for (Py_ssize_t k = 0; k < nnz; k++)
+        if (c->indices[k] < 0 || c->indices[k] >= cols) goto bad;
+    return 0;
+bad:
+    PyErr_Format(PyExc_ValueError, "%s: not a valid CSR matrix", name);
+    return -1;
+}
+
+static void Kernel_dealloc(Kernel *self) {
+    csr_free(&self->vec);
+    csr_free(&self->map);
+    csr_free(&self->A);
+    csr_free(&self->H);
+    csr_free(&self->G);
+    free(self->eq_rows);
+    free(self->gather);
+    free(self->in);
+    free(self->vec_out);
+    free(self->map_out);
+    free(self->src);
+    free(self->ax);
+    free(self->r);
+    if (self->have_f) PyBuffer_Release(&self->f);
+    if (self->have_lohi) PyBuffer_Release(&self->lohi);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+/* Kernel(nx, m, bound, eq_rows, gather, vec, map, A, H, G, f, lohi): vec, map, A, H, G as CSR tuples
+ * (indptr, indices, data, rows, cols); f and lohi the arrays fill writes (DAQP reads them) */
+static int Kernel_init(Kernel *self, PyObject *args, PyObject *kw) {
+    PyObject *eq, *ga, *vec, *map, *A, *H, *G, *f, *lohi;
+    Py_ssize_t nx, m, ng;
+    double bound;
+    if (!PyArg_ParseTuple(args, "nndOOOOOOOOO", &nx, &m, &bound, &eq, &ga, &vec, &map, &A, &H, &G, &f, &lohi))
+        return -1;
+    if (self->eq_rows != NULL) {
+        PyErr_SetString(PyExc_RuntimeError, "a kernel is set up once");
+        return -1;
+    }
+    self->nx = nx;
+    self->m = m;
+    self->bound = bound;
+    if (!(self->eq_rows = copy_array(eq, "q", -1, "eq_rows", &self->neq))) return -1;
+    if (!(self->gather = copy_array(ga, "q", -1, "gather", &self->nb))) return -1;
+    if (self->nb % 2) {
+        PyErr_SetString(PyExc_ValueError, "gather: one index per lower and upper bound");
+        return -1;
+    }
+    self->nb /= 2;
+    if (csr_from(vec, &self->vec, "vec") < 0 || csr_from(map, &self->map, "map") < 0 || csr_from(A, &self->A, "A") < 0
+        || csr_from(H, &self->H, "H") < 0 || csr_from(G, &self->G, "G") < 0)
+        return -1;
+    self->nf = self->H.rows;
+    ng = self->G.rows;
+    Py_ssize_t nf = self->nf, neq = self->neq, nb = self->nb;
+    if (self->vec.rows != 2 * nf + nb || self->vec.cols != nx + neq || self->map.rows != 2 * nx
+        || self->map.cols != neq + nf || self->A.rows != m || self->A.cols != nx || self->H.cols != nf
+        || self->G.cols != nf || nb != nf + ng) {
+        PyErr_SetString(PyExc_ValueError, "the kernel's matrices do not fit together");
+        return -1;
+    }
+    for (Py_ssize_t i = 0; i < neq; i++)
+        if (self->eq_rows[i] < 0 || self->eq_rows[i] >= m) goto bad_index;
+    for (Py_ssize_t i = 0; i < 2 * nb; i++)
+        if (self->gather[i] < 0 || self->gather[i] >= 2 * (m + 1)) goto bad_index;
+    self->in = malloc(sizeof(double) * (size_t)(nx + neq + nf));
+    self->vec_out = malloc(sizeof(double) * (size_t)(2 * nf + nb));
+    self->map_out = malloc(sizeof(double) * (size_t)(2 * nx));
+    self->src = malloc(sizeof(double) * (size_t)(2 * (m + 1)));
+    self->ax = malloc(sizeof(double) * (size_t)(m > 0 ? m : 1));
+    self->r = malloc(sizeof(double) * (size_t)(nf > 0 ? nf : 1));
+    if (!self->in || !self->vec_out || !self->map_out || !self->src || !self->ax || !self->r) {
+        PyErr_NoMemory();
+        return -1;
+    }
+    memset(self->in, 0, sizeof(double) * (size_t)(nx + neq + nf));
+    self->src[m] = -INFINITY;
+    self->src[2 * m + 1] = INFINITY;
+    if (get_buffer(f, &self->f, "d", nf, "f", 1) < 0) return -1;
+    self->have_f = 1;
+    if (get_buffer(lohi, &self->lohi, "d", 2 * nb, "lohi", 1) < 0) return -1;
+    self->have_lohi = 1;
+    return 0;
+bad_index:
+    PyErr_SetString(PyExc_ValueError, "an index of eq_rows or gather is out of range");
+    return -1;
+}
+
+/* the sum of squares of a vector: NaN or inf iff an entry is not finite (entries <= 1e30: no overflow) */
+static double sumsq(const double *v, Py_ssize_t n) {
+    double s = 0.0;
+    for (Py_ssize_t i = 0; i < n; i++)
+        s += v[i] * v[i];
+    return s;
+}
+
+static PyObject *Kernel_fill(Kernel *self, PyObject *const *args, Py_ssize_t nargs) {
+    if (nargs != 3) {
+        PyErr_SetString(PyExc_TypeError, "fill(q, l, u)");
+        return NULL;
+    }
+    Py_buffer q, l, u;
+    const Py_ssize_t nx = self->nx, m = self->m, neq = self->neq, nf = self->nf, nb = self->nb;
+    if (get_buffer(args[0], &q, "d", nx, "q", 0) < 0) return NULL;
+    if (get_buffer(args[1], &l, "d", m, "l", 0) < 0) { PyBuffer_Release(&q); return NULL; }
+    if (get_buffer(args[2], &u, "d", m, "u", 0) < 0) { PyBuffer_Release(&q); PyBuffer_Release(&l); return NULL; }
+    const double *qv = q.buf, *lv = l.buf, *uv = u.buf;
+    /* the data check first: refused data leave everything as it was */
+    if (!(sumsq(qv, nx) + sumsq(lv, m) + sumsq(uv, m) < INFINITY)) {
+        PyBuffer_Release(&q); PyBuffer_Release(&l); PyBuffer_Release(&u);
+        Py_RETURN_FALSE;
+    }
+    double *in = self->in, *vo = self->vec_out, *src = self->src;
+    memcpy(in, qv, sizeof(double) * (size_t)nx);                 /* [q | b_eq | ...] */
+    for (Py_ssize_t i = 0; i < neq; i++)
+        in[nx + i] = lv[self->eq_rows[i]];
+    csr_product(&self->vec, in, vo);                              /* [Z'q | Z'PE b_eq | K b_eq] */
+    double *f = self->f.buf, *lohi = self->lohi.buf;
+    for (Py_ssize_t i = 0; i < nf; i++)
+        f[i] = vo[i] + vo[nf + i];
+    memcpy(src, lv, sizeof(double) * (size_t)m);                  /* [l | -inf | u | +inf] */
+    memcpy(src + m + 1, uv, sizeof(double) * (size_t)m);
+    const double *kb = vo + 2 * nf, lo = -self->bound, hi = self->bound;
+    for (Py_ssize_t i = 0; i < 2 * nb; i++) {
+        double b = src[self->gather[i]] - kb[i < nb ? i : i - nb];
+        /* numpy's clip: max with the lower, then min with the upper bound, a NaN kept */
+        if (!isnan(b)) {
+            b = b > lo ? b : lo;
+            b = b < hi ? b : hi;
+        }
+        lohi[i] = b;
+    }
+    PyBuffer_Release(&q); PyBuffer_Release(&l); PyBuffer_Release(&u);
+    Py_RETURN_TRUE;
+}
+
+/* the largest of max(l - Ax) and max(Ax - u); NaN if any is NaN */
+static double violation(Kernel *self, const double *x) {
+    const Py_ssize_t m = self->m;
+    const double *l = self->src, *u = self->src + m + 1;
+    double *ax = self->ax, worst = -INFINITY;
+    int nan = 0;
+    csr_product(&self->A, x, ax);
+    for (Py_ssize_t i = 0; i < m; i++) {
+        double a = l[i] - ax[i], b = ax[i] - u[i];
+        nan |= isnan(a) | isnan(b);
+        if (a > worst) worst = a;
+        if (b > worst) worst = b;
+    }
+    return nan ? NAN : worst;
+}
+
+static PyObject *Kernel_check(Kernel *self, PyObject *const *args, Py_ssize_t nargs) {
+    if (nargs != 3) {
+        PyErr_SetString(PyExc_TypeError, "check(z, lam, x)");
+        return NULL;
+    }
+    const Py_ssize_t nx = self->nx, neq = self->neq, nf = self->nf, nb = self->nb;
+    Py_buffer zb, lb, xb;
+    int have_lam = args[1] != Py_None;
+    if (get_buffer(args[0], &zb, "d", nf, "z", 0) < 0) return NULL;
+    if (have_lam && get_buffer(args[1], &lb, "d", nb, "lam", 0) < 0) { PyBuffer_Release(&zb); return NULL; }
+    if (get_buffer(args[2], &xb, "d", nx, "x", 1) < 0) {
+        PyBuffer_Release(&zb);
+        if (have_lam) PyBuffer_Release(&lb);
+        return NULL;
+    }
+    const double *z = zb.buf;
+    double *x = xb.buf, *in = self->in, *mo = self->map_out;
+    /* x = E b_eq + Z z: the product over [b_eq | z], then one addition */
+    memcpy(in + nx + neq, z, sizeof(double) * (size_t)nf);
+    csr_product(&self->map, in + nx, mo);
+    for (Py_ssize_t i = 0; i < nx; i++)
+        x[i] = mo[i] + mo[nx + i];
+    double viol = violation(self, x), stat = NAN, gap = NAN;
+    if (have_lam) {
+        const double *lam = lb.buf, *f = self->f.buf, *lo = self->lohi.buf, *hi = lo + nb;
+        double *r = self->r, zhz = 0.0, fz = 0.0, lamb = 0.0, rmax = 0.0, fmax = 1.0;
+        int nan = 0;
+        /* r = Hz (zhz = z'Hz along), then + G'lam_general + f + lam_simple */
+        for (Py_ssize_t i = 0; i < nf; i++) {
+            double s = 0.0;
+            for (int64_t k = self->H.indptr[i]; k < self->H.indptr[i + 1]; k++)
+                s += self->H.data[k] * z[self->H.indices[k]];
+            r[i] = s;
+            zhz += z[i] * s;
+            fz += f[i] * z[i];
+        }
+        for (Py_ssize_t g = 0; g < self->G.rows; g++) {
+            double lg = lam[nf + g];
+            for (int64_t k = self->G.indptr[g]; k < self->G.indptr[g + 1]; k++)
+                r[self->G.indices[k]] += self->G.data[k] * lg;
+        }
+        for (Py_ssize_t i = 0; i < nf; i++) {
+            double a = fabs(r[i] + f[i] + lam[i]);
+            nan |= isnan(a);
+            if (a > rmax) rmax = a;
+            if (fabs(f[i]) > fmax) fmax = fabs(f[i]);
+        }
+        /* each multiplier times the bound it pushes against: lam > 0 the upper, else the lower */
+        for (Py_ssize_t i = 0; i < nb; i++)
+            lamb += lam[i] * (lam[i] > 0.0 ? hi[i] : lo[i]);
+        stat = nan ? NAN : rmax / fmax;
+        double obj = fabs(0.5 * zhz + fz);
+        gap = fabs(zhz + fz + lamb) / (obj > 1.0 ? obj : 1.0);
+        PyBuffer_Release(&lb);
+    }
+    PyBuffer_Release(&zb);
+    PyBuffer_Release(&xb);
+    return Py_BuildValue("(ddd)", viol, stat, gap);
+}
+
+
+static PyMethodDef Kernel_methods[] = {
+    {"fill", (PyCFunction)(void (*)(void))Kernel_fill, METH_FASTCALL,
+     "fill(q, l, u) -> bool: the data check, then f and DAQP's bounds (False: q, l or u not finite, nothing written)"},
+    {"check", (PyCFunction)(void (*)(void))Kernel_check, METH_FASTCALL,
+     "check(z, lam, x) -> (violation, stationarity, gap): x = E b_eq + Z z written into x; lam None: NaN measures"},
+    {NULL, NULL, 0, NULL},
+};
+
+static PyTypeObject KernelType = {
+    PyVarObject_HEAD_INIT(NULL, 0)
+    .tp_name = "pedas._qpkernel.Kernel",
+    .tp_basicsize = sizeof(Kernel),
+    .tp_flags = Py_TPFLAGS_DEFAULT,
+    .tp_doc = "the condensed DAQP backend's per-step data and checks (pedas.qp.DaqpCondensedBackend)",
+    .tp_new = PyType_GenericNew,
+    .tp_init = (initproc)Kernel_init,
+    .tp_dealloc = (destructor)Kernel_dealloc,
+    .tp_methods = Kernel_methods,
+};
+
+/* ---- Stepper: SparseMpc.set_step ------------------------------------------------------------------------------ */
+
+typedef struct {
+    PyObject_HEAD
+    Py_ssize_t n;
+    /* positions in q, l, u (-1: absent) */
+    Py_ssize_t i_v0, i_d0, dyn_v, v_lim, j_up, j_dn, d_hard, d_soft, i_r0, dyn_r, safe, q_v0, q_ft, iv_n;
+    int follow, convex, lin_v2, lin_f2, track_v;
+    double c_r, c_grade, c_const, big, dft, kn, lu, dt, d_min, pa10, pa01, pa11, two_pa20, two_pa02, two_z1, two_zv;
+    Py_buffer q, l, u, v_lin, fb_lin, v_ref;   /* the MPC's vectors and its kept linearisation point and v_ref */
+    int bound;
+} Stepper;
+
+static void Stepper_dealloc(Stepper *self) {
+    if (self->bound) {
+        PyBuffer_Release(&self->q); PyBuffer_Release(&self->l); PyBuffer_Release(&self->u);
+        PyBuffer_Release(&self->v_lin); PyBuffer_Release(&self->fb_lin); PyBuffer_Release(&self->v_ref);
+    }
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+/* Stepper(q, l, u, v_lin, fb_lin, v_ref, positions, flags, constants): positions a tuple of 14 ints (i_v0, i_d0,
+ * dyn_v, v_lim, j_up, j_dn, d_hard, d_soft, i_r0, dyn_r, safe, q_v0, q_ft, iv_n; -1 where absent), flags
+ * (follow, convex, lin_v2, lin_f2, track_v), constants a tuple of 16 floats (c_r, c_grade, c_const, big, dFt,
+ * kn, lu, dt, d_min, pa10, pa01, pa11, 2 pa20, 2 pa02, 2 zeta1, 2 zeta_v) */
+static int Stepper_init(Stepper *self, PyObject *args, PyObject *kw) {
+    PyObject *q, *l, *u, *vl, *fl, *vr, *pos, *flags, *cst;
+    if (self->bound) {
+        PyErr_SetString(PyExc_RuntimeError, "a stepper is set up once");
+        return -1;
+    }
+    if (!PyArg_ParseTuple(args, "OOOOOOOOO", &q, &l, &u, &vl, &fl, &vr, &pos, &flags, &cst))
+        return -1;
+    Py_ssize_t *p[] = {&self->i_v0, &self->i_d0, &self->dyn_v, &self->v_lim, &self->j_up, &self->j_dn,
+                       &self->d_hard, &self->d_soft, &self->i_r0, &self->dyn_r, &self->safe, &self->q_v0,
+                       &self->q_ft, &self->iv_n};
+    if (!PyArg_ParseTuple(pos, "nnnnnnnnnnnnnn", p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10],
+                          p[11], p[12], p[13]))
+        return -1;
+    if (!PyArg_ParseTuple(flags, "ppppp", &self->follow, &self->convex, &self->lin_v2, &self->lin_f2,
+                          &self->track_v))
+        return -1;
+    if (!PyArg_ParseTuple(cst, "dddddddddddddddd", &self->c_r, &self->c_grade, &self->c_const, &self->big,
+                          &self->dft, &self->kn, &self->lu, &self->dt, &self->d_min, &self->pa10, &self->pa01,
+                          &self->pa11, &self->two_pa20, &self->two_pa02, &self->two_z1, &self->two_zv))
+        return -1;
+    if (get_buffer(vl, &self->v_lin, "d", -1, "v_lin", 1) < 0) return -1;
+    self->n = self->v_lin.len / 8;
+    Py_ssize_t n = self->n;
+    if (get_buffer(fl, &self->fb_lin, "d", n, "fb_lin", 1) < 0) { PyBuffer_Release(&self->v_lin); return -1; }
+    if (get_buffer(vr, &self->v_ref, "d", n, "v_ref", 1) < 0) goto e2;
+    if (get_buffer(q, &self->q, "d", -1, "q", 1) < 0) goto e3;
+    if (get_buffer(l, &self->l, "d", -1, "l", 1) < 0) goto e4;
+    if (get_buffer(u, &self->u, "d", self->l.len / 8, "u", 1) < 0) goto e5;
+    self->bound = 1;
+    /* every block inside its vector */
+    Py_ssize_t nq = self->q.len / 8, m = self->l.len / 8;
+    Py_ssize_t rows[][2] = {{self->i_v0, 1}, {self->i_d0, 1}, {self->dyn_v, n}, {self->v_lim, n}, {self->j_up, 1},
+                            {self->j_dn, 1}, {self->d_hard, n}, {self->d_soft, n}};
+    for (size_t i = 0; i < sizeof(rows) / sizeof(rows[0]); i++)
+        if (rows[i][0] < 0 || rows[i][0] + rows[i][1] > m) goto bad;
+    if (self->follow && (self->i_r0 < 0 || self->i_r0 >= m || self->dyn_r < 0 || self->dyn_r + n > m
+                         || self->safe < 0 || self->safe + n > m))
+        goto bad;
+    if (self->q_v0 < 0 || self->q_v0 + n + 1 > nq || self->q_ft < 0 || self->q_ft + n > nq
+        || self->iv_n != self->q_v0 + n)
+        goto bad;
+    return 0;
+bad:
+    PyErr_SetString(PyExc_ValueError, "a block of the stepper lies outside q, l or u");
+    return -1;
+e5: PyBuffer_Release(&self->l);
+e4: PyBuffer_Release(&self->q);
+e3: PyBuffer_Release(&self->v_ref);
+e2: PyBuffer_Release(&self->fb_lin); PyBuffer_Release(&self->v_lin);
+    return -1;
+}
+
+/* an optional argument: NULL for None, else its buffer of n float64 */
+static int opt_buffer(PyObject *obj, Py_buffer *view, Py_ssize_t n, const char *name, const double **out) {
+    if (obj == Py_None) {
+        *out = NULL;
+        return 0;
+    }
+    if (get_buffer(obj, view, "d", n, name, 0) < 0)
+        return -1;
+    *out = view->buf;
+    return 1;
+}
+
+/* numpy's maximum / minimum of two float64: a NaN propagates (b is never NaN here) */
+static inline double np_max(double a, double b) { return (isnan(a) || a >= b) ? a : b; }
+static inline double np_min(double a, double b) { return (isnan(a) || a <= b) ? a : b; }
+
+static PyObject *Stepper_set(Stepper *self, PyObject *const *args, Py_ssize_t nargs) {
+    if (nargs != 14) {
+        PyErr_SetString(PyExc_TypeError, "set(v0, v_lo, v_hi, grade, v_ref, d_its0, d_hard_lo, d_s_its, ft_prev, "
+                                         "d_rel0, v_p, v_lin, ft_lin, safe_margin)");
+        return NULL;
+    }
+    const Py_ssize_t n = self->n;
+    double v0 = PyFloat_AsDouble(args[0]), d_its0 = PyFloat_AsDouble(args[5]), d_s_its = PyFloat_AsDouble(args[7]);
+    double d_rel0 = PyFloat_AsDouble(args[9]), v_p = PyFloat_AsDouble(args[10]);
+    double ft_prev = args[8] == Py_None ? 0.0 : PyFloat_AsDouble(args[8]);
+    double margin = 0.0;
+    int margin_array = !PyFloat_Check(args[13]) && !PyLong_Check(args[13]);   /* a scalar or N values */
+    if (!margin_array)
+        margin = PyFloat_AsDouble(args[13]);
+    if (PyErr_Occurred())
+        return NULL;
+    Py_buffer b[8];
+    const double *v_lo, *v_hi, *grade, *v_ref, *d_hard, *v_lin, *ft_lin, *mg = NULL;
+    int held[8] = {0};
+    PyObject *res = NULL;
+    if ((held[0] = opt_buffer(args[1], &b[0], n, "v_lo", &v_lo)) < 0) goto done;
+    if ((held[1] = opt_buffer(args[2], &b[1], n, "v_hi", &v_hi)) < 0) goto done;
+    if ((held[2] = opt_buffer(args[3], &b[2], n, "grade", &grade)) < 0) goto done;
+    if ((held[3] = opt_buffer(args[4], &b[3], n, "v_ref", &v_ref)) < 0) goto done;
+    if ((held[4] = opt_buffer(args[6], &b[4], n, "d_hard_lo", &d_hard)) < 0) goto done;
+    if ((held[5] = opt_buffer(args[11], &b[5], n, "v_lin", &v_lin)) < 0) goto done;
+    if ((held[6] = opt_buffer(args[12], &b[6], n, "ft_lin", &ft_lin)) < 0) goto done;
+    if (margin_array && (held[7] = opt_buffer(args[13], &b[7], n, "safe_margin", &mg)) < 0) goto done;
+    if (!v_lo || !v_hi || !grade || (!self->follow && !v_ref)) {
+        PyErr_SetString(PyExc_TypeError, "v_lo, v_hi, grade (and v_ref without a leader) are arrays");
+        goto done;
+    }
+    double *q = self->q.buf, *l = self->l.buf, *u = self->u.buf, big = self->big;
+    l[self->i_v0] = u[self->i_v0] = v0;
+    l[self->i_d0] = u[self->i_d0] = d_its0 / self->lu;
+    /* eq. (3a) right-hand side: c = c_const - c_grade (c_r cos(theta) + sin(theta)) */
+    for (Py_ssize_t k = 0; k < n; k++) {
+        double w = cos(grade[k]) * self->c_r;
+        w = (w + sin(grade[k])) * self->c_grade;
+        l[self->dyn_v + k] = u[self->dyn_v + k] = self->c_const - w;
+        l[self->v_lim + k] = np_max(v_lo[k], -big);
+        u[self->v_lim + k] = np_min(v_hi[k], big);
+        l[self->d_hard + k] = d_hard ? np_max(d_hard[k], -big) : -big;
+    }
+    if (args[8] == Py_None) {
+        u[self->j_up] = big;
+        l[self->j_dn] = -big;
+    } else {
+        u[self->j_up] = self->dft + ft_prev / self->kn;
+        l[self->j_dn] = -self->dft + ft_prev / self->kn;
+    }
+    double dsoft = d_s_its / self->lu;
+    dsoft = big < dsoft ? big : dsoft;   /* Python's min(d_s_its / LU, BIG) */
+    for (Py_ssize_t k = 0; k < n; k++)
+        u[self->d_soft + k] = dsoft;
+    if (self->follow) {
+        l[self->i_r0] = u[self->i_r0] = d_rel0 / self->lu;
+        double r = self->dt * v_p / self->lu;
+        for (Py_ssize_t k = 0; k < n; k++) {
+            l[self->dyn_r + k] = u[self->dyn_r + k] = r;
+            l[self->safe + k] = ((mg ? mg[k] : margin) + self->d_min) / self->lu;
+        }
+    }
+    /* the linear cost: power (eq. 5) on k = 0..N-1, tracking on v_1..v_N */
+    double *qv0 = q + self->q_v0, *qft = q + self->q_ft, *vb = self->v_lin.buf, *fb = self->fb_lin.buf;
+    if (self->convex) {
+        for (Py_ssize_t k = 0; k < n; k++) {
+            qv0[k] = self->pa10;
+            qft[k] = self->pa01;
+        }
+    } else {
+        for (Py_ssize_t k = 0; k < n; k++) {
+            vb[k] = v_lin ? v_lin[k] : v0;
+            fb[k] = ft_lin ? ft_lin[k] / self->kn : 0.0;
+            /* a11 v F ~ a11 (vbar F + Fbar v - vbar Fbar): first-order Taylor at the previous trajectory */
+            qv0[k] = fb[k] * self->pa11 + self->pa10;
+            qft[k] = vb[k] * self->pa11 + self->pa01;
+            if (self->lin_v2) qv0[k] = qv0[k] + vb[k] * self->two_pa20;
+            if (self->lin_f2) qft[k] = qft[k] + fb[k] * self->two_pa02;
+        }
+    }
+    q[self->iv_n] = 0.0;
+    double *qv1 = qv0 + 1, *vr = self->v_ref.buf;
+    if (!self->follow) {
+        for (Py_ssize_t k = 0; k < n; k++) {
+            qv1[k] = qv1[k] - v_ref[k] * self->two_z1;   /* zeta1 (v_{k+1} - v_ref,k)^2, eq. (9a) */
+            vr[k] = v_ref[k];
+        }
+    } else if (self->track_v) {
+        double t = self->two_zv * v_p;                   /* zeta_v (v_{k+1} - v_p)^2 */
+        for (Py_ssize_t k = 0; k < n; k++)
+            qv1[k] = qv1[k] - t;
+    }
+    res = Py_None;
+    Py_INCREF(res);
+done:
+    for (int i = 0; i < 8; i++)
+        if (held[i] > 0) PyBuffer_Release(&b[i]);
+    return res;
+}
+
+static PyMethodDef Stepper_methods[] = {
+    {"set", (PyCFunction)(void (*)(void))Stepper_set, METH_FASTCALL,
+     "set(v0, v_lo, v_hi, grade, v_ref, d_its0, d_hard_lo, d_s_its, ft_prev, d_rel0, v_p, v_lin, ft_lin, "
+     "safe_margin): this step's q, l, u in place (pedas.mpc.SparseMpc.set_step)"},
+    {NULL, NULL, 0, NULL},
+};
+
+static PyTypeObject StepperType = {
+    PyVarObject_HEAD_INIT(NULL, 0)
+    .tp_name = "pedas._qpkernel.Stepper",
+    .tp_basicsize = sizeof(Stepper),
+    .tp_flags = Py_TPFLAGS_DEFAULT,
+    .tp_doc = "an MPC's per-step q, l, u (pedas.mpc.SparseMpc.set_step)",
+    .tp_new = PyType_GenericNew,
+    .tp_init = (initproc)Stepper_init,
+    .tp_dealloc = (destructor)Stepper_dealloc,
+    .tp_methods = Stepper_methods,
+};
+
+static struct PyModuleDef module = {
+    PyModuleDef_HEAD_INIT, "_qpkernel",
+    "Compiled per-step work of the MPCs: Stepper (pedas.mpc.SparseMpc.set_step) and Kernel (fill and check of "
+    "pedas.qp.DaqpCondensedBackend).", -1, NULL,
+};
+
+PyMODINIT_FUNC PyInit__qpkernel(void) {
+    PyTypeObject *types[] = {&KernelType, &StepperType};
+    PyObject *mod = PyModule_Create(&module);
+    if (mod == NULL)
+        return NULL;
+    for (size_t i = 0; i < sizeof(types) / sizeof(types[0]); i++) {
+        if (PyType_Ready(types[i]) < 0 || PyModule_AddObjectRef(mod, strrchr(types[i]->tp_name, '.') + 1,
+                                                                (PyObject *)types[i]) < 0) {
+            Py_DECREF(mod);
+            return NULL;
+        }
+    }
+    return mod;
+}
