@@ -17,8 +17,9 @@
  * which numpy's float64 cos and sin call): each row summed from +0.0 in the order of its stored entries, then one
  * addition; no FMA contraction (built with -ffp-contract=off), no reassociation. So they are the same bits as the
  * numpy formulation (tests/pedas/test_qp_kernel.py compares them with it on random data). The check values decide a
- * verdict only (pedas.qp: tolerances with margins of many orders of magnitude). No BLAS anywhere: the same bits on
- * every x86-64 machine.
+ * verdict only (pedas.qp: tolerances with margins of many orders of magnitude). No BLAS anywhere. cos and sin are
+ * the C library's on both sides, so they agree on any machine where numpy calls the C library for float64 cos and
+ * sin (numpy 2 on x86-64 without AVX-512 SVML; the Makefile and pedas disable AVX-512 paths for numpy).
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -44,7 +45,28 @@ typedef struct {
     double *in, *vec_out, *map_out, *src, *ax, *r;   /* work vectors */
     Py_buffer f, lohi;               /* DAQP's f and [lower | upper] bounds: numpy arrays DAQP reads */
     int have_f, have_lohi;
+    int tried, ready;                /* __init__ ran once; it succeeded (fill and check need it) */
 } Kernel;
+
+/* no keyword arguments, one __init__ */
+static int init_once(int *tried, PyObject *kw, const char *what) {
+    if (kw != NULL && PyDict_GET_SIZE(kw) > 0) {
+        PyErr_Format(PyExc_TypeError, "%s() takes no keyword arguments", what);
+        return -1;
+    }
+    if (*tried) {
+        PyErr_Format(PyExc_RuntimeError, "a %s is set up once", what);
+        return -1;
+    }
+    *tried = 1;
+    return 0;
+}
+
+static int require_ready(int ready, const char *what) {
+    if (!ready)
+        PyErr_Format(PyExc_RuntimeError, "the %s is not set up", what);
+    return ready ? 0 : -1;
+}
 
 static void csr_free(Csr *c) {
     free(c->indptr);
@@ -74,8 +96,11 @@ static int get_buffer(PyObject *obj, Py_buffer *view, const char *fmt, Py_ssize_
     else
         ok = (strcmp(f, "q") == 0 || strcmp(f, "l") == 0) && view->itemsize == 8;
     if (!ok || (n >= 0 && view->len / view->itemsize != n)) {
-        PyErr_Format(PyExc_ValueError, "%s: expected %zd contiguous %s values", name, n,
-                     fmt[0] == 'd' ? "float64" : "int64");
+        const char *type = fmt[0] == 'd' ? "float64" : "int64";
+        if (n >= 0)
+            PyErr_Format(PyExc_ValueError, "%s: expected %zd contiguous %s values", name, n, type);
+        else
+            PyErr_Format(PyExc_ValueError, "%s: expected contiguous %s values", name, type);
         PyBuffer_Release(view);
         return -1;
     }
@@ -104,8 +129,16 @@ static void *copy_array(PyObject *obj, const char *fmt, Py_ssize_t n, const char
 static int csr_from(PyObject *t, Csr *c, const char *name) {
     PyObject *ip, *ix, *dt;
     Py_ssize_t rows, cols, nnz, nd, nip;
+    if (!PyTuple_Check(t)) {
+        PyErr_Format(PyExc_TypeError, "%s: a tuple (indptr, indices, data, rows, cols)", name);
+        return -1;
+    }
     if (!PyArg_ParseTuple(t, "OOOnn", &ip, &ix, &dt, &rows, &cols))
         return -1;
+    if (rows < 0 || cols < 0) {
+        PyErr_Format(PyExc_ValueError, "%s: negative shape", name);
+        return -1;
+    }
     c->rows = rows;
     c->cols = cols;
     if (!(c->indptr = copy_array(ip, "q", rows + 1, name, &nip))) return -1;
@@ -147,10 +180,12 @@ static int Kernel_init(Kernel *self, PyObject *args, PyObject *kw) {
     PyObject *eq, *ga, *vec, *map, *A, *H, *G, *f, *lohi;
     Py_ssize_t nx, m, ng;
     double bound;
+    if (init_once(&self->tried, kw, "Kernel") < 0)
+        return -1;
     if (!PyArg_ParseTuple(args, "nndOOOOOOOOO", &nx, &m, &bound, &eq, &ga, &vec, &map, &A, &H, &G, &f, &lohi))
         return -1;
-    if (self->eq_rows != NULL) {
-        PyErr_SetString(PyExc_RuntimeError, "a kernel is set up once");
+    if (nx < 0 || m < 0) {
+        PyErr_SetString(PyExc_ValueError, "negative QP size");
         return -1;
     }
     self->nx = nx;
@@ -196,6 +231,7 @@ static int Kernel_init(Kernel *self, PyObject *args, PyObject *kw) {
     self->have_f = 1;
     if (get_buffer(lohi, &self->lohi, "d", 2 * nb, "lohi", 1) < 0) return -1;
     self->have_lohi = 1;
+    self->ready = 1;
     return 0;
 bad_index:
     PyErr_SetString(PyExc_ValueError, "an index of eq_rows or gather is out of range");
@@ -215,6 +251,8 @@ static PyObject *Kernel_fill(Kernel *self, PyObject *const *args, Py_ssize_t nar
         PyErr_SetString(PyExc_TypeError, "fill(q, l, u)");
         return NULL;
     }
+    if (require_ready(self->ready, "kernel") < 0)
+        return NULL;
     Py_buffer q, l, u;
     const Py_ssize_t nx = self->nx, m = self->m, neq = self->neq, nf = self->nf, nb = self->nb;
     if (get_buffer(args[0], &q, "d", nx, "q", 0) < 0) return NULL;
@@ -271,6 +309,8 @@ static PyObject *Kernel_check(Kernel *self, PyObject *const *args, Py_ssize_t na
         PyErr_SetString(PyExc_TypeError, "check(z, lam, x)");
         return NULL;
     }
+    if (require_ready(self->ready, "kernel") < 0)
+        return NULL;
     const Py_ssize_t nx = self->nx, neq = self->neq, nf = self->nf, nb = self->nb;
     Py_buffer zb, lb, xb;
     int have_lam = args[1] != Py_None;
@@ -356,15 +396,16 @@ typedef struct {
     Py_ssize_t i_v0, i_d0, dyn_v, v_lim, j_up, j_dn, d_hard, d_soft, i_r0, dyn_r, safe, q_v0, q_ft, iv_n;
     int follow, convex, lin_v2, lin_f2, track_v;
     double c_r, c_grade, c_const, big, dft, kn, lu, dt, d_min, pa10, pa01, pa11, two_pa20, two_pa02, two_z1, two_zv;
-    Py_buffer q, l, u, v_lin, fb_lin, v_ref;   /* the MPC's vectors and its kept linearisation point and v_ref */
-    int bound;
+    Py_buffer buf[6];   /* q, l, u, and the MPC's kept linearisation point v_lin, fb_lin and v_ref */
+    int held;           /* how many of buf are held */
+    int tried, ready;
 } Stepper;
 
+enum { SQ, SL, SU, SVLIN, SFBLIN, SVREF };
+
 static void Stepper_dealloc(Stepper *self) {
-    if (self->bound) {
-        PyBuffer_Release(&self->q); PyBuffer_Release(&self->l); PyBuffer_Release(&self->u);
-        PyBuffer_Release(&self->v_lin); PyBuffer_Release(&self->fb_lin); PyBuffer_Release(&self->v_ref);
-    }
+    for (int i = 0; i < self->held; i++)
+        PyBuffer_Release(&self->buf[i]);
     Py_TYPE(self)->tp_free((PyObject *)self);
 }
 
@@ -373,12 +414,11 @@ static void Stepper_dealloc(Stepper *self) {
  * (follow, convex, lin_v2, lin_f2, track_v), constants a tuple of 16 floats (c_r, c_grade, c_const, big, dFt,
  * kn, lu, dt, d_min, pa10, pa01, pa11, 2 pa20, 2 pa02, 2 zeta1, 2 zeta_v) */
 static int Stepper_init(Stepper *self, PyObject *args, PyObject *kw) {
-    PyObject *q, *l, *u, *vl, *fl, *vr, *pos, *flags, *cst;
-    if (self->bound) {
-        PyErr_SetString(PyExc_RuntimeError, "a stepper is set up once");
+    PyObject *vec[6], *pos, *flags, *cst;
+    if (init_once(&self->tried, kw, "Stepper") < 0)
         return -1;
-    }
-    if (!PyArg_ParseTuple(args, "OOOOOOOOO", &q, &l, &u, &vl, &fl, &vr, &pos, &flags, &cst))
+    if (!PyArg_ParseTuple(args, "OOOOOOO!O!O!", &vec[0], &vec[1], &vec[2], &vec[3], &vec[4], &vec[5],
+                          &PyTuple_Type, &pos, &PyTuple_Type, &flags, &PyTuple_Type, &cst))
         return -1;
     Py_ssize_t *p[] = {&self->i_v0, &self->i_d0, &self->dyn_v, &self->v_lim, &self->j_up, &self->j_dn,
                        &self->d_hard, &self->d_soft, &self->i_r0, &self->dyn_r, &self->safe, &self->q_v0,
@@ -393,17 +433,16 @@ static int Stepper_init(Stepper *self, PyObject *args, PyObject *kw) {
                           &self->dft, &self->kn, &self->lu, &self->dt, &self->d_min, &self->pa10, &self->pa01,
                           &self->pa11, &self->two_pa20, &self->two_pa02, &self->two_z1, &self->two_zv))
         return -1;
-    if (get_buffer(vl, &self->v_lin, "d", -1, "v_lin", 1) < 0) return -1;
-    self->n = self->v_lin.len / 8;
-    Py_ssize_t n = self->n;
-    if (get_buffer(fl, &self->fb_lin, "d", n, "fb_lin", 1) < 0) { PyBuffer_Release(&self->v_lin); return -1; }
-    if (get_buffer(vr, &self->v_ref, "d", n, "v_ref", 1) < 0) goto e2;
-    if (get_buffer(q, &self->q, "d", -1, "q", 1) < 0) goto e3;
-    if (get_buffer(l, &self->l, "d", -1, "l", 1) < 0) goto e4;
-    if (get_buffer(u, &self->u, "d", self->l.len / 8, "u", 1) < 0) goto e5;
-    self->bound = 1;
+    static const char *names[] = {"q", "l", "u", "v_lin", "fb_lin", "v_ref"};
+    for (int i = 0; i < 6; i++) {
+        /* u as long as l; fb_lin and v_ref as long as v_lin (which sets N) */
+        Py_ssize_t n = i == SU ? self->buf[SL].len / 8 : (i > SVLIN ? self->buf[SVLIN].len / 8 : -1);
+        if (get_buffer(vec[i], &self->buf[i], "d", n, names[i], 1) < 0)
+            return -1;
+        self->held = i + 1;
+    }
+    const Py_ssize_t n = self->n = self->buf[SVLIN].len / 8, nq = self->buf[SQ].len / 8, m = self->buf[SL].len / 8;
     /* every block inside its vector */
-    Py_ssize_t nq = self->q.len / 8, m = self->l.len / 8;
     Py_ssize_t rows[][2] = {{self->i_v0, 1}, {self->i_d0, 1}, {self->dyn_v, n}, {self->v_lim, n}, {self->j_up, 1},
                             {self->j_dn, 1}, {self->d_hard, n}, {self->d_soft, n}};
     for (size_t i = 0; i < sizeof(rows) / sizeof(rows[0]); i++)
@@ -414,15 +453,21 @@ static int Stepper_init(Stepper *self, PyObject *args, PyObject *kw) {
     if (self->q_v0 < 0 || self->q_v0 + n + 1 > nq || self->q_ft < 0 || self->q_ft + n > nq
         || self->iv_n != self->q_v0 + n)
         goto bad;
+    self->ready = 1;
     return 0;
 bad:
     PyErr_SetString(PyExc_ValueError, "a block of the stepper lies outside q, l or u");
     return -1;
-e5: PyBuffer_Release(&self->l);
-e4: PyBuffer_Release(&self->q);
-e3: PyBuffer_Release(&self->v_ref);
-e2: PyBuffer_Release(&self->fb_lin); PyBuffer_Release(&self->v_lin);
-    return -1;
+}
+
+/* a number as a double (None and non-numbers: TypeError) */
+static int as_double(PyObject *obj, const char *name, double *out) {
+    if (obj == Py_None) {
+        PyErr_Format(PyExc_TypeError, "%s: a number, not None", name);
+        return -1;
+    }
+    *out = PyFloat_AsDouble(obj);
+    return (*out == -1.0 && PyErr_Occurred()) ? -1 : 0;
 }
 
 /* an optional argument: NULL for None, else its buffer of n float64 */
@@ -447,15 +492,24 @@ static PyObject *Stepper_set(Stepper *self, PyObject *const *args, Py_ssize_t na
                                          "d_rel0, v_p, v_lin, ft_lin, safe_margin)");
         return NULL;
     }
+    if (require_ready(self->ready, "stepper") < 0)
+        return NULL;
     const Py_ssize_t n = self->n;
-    double v0 = PyFloat_AsDouble(args[0]), d_its0 = PyFloat_AsDouble(args[5]), d_s_its = PyFloat_AsDouble(args[7]);
-    double d_rel0 = PyFloat_AsDouble(args[9]), v_p = PyFloat_AsDouble(args[10]);
-    double ft_prev = args[8] == Py_None ? 0.0 : PyFloat_AsDouble(args[8]);
-    double margin = 0.0;
-    int margin_array = !PyFloat_Check(args[13]) && !PyLong_Check(args[13]);   /* a scalar or N values */
-    if (!margin_array)
-        margin = PyFloat_AsDouble(args[13]);
-    if (PyErr_Occurred())
+    double v0, d_its0, d_s_its, d_rel0, v_p, ft_prev = 0.0, margin = 0.0;
+    if (as_double(args[0], "v0", &v0) < 0 || as_double(args[5], "d_its0", &d_its0) < 0
+        || as_double(args[7], "d_s_its", &d_s_its) < 0 || as_double(args[9], "d_rel0", &d_rel0) < 0
+        || as_double(args[10], "v_p", &v_p) < 0 || (args[8] != Py_None && as_double(args[8], "ft_prev", &ft_prev) < 0))
+        return NULL;
+    /* safe_margin: a number, or N values (an array of one dimension) */
+    int margin_array = 0;
+    if (!PyFloat_Check(args[13]) && !PyLong_Check(args[13]) && PyObject_CheckBuffer(args[13])) {
+        Py_buffer probe;
+        if (PyObject_GetBuffer(args[13], &probe, PyBUF_ND) < 0)
+            return NULL;
+        margin_array = probe.ndim > 0;
+        PyBuffer_Release(&probe);
+    }
+    if (!margin_array && as_double(args[13], "safe_margin", &margin) < 0)
         return NULL;
     Py_buffer b[8];
     const double *v_lo, *v_hi, *grade, *v_ref, *d_hard, *v_lin, *ft_lin, *mg = NULL;
@@ -473,7 +527,7 @@ static PyObject *Stepper_set(Stepper *self, PyObject *const *args, Py_ssize_t na
         PyErr_SetString(PyExc_TypeError, "v_lo, v_hi, grade (and v_ref without a leader) are arrays");
         goto done;
     }
-    double *q = self->q.buf, *l = self->l.buf, *u = self->u.buf, big = self->big;
+    double *q = self->buf[SQ].buf, *l = self->buf[SL].buf, *u = self->buf[SU].buf, big = self->big;
     l[self->i_v0] = u[self->i_v0] = v0;
     l[self->i_d0] = u[self->i_d0] = d_its0 / self->lu;
     /* eq. (3a) right-hand side: c = c_const - c_grade (c_r cos(theta) + sin(theta)) */
@@ -505,7 +559,7 @@ static PyObject *Stepper_set(Stepper *self, PyObject *const *args, Py_ssize_t na
         }
     }
     /* the linear cost: power (eq. 5) on k = 0..N-1, tracking on v_1..v_N */
-    double *qv0 = q + self->q_v0, *qft = q + self->q_ft, *vb = self->v_lin.buf, *fb = self->fb_lin.buf;
+    double *qv0 = q + self->q_v0, *qft = q + self->q_ft, *vb = self->buf[SVLIN].buf, *fb = self->buf[SFBLIN].buf;
     if (self->convex) {
         for (Py_ssize_t k = 0; k < n; k++) {
             qv0[k] = self->pa10;
@@ -523,7 +577,7 @@ static PyObject *Stepper_set(Stepper *self, PyObject *const *args, Py_ssize_t na
         }
     }
     q[self->iv_n] = 0.0;
-    double *qv1 = qv0 + 1, *vr = self->v_ref.buf;
+    double *qv1 = qv0 + 1, *vr = self->buf[SVREF].buf;
     if (!self->follow) {
         for (Py_ssize_t k = 0; k < n; k++) {
             qv1[k] = qv1[k] - v_ref[k] * self->two_z1;   /* zeta1 (v_{k+1} - v_ref,k)^2, eq. (9a) */
@@ -564,7 +618,7 @@ static PyTypeObject StepperType = {
 static struct PyModuleDef module = {
     PyModuleDef_HEAD_INIT, "_qpkernel",
     "Compiled per-step work of the MPCs: Stepper (pedas.mpc.SparseMpc.set_step) and Kernel (fill and check of "
-    "pedas.qp.DaqpCondensedBackend).", -1, NULL,
+    "pedas.qp.DaqpCondensedBackend).", -1, NULL, NULL, NULL, NULL, NULL,
 };
 
 PyMODINIT_FUNC PyInit__qpkernel(void) {

@@ -332,8 +332,9 @@ class SparseMpc:
         ``d_min + margin`` (7a); the linear cost, power eq. (5) with ``a11 v F ~ a11 (vbar F + Fbar v - vbar Fbar)``
         at the kept linearisation point and tracking eq. (9a) / speed matching (10a). One compiled call
         (:mod:`pedas._qpkernel`, ``Stepper``): the numbers numpy's elementwise operations gave,
-        bit for bit (tests/pedas/test_qp_kernel.py keeps that formulation as the reference). Arrays are float64
-        with N entries; another shape or type is a ValueError."""
+        bit for bit (tests/pedas/test_qp_kernel.py keeps that formulation as the reference). Arrays are contiguous
+        float64 with N entries, numbers are numbers: another length or dtype is a ValueError, None or a non-number a
+        TypeError (arguments the MPC does not use are checked as well)."""
         self._stepper.set(v0, v_lo, v_hi, grade, v_ref, d_its0, d_hard_lo, d_s_its, ft_prev, d_rel0, v_p, v_lin,
                           ft_lin, safe_margin)
         self._v_p = v_p

@@ -309,8 +309,9 @@ class _DaqpBase:
     After any failed solve the working set is cleared and the solve is repeated once from a cold start (a stale
     working set can make the active-set method fail on a feasible problem); a second failure is reported as such.
     Non-finite data are refused before DAQP sees them (working set untouched). A solution DAQP calls optimal passes
-    the residual check and the KKT check (:class:`_Kkt` on DAQP's own QP in z with DAQP's lambda: ``H``, the
-    constraint rows ``[I; A_general]`` and the clipped bounds, ``+-bound`` counting as no bound).
+    the residual check and the KKT check (:class:`_Kkt`, or the condensed backend's compiled equivalent, on DAQP's
+    own QP in z with DAQP's lambda: ``H``, the constraint rows ``[I; A_general]`` and the clipped bounds, ``+-bound``
+    counting as no bound).
     """
 
     name = "daqp"

@@ -216,3 +216,41 @@ def test_set_step_refuses_arrays_of_another_shape_or_type():
         mpc.set_step(**{**ok, "v_ref": None})
     with pytest.raises(TypeError):
         mpc.set_step(**{**ok, "v0": "fast"})
+
+
+def test_half_set_up_or_misused_objects_raise_instead_of_crashing():
+    """An object whose __init__ never ran or failed refuses every call; a second __init__ is refused; a negative
+    size, a keyword argument or a non-tuple where a tuple belongs is an error; safe_margin None is a TypeError and a
+    0-d or float32 margin is a number."""
+    from pedas._qpkernel import Kernel, Stepper
+
+    for obj, call in ((Kernel.__new__(Kernel), lambda k: k.fill(np.zeros(1), np.zeros(1), np.zeros(1))),
+                      (Kernel.__new__(Kernel), lambda k: k.check(np.zeros(1), None, np.zeros(1))),
+                      (Stepper.__new__(Stepper), lambda s: s.set(*([0.0] * 14)))):
+        with pytest.raises(RuntimeError, match="not set up"):
+            call(obj)
+    mpc = CarFollowingMpc(MODEL, backend="daqp")
+    with pytest.raises(RuntimeError, match="set up once"):
+        mpc._stepper.__init__(mpc.q, mpc.l, mpc.u, mpc._v_lin, mpc._fb_lin, mpc._v_ref, (), (), ())
+    with pytest.raises(RuntimeError, match="set up once"):
+        mpc.qp.kernel.__init__()
+    e = np.zeros(0, dtype=np.int64)
+    csr = (np.zeros(1, dtype=np.int64), e, np.zeros(0), 0, 0)
+    bad = Kernel.__new__(Kernel)
+    with pytest.raises(ValueError, match="negative"):
+        bad.__init__(-1, 0, 1.0, e, e, csr, csr, csr, csr, csr, np.zeros(0), np.zeros(0))
+    with pytest.raises(RuntimeError, match="not set up"):          # a failed __init__ leaves it unusable
+        bad.fill(np.zeros(0), np.zeros(0), np.zeros(0))
+    with pytest.raises(TypeError, match="a tuple"):
+        Kernel(0, 0, 1.0, e, e, [0], csr, csr, csr, csr, np.zeros(0), np.zeros(0))
+    with pytest.raises(TypeError, match="keyword"):
+        Kernel(nx=0)
+    N = mpc.n
+    args = dict(v0=10.0, d_rel0=40.0, v_p=9.0, v_lo=np.zeros(N), v_hi=np.full(N, 30.0), grade=np.zeros(N))
+    with pytest.raises(TypeError, match="safe_margin"):
+        mpc.plan(**args, safe_margin=None)
+    q = {}
+    for margin in (0.5, np.float32(0.5), np.array(0.5), np.full(N, 0.5)):
+        assert mpc.plan(**args, safe_margin=margin).ok
+        q.setdefault("l", mpc.l.copy())
+        assert mpc.l.tobytes() == q["l"].tobytes()
