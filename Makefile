@@ -22,7 +22,7 @@ LOCK_ARGS ?=
 # writes them; where uv cannot install (no index it can reach), pip installs the same hashed lock
 UV_INSTALL = $(BIN)/uv pip install -q --python $(BIN)/python --compile-bytecode
 
-$(STAMP): pyproject.toml $(LOCK) pedas/_qpkernel.c
+$(STAMP): pyproject.toml $(LOCK) pedas/_qpkernel.c pedas/_daqp_abi.h
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -q uv==$(UV_VERSION)
 	$(UV_INSTALL) --require-hashes -r $(LOCK) || $(BIN)/python -m pip install -q --require-hashes -r $(LOCK)

@@ -23,10 +23,15 @@
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
+#include <structmember.h>
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#include <dlfcn.h>
+#include <time.h>
+
+#include "_daqp_abi.h"
 
 typedef struct {      /* a CSR matrix, copied in at construction */
     Py_ssize_t rows, cols;
@@ -46,6 +51,19 @@ typedef struct {
     Py_buffer f, lohi;               /* DAQP's f and [lower | upper] bounds: numpy arrays DAQP reads */
     int have_f, have_lohi;
     int tried, ready;                /* __init__ ran once; it succeeded (fill and check need it) */
+    /* DAQP called directly (open_daqp): its functions in the loaded daqp module, the workspace, the problem it
+     * points to (H, A and sense owned here; f and the bounds are the buffers above), the solution buffers */
+    void *dl;
+    void (*daqp_solve)(DAQPResult *, DAQPWorkspace *);
+    int (*daqp_update_ldp)(int, DAQPWorkspace *, DAQPProblem *);
+    void (*free_daqp_workspace)(DAQPWorkspace *);
+    void (*free_daqp_ldp)(DAQPWorkspace *);
+    DAQPWorkspace *work;
+    DAQPProblem qp;
+    double *qp_H, *qp_A, *z, *lam;
+    int *sense;
+    int daqp_ready;                  /* open_daqp succeeded (solve needs it) */
+    double solver_seconds;           /* wall time of the last solve's DAQP calls (update + solve) */
 } Kernel;
 
 /* no keyword arguments, one __init__ */
@@ -84,10 +102,9 @@ static void csr_product(const Csr *c, const double *x, double *y) {
     }
 }
 
-/* a C-contiguous buffer of n items of the given struct format ('d' or 'q'/'l' for int64), or an error */
-static int get_buffer(PyObject *obj, Py_buffer *view, const char *fmt, Py_ssize_t n, const char *name, int writable) {
-    if (PyObject_GetBuffer(obj, view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0)) < 0)
-        return -1;
+/* a held C-contiguous view is n items of the given struct format ('d' or 'q'/'l' for int64), or an error (the view
+ * released) */
+static int check_view(Py_buffer *view, const char *fmt, Py_ssize_t n, const char *name) {
     const char *f = view->format ? view->format : "B";
     if (*f == '<' || *f == '=' || *f == '@') f++;
     int ok;
@@ -105,6 +122,13 @@ static int get_buffer(PyObject *obj, Py_buffer *view, const char *fmt, Py_ssize_
         return -1;
     }
     return 0;
+}
+
+/* a C-contiguous buffer of n items of the given struct format (check_view), or an error */
+static int get_buffer(PyObject *obj, Py_buffer *view, const char *fmt, Py_ssize_t n, const char *name, int writable) {
+    if (PyObject_GetBuffer(obj, view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0)) < 0)
+        return -1;
+    return check_view(view, fmt, n, name);
 }
 
 /* a copy of a 1-d array (n items, or any length if n < 0; the length into *len) */
@@ -169,6 +193,17 @@ static void Kernel_dealloc(Kernel *self) {
     free(self->src);
     free(self->ax);
     free(self->r);
+    if (self->work != NULL) {   /* as daqp.Model's __dealloc__ */
+        self->free_daqp_workspace(self->work);
+        self->free_daqp_ldp(self->work);
+        free(self->work);
+    }
+    free(self->qp_H);
+    free(self->qp_A);
+    free(self->z);
+    free(self->lam);
+    free(self->sense);
+    if (self->dl != NULL) dlclose(self->dl);
     if (self->have_f) PyBuffer_Release(&self->f);
     if (self->have_lohi) PyBuffer_Release(&self->lohi);
     Py_TYPE(self)->tp_free((PyObject *)self);
@@ -304,6 +339,51 @@ static double violation(Kernel *self, const double *x) {
     return nan ? NAN : worst;
 }
 
+/* x = E b_eq + Z z (into x), its violation of l <= A x <= u and, with lam, the KKT measures of DAQP's (z, lam) on
+ * its QP in z (stationarity, duality gap; NaN without lam) */
+static void check_into(Kernel *self, const double *z, const double *lam, double *x, double out[3]) {
+    const Py_ssize_t nx = self->nx, neq = self->neq, nf = self->nf, nb = self->nb;
+    double *in = self->in, *mo = self->map_out;
+    /* x = E b_eq + Z z: the product over [b_eq | z], then one addition */
+    memcpy(in + nx + neq, z, sizeof(double) * (size_t)nf);
+    csr_product(&self->map, in + nx, mo);
+    for (Py_ssize_t i = 0; i < nx; i++)
+        x[i] = mo[i] + mo[nx + i];
+    out[0] = violation(self, x);
+    out[1] = out[2] = NAN;
+    if (lam == NULL)
+        return;
+    const double *f = self->f.buf, *lo = self->lohi.buf, *hi = lo + nb;
+    double *r = self->r, zhz = 0.0, fz = 0.0, lamb = 0.0, rmax = 0.0, fmax = 1.0;
+    int nan = 0;
+    /* r = Hz (zhz = z'Hz along), then + G'lam_general + f + lam_simple */
+    for (Py_ssize_t i = 0; i < nf; i++) {
+        double s = 0.0;
+        for (int64_t k = self->H.indptr[i]; k < self->H.indptr[i + 1]; k++)
+            s += self->H.data[k] * z[self->H.indices[k]];
+        r[i] = s;
+        zhz += z[i] * s;
+        fz += f[i] * z[i];
+    }
+    for (Py_ssize_t g = 0; g < self->G.rows; g++) {
+        double lg = lam[nf + g];
+        for (int64_t k = self->G.indptr[g]; k < self->G.indptr[g + 1]; k++)
+            r[self->G.indices[k]] += self->G.data[k] * lg;
+    }
+    for (Py_ssize_t i = 0; i < nf; i++) {
+        double a = fabs(r[i] + f[i] + lam[i]);
+        nan |= isnan(a);
+        if (a > rmax) rmax = a;
+        if (fabs(f[i]) > fmax) fmax = fabs(f[i]);
+    }
+    /* each multiplier times the bound it pushes against: lam > 0 the upper, else the lower */
+    for (Py_ssize_t i = 0; i < nb; i++)
+        lamb += lam[i] * (lam[i] > 0.0 ? hi[i] : lo[i]);
+    out[1] = nan ? NAN : rmax / fmax;
+    double obj = fabs(0.5 * zhz + fz);
+    out[2] = fabs(zhz + fz + lamb) / (obj > 1.0 ? obj : 1.0);
+}
+
 static PyObject *Kernel_check(Kernel *self, PyObject *const *args, Py_ssize_t nargs) {
     if (nargs != 3) {
         PyErr_SetString(PyExc_TypeError, "check(z, lam, x)");
@@ -311,68 +391,160 @@ static PyObject *Kernel_check(Kernel *self, PyObject *const *args, Py_ssize_t na
     }
     if (require_ready(self->ready, "kernel") < 0)
         return NULL;
-    const Py_ssize_t nx = self->nx, neq = self->neq, nf = self->nf, nb = self->nb;
     Py_buffer zb, lb, xb;
     int have_lam = args[1] != Py_None;
-    if (get_buffer(args[0], &zb, "d", nf, "z", 0) < 0) return NULL;
-    if (have_lam && get_buffer(args[1], &lb, "d", nb, "lam", 0) < 0) { PyBuffer_Release(&zb); return NULL; }
-    if (get_buffer(args[2], &xb, "d", nx, "x", 1) < 0) {
+    if (get_buffer(args[0], &zb, "d", self->nf, "z", 0) < 0) return NULL;
+    if (have_lam && get_buffer(args[1], &lb, "d", self->nb, "lam", 0) < 0) { PyBuffer_Release(&zb); return NULL; }
+    if (get_buffer(args[2], &xb, "d", self->nx, "x", 1) < 0) {
         PyBuffer_Release(&zb);
         if (have_lam) PyBuffer_Release(&lb);
         return NULL;
     }
-    const double *z = zb.buf;
-    double *x = xb.buf, *in = self->in, *mo = self->map_out;
-    /* x = E b_eq + Z z: the product over [b_eq | z], then one addition */
-    memcpy(in + nx + neq, z, sizeof(double) * (size_t)nf);
-    csr_product(&self->map, in + nx, mo);
-    for (Py_ssize_t i = 0; i < nx; i++)
-        x[i] = mo[i] + mo[nx + i];
-    double viol = violation(self, x), stat = NAN, gap = NAN;
-    if (have_lam) {
-        const double *lam = lb.buf, *f = self->f.buf, *lo = self->lohi.buf, *hi = lo + nb;
-        double *r = self->r, zhz = 0.0, fz = 0.0, lamb = 0.0, rmax = 0.0, fmax = 1.0;
-        int nan = 0;
-        /* r = Hz (zhz = z'Hz along), then + G'lam_general + f + lam_simple */
-        for (Py_ssize_t i = 0; i < nf; i++) {
-            double s = 0.0;
-            for (int64_t k = self->H.indptr[i]; k < self->H.indptr[i + 1]; k++)
-                s += self->H.data[k] * z[self->H.indices[k]];
-            r[i] = s;
-            zhz += z[i] * s;
-            fz += f[i] * z[i];
-        }
-        for (Py_ssize_t g = 0; g < self->G.rows; g++) {
-            double lg = lam[nf + g];
-            for (int64_t k = self->G.indptr[g]; k < self->G.indptr[g + 1]; k++)
-                r[self->G.indices[k]] += self->G.data[k] * lg;
-        }
-        for (Py_ssize_t i = 0; i < nf; i++) {
-            double a = fabs(r[i] + f[i] + lam[i]);
-            nan |= isnan(a);
-            if (a > rmax) rmax = a;
-            if (fabs(f[i]) > fmax) fmax = fabs(f[i]);
-        }
-        /* each multiplier times the bound it pushes against: lam > 0 the upper, else the lower */
-        for (Py_ssize_t i = 0; i < nb; i++)
-            lamb += lam[i] * (lam[i] > 0.0 ? hi[i] : lo[i]);
-        stat = nan ? NAN : rmax / fmax;
-        double obj = fabs(0.5 * zhz + fz);
-        gap = fabs(zhz + fz + lamb) / (obj > 1.0 ? obj : 1.0);
-        PyBuffer_Release(&lb);
-    }
+    double out[3];
+    check_into(self, zb.buf, have_lam ? lb.buf : NULL, xb.buf, out);
+    if (have_lam) PyBuffer_Release(&lb);
     PyBuffer_Release(&zb);
     PyBuffer_Release(&xb);
-    return Py_BuildValue("(ddd)", viol, stat, gap);
+    return Py_BuildValue("(ddd)", out[0], out[1], out[2]);
 }
 
+/* open_daqp(path, H, A, sense, primal_tol, iter_limit): DAQP set up on this kernel's QP as daqp.Model.setup does
+ * it (DAQP's default settings, then primal_tol, iter_limit and eps_prox = 0 written as the Model's settings setter
+ * writes them), calling the functions of the daqp module loaded from path. H (nf x nf) and A (the general rows,
+ * (nb - nf) x nf) C-ordered float64, sense nb int64; f and the bounds are the arrays fill writes. */
+static PyObject *Kernel_open_daqp(Kernel *self, PyObject *args) {
+    const char *path;
+    PyObject *Hobj, *Aobj, *sobj;
+    double primal_tol;
+    int iter_limit;
+    if (!PyArg_ParseTuple(args, "sOOOdi", &path, &Hobj, &Aobj, &sobj, &primal_tol, &iter_limit))
+        return NULL;
+    if (require_ready(self->ready, "kernel") < 0)
+        return NULL;
+    if (self->work != NULL || self->dl != NULL) {
+        PyErr_SetString(PyExc_RuntimeError, "DAQP is set up once");
+        return NULL;
+    }
+    const Py_ssize_t nf = self->nf, nb = self->nb;
+    Py_ssize_t ns;
+    int64_t *sense = NULL;
+    if (!(self->qp_H = copy_array(Hobj, "d", nf * nf, "H", NULL))) return NULL;
+    if (!(self->qp_A = copy_array(Aobj, "d", (nb - nf) * nf, "A", NULL))) return NULL;
+    if (!(sense = copy_array(sobj, "q", nb, "sense", &ns))) return NULL;
+    self->sense = malloc(sizeof(int) * (size_t)(nb > 0 ? nb : 1));
+    self->z = calloc((size_t)(nf > 0 ? nf : 1), sizeof(double));     /* daqp.Model's zero-filled x and lam */
+    self->lam = calloc((size_t)(nb > 0 ? nb : 1), sizeof(double));
+    if (!self->sense || !self->z || !self->lam) {
+        free(sense);
+        return PyErr_NoMemory();
+    }
+    for (Py_ssize_t i = 0; i < nb; i++)
+        self->sense[i] = (int)sense[i];
+    free(sense);
+    /* the module Python loaded (RTLD_NOLOAD: never a second copy) */
+    self->dl = dlopen(path, RTLD_NOW | RTLD_NOLOAD);
+    if (self->dl == NULL) {
+        PyErr_Format(PyExc_ImportError, "the daqp module %s is not loaded", path);
+        return NULL;
+    }
+    void (*allocate_daqp_settings)(DAQPWorkspace *) = (void (*)(DAQPWorkspace *))dlsym(self->dl,
+                                                                                       "allocate_daqp_settings");
+    int (*setup_daqp_main)(DAQPProblem *, DAQPWorkspace *, double *, int) =
+        (int (*)(DAQPProblem *, DAQPWorkspace *, double *, int))dlsym(self->dl, "setup_daqp_main");
+    self->daqp_solve = (void (*)(DAQPResult *, DAQPWorkspace *))dlsym(self->dl, "daqp_solve");
+    self->daqp_update_ldp = (int (*)(int, DAQPWorkspace *, DAQPProblem *))dlsym(self->dl, "daqp_update_ldp");
+    self->free_daqp_workspace = (void (*)(DAQPWorkspace *))dlsym(self->dl, "free_daqp_workspace");
+    self->free_daqp_ldp = (void (*)(DAQPWorkspace *))dlsym(self->dl, "free_daqp_ldp");
+    if (!allocate_daqp_settings || !setup_daqp_main || !self->daqp_solve || !self->daqp_update_ldp
+        || !self->free_daqp_workspace || !self->free_daqp_ldp) {
+        PyErr_Format(PyExc_ImportError, "the daqp module %s does not export DAQP's C functions", path);
+        return NULL;
+    }
+    self->qp = (DAQPProblem){(int)nf, (int)nb, (int)nf, self->qp_H, self->f.buf, self->qp_A,
+                             (double *)self->lohi.buf + nb, self->lohi.buf, self->sense, NULL, 0, 0};
+    DAQPWorkspace *work = calloc(1, sizeof(DAQPWorkspace));
+    if (work == NULL)
+        return PyErr_NoMemory();
+    allocate_daqp_settings(work);
+    double setup_time = 0.0;
+    int flag = setup_daqp_main(&self->qp, work, &setup_time, 0);
+    if (flag < 0) {   /* setup freed the workspace's arrays, not the settings it did not allocate */
+        free(work->settings);
+        free(work);
+        PyErr_Format(PyExc_ValueError, "DAQP's setup failed (exit %d)", flag);
+        return NULL;
+    }
+    self->work = work;   /* freed by DAQP's own functions in any case */
+    /* the layout check: the sizes and DAQP's defaults must be where this layout has them */
+    DAQPSettings *s = work->settings;
+    if (work->n != nf || work->m != nb || work->ms != nf || work->qp != &self->qp || s == NULL
+        || s->primal_tol != DAQP_DEFAULT_PRIM_TOL || s->iter_limit != DAQP_DEFAULT_ITER_LIMIT
+        || s->eps_prox != DAQP_DEFAULT_EPS_PROX) {
+        PyErr_SetString(PyExc_RuntimeError, "DAQP's workspace does not have the layout this kernel was built for");
+        return NULL;
+    }
+    s->primal_tol = primal_tol;
+    s->iter_limit = iter_limit;
+    s->eps_prox = 0.0;
+    self->daqp_ready = 1;
+    Py_RETURN_NONE;
+}
+
+static double seconds(void) {
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+/* solve(cold, x) -> (flag, iterations, solve_time, violation, stationarity, gap): DAQP's update (f and the bounds
+ * fill wrote; the constraint senses too when cold, which clears the working set) and solve, as daqp.Model's update
+ * and solve call them; for an optimal exit (1, 2: pedas.qp._DAQP_STATUS) x and the check as check() computes them,
+ * else x untouched and NaN measures. The update's own flag is not used, as by the Model before: a failed update
+ * shows in the solve's exit flag. */
+static PyObject *Kernel_solve(Kernel *self, PyObject *const *args, Py_ssize_t nargs) {
+    if (nargs != 2) {
+        PyErr_SetString(PyExc_TypeError, "solve(cold, x)");
+        return NULL;
+    }
+    if (!self->daqp_ready) {
+        PyErr_SetString(PyExc_RuntimeError, "DAQP is not set up (open_daqp)");
+        return NULL;
+    }
+    int cold = PyObject_IsTrue(args[0]);
+    if (cold < 0)
+        return NULL;
+    Py_buffer xb;
+    if (get_buffer(args[1], &xb, "d", self->nx, "x", 1) < 0)
+        return NULL;
+    DAQPResult res = {self->z, self->lam, 0.0, 0.0, 0, 0, 0, 0.0, 0.0};
+    double t0 = seconds();
+    self->daqp_update_ldp(DAQP_UPDATE_v | DAQP_UPDATE_d | (cold ? DAQP_UPDATE_sense : 0), self->work, &self->qp);
+    self->daqp_solve(&res, self->work);
+    self->solver_seconds = seconds() - t0;
+    double out[3] = {NAN, NAN, NAN};
+    if (res.exitflag == 1 || res.exitflag == 2)
+        check_into(self, self->z, self->lam, xb.buf, out);
+    PyBuffer_Release(&xb);
+    return Py_BuildValue("(iidddd)", res.exitflag, res.iter, res.solve_time, out[0], out[1], out[2]);
+}
 
 static PyMethodDef Kernel_methods[] = {
     {"fill", (PyCFunction)(void (*)(void))Kernel_fill, METH_FASTCALL,
      "fill(q, l, u) -> bool: the data check, then f and DAQP's bounds (False: q, l or u not finite, nothing written)"},
     {"check", (PyCFunction)(void (*)(void))Kernel_check, METH_FASTCALL,
      "check(z, lam, x) -> (violation, stationarity, gap): x = E b_eq + Z z written into x; lam None: NaN measures"},
+    {"open_daqp", (PyCFunction)Kernel_open_daqp, METH_VARARGS,
+     "open_daqp(path, H, A, sense, primal_tol, iter_limit): DAQP set up on this QP, its functions called directly"},
+    {"solve", (PyCFunction)(void (*)(void))Kernel_solve, METH_FASTCALL,
+     "solve(cold, x) -> (flag, iterations, solve_time, violation, stationarity, gap): DAQP's update and solve on "
+     "the vectors fill wrote, then the check of an optimal solution (x written)"},
     {NULL, NULL, 0, NULL},
+};
+
+static PyMemberDef Kernel_members[] = {
+    {"solver_seconds", T_DOUBLE, offsetof(Kernel, solver_seconds), READONLY,
+     "wall time (s) of the last solve's DAQP calls, update + solve"},
+    {NULL, 0, 0, 0, NULL},
 };
 
 static PyTypeObject KernelType = {
@@ -385,6 +557,7 @@ static PyTypeObject KernelType = {
     .tp_init = (initproc)Kernel_init,
     .tp_dealloc = (destructor)Kernel_dealloc,
     .tp_methods = Kernel_methods,
+    .tp_members = Kernel_members,
 };
 
 /* ---- Stepper: SparseMpc.set_step ------------------------------------------------------------------------------ */
@@ -500,21 +673,25 @@ static PyObject *Stepper_set(Stepper *self, PyObject *const *args, Py_ssize_t na
         || as_double(args[7], "d_s_its", &d_s_its) < 0 || as_double(args[9], "d_rel0", &d_rel0) < 0
         || as_double(args[10], "v_p", &v_p) < 0 || (args[8] != Py_None && as_double(args[8], "ft_prev", &ft_prev) < 0))
         return NULL;
-    /* safe_margin: a number, or N values (an array of one dimension) */
-    int margin_array = 0;
-    if (!PyFloat_Check(args[13]) && !PyLong_Check(args[13]) && PyObject_CheckBuffer(args[13])) {
-        Py_buffer probe;
-        if (PyObject_GetBuffer(args[13], &probe, PyBUF_ND) < 0)
-            return NULL;
-        margin_array = probe.ndim > 0;
-        PyBuffer_Release(&probe);
-    }
-    if (!margin_array && as_double(args[13], "safe_margin", &margin) < 0)
-        return NULL;
+    /* safe_margin: a number, or N values (an array of one dimension: its view is acquired once and kept) */
     Py_buffer b[8];
     const double *v_lo, *v_hi, *grade, *v_ref, *d_hard, *v_lin, *ft_lin, *mg = NULL;
     int held[8] = {0};
     PyObject *res = NULL;
+    if (!PyFloat_Check(args[13]) && !PyLong_Check(args[13]) && PyObject_CheckBuffer(args[13])) {
+        if (PyObject_GetBuffer(args[13], &b[7], PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0)
+            return NULL;
+        if (b[7].ndim == 0) {   /* a 0-d array is a number */
+            PyBuffer_Release(&b[7]);
+        } else {
+            if (check_view(&b[7], "d", n, "safe_margin") < 0)
+                return NULL;
+            held[7] = 1;
+            mg = b[7].buf;
+        }
+    }
+    if (mg == NULL && as_double(args[13], "safe_margin", &margin) < 0)
+        return NULL;
     if ((held[0] = opt_buffer(args[1], &b[0], n, "v_lo", &v_lo)) < 0) goto done;
     if ((held[1] = opt_buffer(args[2], &b[1], n, "v_hi", &v_hi)) < 0) goto done;
     if ((held[2] = opt_buffer(args[3], &b[2], n, "grade", &grade)) < 0) goto done;
@@ -522,7 +699,6 @@ static PyObject *Stepper_set(Stepper *self, PyObject *const *args, Py_ssize_t na
     if ((held[4] = opt_buffer(args[6], &b[4], n, "d_hard_lo", &d_hard)) < 0) goto done;
     if ((held[5] = opt_buffer(args[11], &b[5], n, "v_lin", &v_lin)) < 0) goto done;
     if ((held[6] = opt_buffer(args[12], &b[6], n, "ft_lin", &ft_lin)) < 0) goto done;
-    if (margin_array && (held[7] = opt_buffer(args[13], &b[7], n, "safe_margin", &mg)) < 0) goto done;
     if (!v_lo || !v_hi || !grade || (!self->follow && !v_ref)) {
         PyErr_SetString(PyExc_TypeError, "v_lo, v_hi, grade (and v_ref without a leader) are arrays");
         goto done;

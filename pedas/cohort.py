@@ -56,7 +56,7 @@ def code_version() -> str:
     pkg = Path(__file__).resolve().parent
     # every module, compiled kernel source and data file of the simulation core: a list of names would miss the next
     # new module
-    for p in sorted([*pkg.glob("*.py"), *pkg.glob("*.c"), *pkg.glob("*.json")]):
+    for p in sorted([*pkg.glob("*.py"), *pkg.glob("*.c"), *pkg.glob("*.h"), *pkg.glob("*.json")]):
         h.update(p.name.encode())
         h.update(p.read_bytes())
     # every network and traffic source of every scenario (not the built networks)

@@ -22,6 +22,7 @@ an OSQP whose iterate became non-finite is set up again (:meth:`OsqpBackend.rebu
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -45,6 +46,23 @@ KKT_GAP_TOL = {"osqp": 1e-2, "daqp": 1e-6}    # duality gap, relative to max(1, 
 # DAQP exit flags (https://darnstrom.github.io/daqp/parameters): 1 optimal; the rest are failures
 _DAQP_STATUS = {1: "solved", 2: "solved", -1: "primal infeasible", -2: "cycling", -3: "unbounded",
                 -4: "maximum iterations reached", -5: "nonconvex", -6: "overdetermined initial active set"}
+# DAQP releases whose C structures pedas/_daqp_abi.h declares: with one of them the condensed backend calls DAQP's C
+# functions directly (pedas/_qpkernel.c, Kernel.open_daqp / solve); with any other, DAQP's Python interface
+DAQP_DIRECT_VERSIONS = ("0.11.0",)
+
+
+@functools.cache
+def _daqp_direct_path() -> str | None:
+    """The file of the loaded daqp module if its release is one of :data:`DAQP_DIRECT_VERSIONS`, else None."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    import daqp
+
+    try:
+        release = version("daqp")
+    except PackageNotFoundError:   # pragma: no cover - daqp imported from outside an installed distribution
+        return None
+    return daqp.__file__ if release in DAQP_DIRECT_VERSIONS else None
 
 
 @dataclass(slots=True)
@@ -333,7 +351,6 @@ class _DaqpBase:
         perm[i]; the sentinel A.shape[0] for a variable without a simple bound)."""
         m = A.shape[0]
         self.bound = float(self.settings.bound)
-        self._bound_lo, self._bound_hi = np.array(-self.bound), np.array(self.bound)   # 0-d: cheap ufunc operands
         nnz = np.diff(A.indptr)
         single = (nnz == 1) & (A.data[np.minimum(A.indptr[:-1], A.data.size - 1)] == 1.0)
         # simple bound of variable j: the (only) single-variable row on it, else the sentinel row m (unbounded)
@@ -390,18 +407,25 @@ class _DaqpBase:
                 self.cold_start()
         return res
 
-    def _solve_checked(self, l: np.ndarray, u: np.ndarray) -> QpResult:
-        if self._cold:
+    def _run(self, cold: bool, l: np.ndarray, u: np.ndarray) -> tuple:
+        """DAQP's update (f and the bounds ``_prepare`` wrote; the constraint senses as well when `cold`) and solve,
+        then, for an optimal exit, ``_check``: (exit flag, iterations, DAQP's solve time s, x, violation,
+        stationarity, gap); x None and NaN measures for any other exit."""
+        if cold:
             self.model.update(f=self._f, bupper=self._hi, blower=self._lo, sense=self._sense0)
-            self._cold = False
         else:
             self.model.update(f=self._f, bupper=self._hi, blower=self._lo)
         z, _, flag, info = self.model.solve()
-        iters, run_time = int(info["iterations"]), float(info["solve_time"])
-        status = _DAQP_STATUS.get(flag) or f"daqp exit {flag}"
-        x = None
-        if status == "solved":
+        x, violation, stat, gap = None, float("nan"), float("nan"), float("nan")
+        if _DAQP_STATUS.get(flag) == "solved":
             x, violation, stat, gap = self._check(z, info.get("lam"), l, u)
+        return flag, int(info["iterations"]), float(info["solve_time"]), x, violation, stat, gap
+
+    def _solve_checked(self, l: np.ndarray, u: np.ndarray) -> QpResult:
+        cold, self._cold = self._cold, False
+        flag, iters, run_time, x, violation, stat, gap = self._run(cold, l, u)
+        status = _DAQP_STATUS.get(flag) or f"daqp exit {flag}"
+        if status == "solved":
             status = _postcondition(status, x, violation, self.settings.residual_tol)
             if status == "solved":
                 status = _kkt_status(status, stat, gap, KKT_STAT_TOL["daqp"], KKT_GAP_TOL["daqp"])
@@ -432,6 +456,7 @@ class DaqpBackend(_DaqpBase):
         rho = float(settings.rho)
         Acsr = sp.csr_matrix(A)
         general, perm = self._bounds(Acsr, eq_rows, nx)
+        self._bound_lo, self._bound_hi = np.array(-self.bound), np.array(self.bound)   # 0-d: cheap ufunc operands
         m = Acsr.shape[0]
         self._gather = self._gather_index(perm, m)
         self._src = np.empty(2 * (m + 1))
@@ -530,7 +555,22 @@ class DaqpCondensedBackend(_DaqpBase):
         self._nx = nx
         if not self._prepare(np.zeros(nx), l, u):
             raise ValueError("the QP's initial bounds are not finite")
-        self._setup(self.H, self.G.toarray())
+        path = _daqp_direct_path()
+        self.direct = path is not None   # DAQP's C functions called by the kernel (else its Python interface)
+        if path is None:   # a DAQP build whose C layout the kernel does not know: its Python interface
+            self._setup(self.H, self.G.toarray())
+        else:   # DAQP's update, solve and the check in one call, without the Python interface (~25 us a step)
+            self.kernel.open_daqp(path, self.H, self.G.toarray(), self._sense0.astype(np.int64),
+                                  float(settings.primal_tol), int(settings.iter_limit))
+            self._run = self._run_direct
+            self._cold = False
+
+    def _run_direct(self, cold: bool, l: np.ndarray, u: np.ndarray) -> tuple:
+        """``_run`` as one kernel call: DAQP's own C update and solve, called as ``daqp.Model`` calls them (the same
+        exit flag, iterations, solution and multipliers), then the kernel's check."""
+        x = np.empty(self._nx)
+        flag, iters, run_time, violation, stat, gap = self.kernel.solve(cold, x)
+        return flag, iters, run_time, (x if _DAQP_STATUS.get(flag) == "solved" else None), violation, stat, gap
 
     def _check(self, z: np.ndarray, lam: np.ndarray | None, l: np.ndarray, u: np.ndarray
                ) -> tuple[np.ndarray, float, float, float]:

@@ -37,11 +37,15 @@ def test_power_map_is_indefinite_but_the_qp_hessian_is_psd(rt, cf):
         assert np.linalg.eigvalsh(full).min() >= -1e-9
 
 
-@pytest.mark.parametrize("backend", ["osqp", "daqp"])
+@pytest.mark.parametrize("backend", ["osqp", "daqp", "daqp-python"])
 def test_structure_built_once(monkeypatch, backend):
-    """Setup happens in the constructor only; solving many steps never re-runs it and P, A never change."""
+    """Setup happens in the constructor only; solving many steps never re-runs it and P, A never change. DAQP is set
+    up by the kernel (its C functions called directly), or through its Python interface where the kernel does not
+    know the release's layout ("daqp-python")."""
     import daqp
     import osqp
+
+    import pedas.qp as qp_module
 
     calls = []
     if backend == "osqp":
@@ -54,12 +58,20 @@ def test_structure_built_once(monkeypatch, backend):
                 return super().setup(*a, **k)
 
         monkeypatch.setattr(daqp, "Model", Counted)
-    mpc = ReferenceTrackingMpc(MODEL, backend=backend)
+        if backend == "daqp-python":
+            monkeypatch.setattr(qp_module, "_daqp_direct_path", lambda: None)
+    mpc = ReferenceTrackingMpc(MODEL, backend=backend.split("-")[0])
     P0, A0 = mpc.P.copy(), mpc.A.copy()
     for v0 in np.linspace(0, 25, 15):
         plan = mpc.plan(v0, np.full(N, 12.0), np.zeros(N), np.full(N, 30.0), np.zeros(N))
         assert plan.ok
-    assert len(calls) == 1
+    if backend == "daqp":   # the kernel's DAQP: no Model, and a second setup is refused
+        assert calls == [] and not hasattr(mpc.qp, "model")
+        with pytest.raises(RuntimeError, match="set up once"):
+            mpc.qp.kernel.open_daqp(daqp.__file__, mpc.qp.H, mpc.qp.G.toarray(), mpc.qp._sense0.astype(np.int64),
+                                    1e-6, 1000)
+    else:
+        assert len(calls) == 1
     assert (abs(mpc.P - P0)).nnz == 0 and (abs(mpc.A - A0)).nnz == 0
 
 

@@ -7,6 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+import pedas.qp as qp_module
 from pedas.mpc import KN, solve_qp_cvxpy, vehicle_model
 from pedas.mpc_rt import ReferenceTrackingMpc
 from pedas.params import CONTROLLER, OsqpSettings
@@ -146,7 +147,9 @@ def test_the_objective_is_eq_9a_of_the_plan():
 
 def test_an_unchecked_solution_never_reaches_the_plan(monkeypatch):
     """A solver that says 'solved' but returns NaN or a point outside l <= Ax <= u yields no plan (the controller's
-    fallback), and DAQP then restarts cold."""
+    fallback), and DAQP then restarts cold. (DAQP through its Python interface, where a lie can be told; the kernel's
+    direct path runs the same status logic on the same check.)"""
+    monkeypatch.setattr(qp_module, "_daqp_direct_path", lambda: None)
     m = vehicle_model()
     N = 20
     args = (8.0, np.full(N, 12.0), np.zeros(N), np.full(N, 30.0), np.zeros(N))

@@ -3,9 +3,13 @@ replaces: f, DAQP's bounds and x bit for bit (they reach the drive), the residua
 (they decide a verdict), and bad input refused."""
 from __future__ import annotations
 
+import daqp
 import numpy as np
 import pytest
+import scipy.sparse as sp
 
+import pedas.qp as qp_module
+from pedas._qpkernel import Kernel
 from pedas.mpc import BIG, vehicle_model
 from pedas.mpc_cf import CarFollowingMpc
 from pedas.mpc_rt import ReferenceTrackingMpc
@@ -58,9 +62,10 @@ def test_fill_and_map_are_the_numpy_bits(cls):
 
 
 @pytest.mark.parametrize("cls", [ReferenceTrackingMpc, CarFollowingMpc])
-def test_residual_and_kkt_match_the_numpy_checks(cls):
+def test_residual_and_kkt_match_the_numpy_checks(monkeypatch, cls):
     """On solved steps (DAQP's z and lam) and on perturbed ones, the kernel's violation, stationarity and gap are
     the numpy checks' up to rounding; NaN in z or lam gives NaN, lam None gives NaN measures."""
+    monkeypatch.setattr(qp_module, "_daqp_direct_path", lambda: None)   # DAQP's z and lam through its interface
     mpc = cls(MODEL, backend="daqp")
     qp = mpc.qp
     N = mpc.n
@@ -254,3 +259,91 @@ def test_half_set_up_or_misused_objects_raise_instead_of_crashing():
         assert mpc.plan(**args, safe_margin=margin).ok
         q.setdefault("l", mpc.l.copy())
         assert mpc.l.tobytes() == q["l"].tobytes()
+
+
+def _plans(cls, direct: bool, monkeypatch, steps: int = 120, seed: int = 11):
+    """A random sequence of plans of one MPC (DAQP condensed), DAQP called by the kernel (`direct`) or through its
+    Python interface: speeds, references, stop rows, bounds that cannot hold (infeasible: the cold retry), and cold
+    starts as a hand-over gives them."""
+    if not direct:
+        monkeypatch.setattr(qp_module, "_daqp_direct_path", lambda: None)
+    mpc = cls(MODEL, backend="daqp")
+    monkeypatch.undo()
+    assert hasattr(mpc.qp, "model") is not direct
+    N, rng = mpc.n, np.random.default_rng(seed)
+    v, ft_prev, out = 5.0, None, []
+    for i in range(steps):
+        v_lo = np.zeros(N)
+        v_hi = np.full(N, rng.uniform(8.0, 30.0))
+        if i % 17 == 5:
+            v_lo[:] = 40.0                       # above v_hi and out of reach: infeasible
+        kw = dict(ft_prev=ft_prev)
+        if rng.random() < 0.3:                   # a stop line ahead: hard d_ITS rows on a red tail
+            d_hard = np.where(np.arange(N) >= rng.integers(0, N), 0.0, -np.inf)
+            kw.update(d_its0=rng.uniform(5.0, 80.0), d_hard_lo=d_hard, d_s_its=2.0)
+        grade = rng.uniform(-0.04, 0.04, N)
+        if cls is ReferenceTrackingMpc:
+            plan = mpc.plan(v, np.full(N, rng.uniform(0.0, 25.0)), v_lo, v_hi, grade, **kw)
+        else:
+            plan = mpc.plan(v, rng.uniform(3.0, 90.0), rng.uniform(0.0, 25.0), v_lo, v_hi, grade,
+                            safe_margin=rng.uniform(-2.0, 2.0, N), **kw)
+        out.append((plan.status, plan.ok, plan.iterations, None if plan.x is None else plan.x.tobytes()))
+        ft_prev = float(plan.ft[0]) if plan.ok else None
+        v = max(0.0, float(plan.v[1]) + rng.normal(0.0, 0.3)) if plan.ok else rng.uniform(0.0, 20.0)
+        if rng.random() < 0.1:
+            mpc.qp.cold_start()
+    return out
+
+
+@pytest.mark.parametrize("cls", [ReferenceTrackingMpc, CarFollowingMpc])
+def test_direct_daqp_is_daqp_through_its_python_interface(monkeypatch, cls):
+    """DAQP's C functions called by the kernel give what DAQP's Python interface gives, bit for bit: every status,
+    iteration count and solution of a sequence with hot starts, cold starts and failed solves."""
+    direct, wrapped = _plans(cls, True, monkeypatch), _plans(cls, False, monkeypatch)
+    assert direct == wrapped
+    statuses = {s for s, *_ in direct}
+    assert "solved" in statuses and len(statuses) > 1   # the sequence exercised failures as well
+    assert sum(ok for _, ok, *_ in direct) > len(direct) // 2
+
+
+def test_the_kernel_checks_exactly_the_exits_pedas_calls_solved():
+    """The kernel runs its check for DAQP exits 1 and 2 (pedas/_qpkernel.c): the exits _DAQP_STATUS calls solved."""
+    assert {flag for flag, s in qp_module._DAQP_STATUS.items() if s == "solved"} == {1, 2}
+
+
+def test_direct_daqp_refuses_misuse():
+    """solve before open_daqp, a daqp module that is not loaded, and arrays of the wrong size are errors."""
+    mpc = ReferenceTrackingMpc(MODEL, backend="daqp")
+    N = mpc.n
+    assert mpc.plan(8.0, np.full(N, 12.0), np.zeros(N), np.full(N, 30.0), np.zeros(N)).ok   # q, l, u of a step
+    qp = mpc.qp
+    fresh = Kernel.__new__(Kernel)
+    with pytest.raises(RuntimeError, match="not set up"):
+        fresh.solve(False, np.empty(mpc.nx))
+    with pytest.raises(TypeError):
+        qp.kernel.solve(False)
+    with pytest.raises(ValueError, match="contiguous float64"):
+        qp.kernel.solve(False, np.empty(mpc.nx - 1))
+    H, G, sense = qp.H, qp.G.toarray(), qp._sense0.astype(np.int64)
+    csr = lambda c: (c.indptr.astype(np.int64), c.indices.astype(np.int64), c.data, *c.shape)  # noqa: E731
+
+    def kernel():
+        Acsr = sp.csr_matrix(mpc.A)
+        Acsr.sort_indices()
+        k = Kernel(mpc.nx, Acsr.shape[0], qp.bound, qp._eq_rows, qp._gather, csr(qp.vec), csr(qp.map), csr(Acsr),
+                   csr(sp.csr_matrix(H)), csr(qp.G), np.empty_like(qp._f), np.empty_like(qp._lohi))
+        assert k.fill(mpc.q, mpc.l, mpc.u)
+        return k
+
+    with pytest.raises(ImportError, match="not loaded"):
+        kernel().open_daqp("/nonexistent/daqp.so", H, G, sense, 1e-6, 1000)
+    with pytest.raises(ValueError, match="H"):
+        kernel().open_daqp(daqp.__file__, H[:-1], G, sense, 1e-6, 1000)
+    with pytest.raises(ValueError, match="sense"):
+        kernel().open_daqp(daqp.__file__, H, G, sense[:-1], 1e-6, 1000)
+    k = kernel()
+    k.open_daqp(daqp.__file__, H, G, sense, 1e-6, 1000)
+    x = np.empty(mpc.nx)
+    flag, iters, _, violation, stat, gap = k.solve(True, x)
+    assert flag == 1 and iters >= 0 and violation <= 1e-5 and stat <= 1e-6 and gap <= 1e-6
+    assert k.solver_seconds > 0.0
