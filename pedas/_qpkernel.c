@@ -11,6 +11,11 @@
  *                        when q, l or u is not finite.
  *   check(z, lam, x)     x = E b_eq + Z z (into x), the largest violation of l <= A x <= u, and the KKT measures
  *                        (stationarity, duality gap) of DAQP's (z, lam) on its QP in z. Returns the 3 floats.
+ *   open_daqp(...)       DAQP set up on this QP, its C functions called directly (pedas/_daqp_abi.h)
+ *   solve(cold, x)       DAQP's update and solve on what fill wrote, then check for an optimal exit.
+ *
+ * Horizon (pedas/controller.py, PedasController): the prediction stage (predict), the reference stage's vectors
+ *   (reference) and the green wave's look-ups (line_min, v_min), with numpy's interp and elementwise operations.
  *
  * The numbers that reach a drive (q, l, u, f, the bounds, x) are computed as scipy's CSR product kernel and numpy's
  * elementwise operations compute them (the same operations in the same order; cos and sin are the C library's,
@@ -655,9 +660,9 @@ static int opt_buffer(PyObject *obj, Py_buffer *view, Py_ssize_t n, const char *
     return 1;
 }
 
-/* numpy's maximum / minimum of two float64: a NaN propagates (b is never NaN here) */
-static inline double np_max(double a, double b) { return (isnan(a) || a >= b) ? a : b; }
-static inline double np_min(double a, double b) { return (isnan(a) || a <= b) ? a : b; }
+/* numpy's maximum / minimum of two float64: a NaN propagates, and of two equal values (0.0 and -0.0) the second */
+static inline double np_max(double a, double b) { return (isnan(a) || a > b) ? a : b; }
+static inline double np_min(double a, double b) { return (isnan(a) || a < b) ? a : b; }
 
 static PyObject *Stepper_set(Stepper *self, PyObject *const *args, Py_ssize_t nargs) {
     if (nargs != 14) {
@@ -791,14 +796,434 @@ static PyTypeObject StepperType = {
     .tp_methods = Stepper_methods,
 };
 
+/* ---- Horizon: PedasController._predict ------------------------------------------------------------------------ */
+
+/* numpy's binary_search_with_guess (numpy/_core/src/multiarray/compiled_base.c): the index j with
+ * arr[j] <= key < arr[j + 1], -1 below arr[0], len above arr[len - 1], len - 1 at it; the same guesses, so the same
+ * j on any sorted table, repeated values included */
+#define LIKELY_IN_CACHE_SIZE 8
+static Py_ssize_t search_with_guess(double key, const double *arr, Py_ssize_t len, Py_ssize_t guess) {
+    Py_ssize_t imin = 0, imax = len;
+    if (key > arr[len - 1])
+        return len;
+    else if (key < arr[0])
+        return -1;
+    if (len <= 4) {
+        Py_ssize_t i;
+        for (i = 1; i < len && key >= arr[i]; ++i)
+            ;
+        return i - 1;
+    }
+    if (guess > len - 3) guess = len - 3;
+    if (guess < 1) guess = 1;
+    if (key < arr[guess]) {
+        if (key < arr[guess - 1]) {
+            imax = guess - 1;
+            if (guess > LIKELY_IN_CACHE_SIZE && key >= arr[guess - LIKELY_IN_CACHE_SIZE])
+                imin = guess - LIKELY_IN_CACHE_SIZE;
+        } else {
+            return guess - 1;
+        }
+    } else {
+        if (key < arr[guess + 1]) {
+            return guess;
+        } else {
+            if (key < arr[guess + 2]) {
+                return guess + 1;
+            } else {
+                imin = guess + 2;
+                if (guess < len - LIKELY_IN_CACHE_SIZE - 1 && key < arr[guess + LIKELY_IN_CACHE_SIZE])
+                    imax = guess + LIKELY_IN_CACHE_SIZE;
+            }
+        }
+    }
+    while (imin < imax) {
+        const Py_ssize_t imid = imin + ((imax - imin) >> 1);
+        if (key >= arr[imid])
+            imin = imid + 1;
+        else
+            imax = imid;
+    }
+    return imin - 1;
+}
+
+/* numpy's interp(x, xp, fp) with the default left and right (fp[0], fp[-1]), value by value as numpy computes it */
+static void np_interp(const double *x, Py_ssize_t n, const double *dx, const double *dy, Py_ssize_t len, double *res) {
+    const double lval = dy[0], rval = dy[len - 1];
+    if (len == 1) {
+        for (Py_ssize_t i = 0; i < n; i++)
+            res[i] = (x[i] < dx[0]) ? lval : ((x[i] > dx[0]) ? rval : dy[0]);
+        return;
+    }
+    Py_ssize_t j = 0;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        const double xv = x[i];
+        if (isnan(xv)) {
+            res[i] = xv;
+            continue;
+        }
+        j = search_with_guess(xv, dx, len, j);
+        if (j == -1) {
+            res[i] = lval;
+        } else if (j == len) {
+            res[i] = rval;
+        } else if (j == len - 1) {
+            res[i] = dy[j];
+        } else if (dx[j] == xv) {
+            res[i] = dy[j];
+        } else {
+            const double slope = (dy[j + 1] - dy[j]) / (dx[j + 1] - dx[j]);
+            res[i] = slope * (xv - dx[j]) + dy[j];
+            if (isnan(res[i])) {
+                res[i] = slope * (xv - dx[j + 1]) + dy[j + 1];
+                if (isnan(res[i]) && dy[j] == dy[j + 1])
+                    res[i] = dy[j];
+            }
+        }
+    }
+}
+
+/* interp(x, xp, fp, out): numpy's interp(x, xp, fp) written into out (the tests compare the two) */
+static PyObject *interp(PyObject *mod, PyObject *const *args, Py_ssize_t nargs) {
+    (void)mod;
+    if (nargs != 4) {
+        PyErr_SetString(PyExc_TypeError, "interp(x, xp, fp, out)");
+        return NULL;
+    }
+    Py_buffer b[4];
+    PyObject *res = NULL;
+    int held = 0;
+    if (get_buffer(args[0], &b[0], "d", -1, "x", 0) < 0) return NULL;
+    held = 1;
+    if (get_buffer(args[1], &b[1], "d", -1, "xp", 0) < 0) goto done;
+    held = 2;
+    Py_ssize_t len = b[1].len / 8, n = b[0].len / 8;
+    if (len < 1) {
+        PyErr_SetString(PyExc_ValueError, "xp: at least one point");
+        goto done;
+    }
+    if (get_buffer(args[2], &b[2], "d", len, "fp", 0) < 0) goto done;
+    held = 3;
+    if (get_buffer(args[3], &b[3], "d", n, "out", 1) < 0) goto done;
+    held = 4;
+    np_interp(b[0].buf, n, b[1].buf, b[2].buf, len, b[3].buf);
+    res = Py_None;
+    Py_INCREF(res);
+done:
+    for (int i = 0; i < held; i++)
+        PyBuffer_Release(&b[i]);
+    return res;
+}
+
+enum { HS, HGRADE, HVMAX, HVENV, HVMIN, HLIMIT, HDPS, HDPV, NTABLE };
+enum { OVLIN, OFTLIN, OSPRED, OSGRADE, OGRADE, OVMAX, OVDP, OVENV, OVREF, OVLO, OVHI, OREACH, OWORK, NOUT };
+enum { MODE_GREEN_WAVE, MODE_DP, MODE_STOP };
+
+typedef struct {
+    PyObject_HEAD
+    Py_ssize_t n;                   /* N, the horizon */
+    double dt, two_a_stop, cruise_look;
+    double *table[NTABLE];          /* the route grid s and its profiles; the DP reference's s and v */
+    Py_ssize_t len, dp_len;
+    double *depart, *reach;         /* the horizon's ramps a_depart dt k and a_reach dt k, k = 1..N */
+    Py_buffer out[NOUT];            /* the controller's work vectors, written in place */
+    int held;
+    int tried, ready;
+} Horizon;
+
+static void Horizon_dealloc(Horizon *self) {
+    for (int i = 0; i < NTABLE; i++)
+        free(self->table[i]);
+    free(self->depart);
+    free(self->reach);
+    for (int i = 0; i < self->held; i++)
+        PyBuffer_Release(&self->out[i]);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+/* Horizon(tables, dt, ramps, constants, outputs): tables a tuple of the route grid s and its profiles grade, v_max,
+ * v_env, v_min, limit and the DP reference's s and v (copied); ramps (a_depart dt k, a_reach dt k) for k = 1..N
+ * (copied); constants (2 a_stop, cruise_look); outputs a tuple of the N-vectors the stages write: v_lin, ft_lin,
+ * s_pred, s_grade, grade, v_max, v_DP, v_env (predict), v_ref, v_lo, v_hi, reach and a work vector (reference) */
+static int Horizon_init(Horizon *self, PyObject *args, PyObject *kw) {
+    PyObject *tables, *ramps, *outs;
+    if (init_once(&self->tried, kw, "Horizon") < 0)
+        return -1;
+    if (!PyArg_ParseTuple(args, "O!dO!(dd)O!", &PyTuple_Type, &tables, &self->dt, &PyTuple_Type, &ramps,
+                          &self->two_a_stop, &self->cruise_look, &PyTuple_Type, &outs))
+        return -1;
+    if (PyTuple_GET_SIZE(tables) != NTABLE || PyTuple_GET_SIZE(ramps) != 2 || PyTuple_GET_SIZE(outs) != NOUT) {
+        PyErr_SetString(PyExc_TypeError, "Horizon: 8 tables, 2 ramps and 13 outputs");
+        return -1;
+    }
+    static const char *tnames[] = {"s", "grade", "v_max", "v_env", "v_min", "limit", "dp_s", "dp_v"};
+    for (int i = 0; i < NTABLE; i++) {
+        Py_ssize_t want = i == HS || i == HDPS ? -1 : (i == HDPV ? self->dp_len : self->len);
+        Py_ssize_t got;
+        if (!(self->table[i] = copy_array(PyTuple_GET_ITEM(tables, i), "d", want, tnames[i], &got)))
+            return -1;
+        if (i == HS) self->len = got;
+        if (i == HDPS) self->dp_len = got;
+    }
+    if (self->len < 1 || self->dp_len < 1) {
+        PyErr_SetString(PyExc_ValueError, "the route grid and the DP reference need at least one point");
+        return -1;
+    }
+    static const char *onames[] = {"v_lin", "ft_lin", "s_pred", "s_grade", "grade", "v_max", "v_dp", "v_env",
+                                   "v_ref", "v_lo", "v_hi", "reach", "work"};
+    for (int i = 0; i < NOUT; i++) {
+        if (get_buffer(PyTuple_GET_ITEM(outs, i), &self->out[i], "d", i ? self->out[0].len / 8 : -1, onames[i], 1)
+            < 0)
+            return -1;
+        self->held = i + 1;
+    }
+    self->n = self->out[0].len / 8;
+    if (self->n < 1) {
+        PyErr_SetString(PyExc_ValueError, "v_lin: a horizon of at least one step");
+        return -1;
+    }
+    if (!(self->depart = copy_array(PyTuple_GET_ITEM(ramps, 0), "d", self->n, "depart", NULL))) return -1;
+    if (!(self->reach = copy_array(PyTuple_GET_ITEM(ramps, 1), "d", self->n, "reach", NULL))) return -1;
+    self->ready = 1;
+    return 0;
+}
+
+#define OUT(i) ((double *)self->out[i].buf)
+
+/* predict(s, v, prev_v, prev_ft) -> limit: PedasController._predict. v_lin = (v, prev_v[2:]) and ft_lin =
+ * (prev_ft[1:], prev_ft[-1]) (v and 0 without a previous plan: prev_v and prev_ft None); s_pred = s + dt cumsum(
+ * max(v_lin, 0)) at k = 1..N; s_grade = (s, s_pred[:-1]); grade, v_max, v_DP, v_env interpolated there as numpy's
+ * interp does; returns the speed limit interpolated at s. The same operations in numpy's order (a cumulative sum
+ * is sequential in numpy as well). */
+static PyObject *Horizon_predict(Horizon *self, PyObject *const *args, Py_ssize_t nargs) {
+    if (nargs != 4) {
+        PyErr_SetString(PyExc_TypeError, "predict(s, v, prev_v, prev_ft)");
+        return NULL;
+    }
+    if (require_ready(self->ready, "horizon") < 0)
+        return NULL;
+    const Py_ssize_t n = self->n;
+    double s, v;
+    if (as_double(args[0], "s", &s) < 0 || as_double(args[1], "v", &v) < 0)
+        return NULL;
+    double *vl = OUT(OVLIN), *fl = OUT(OFTLIN), *sp = OUT(OSPRED), *sg = OUT(OSGRADE);
+    if ((args[2] == Py_None) != (args[3] == Py_None)) {
+        PyErr_SetString(PyExc_TypeError, "prev_v and prev_ft: both arrays or both None");
+        return NULL;
+    }
+    if (args[2] == Py_None) {
+        for (Py_ssize_t k = 0; k < n; k++) {
+            vl[k] = v;
+            fl[k] = 0.0;
+        }
+    } else {
+        Py_buffer pv, pf;
+        if (get_buffer(args[2], &pv, "d", n + 1, "prev_v", 0) < 0) return NULL;
+        if (get_buffer(args[3], &pf, "d", n, "prev_ft", 0) < 0) { PyBuffer_Release(&pv); return NULL; }
+        const double *a = pv.buf, *b = pf.buf;
+        vl[0] = v;
+        memcpy(vl + 1, a + 2, sizeof(double) * (size_t)(n - 1));
+        memcpy(fl, b + 1, sizeof(double) * (size_t)(n - 1));
+        fl[n - 1] = b[n - 1];
+        PyBuffer_Release(&pv);
+        PyBuffer_Release(&pf);
+    }
+    double acc = 0.0;
+    for (Py_ssize_t k = 0; k < n; k++) {
+        double w = np_max(vl[k], 0.0);
+        acc = k ? acc + w : w;   /* np.add.accumulate */
+        sp[k] = acc * self->dt + s;
+    }
+    sg[0] = s;
+    memcpy(sg + 1, sp, sizeof(double) * (size_t)(n - 1));
+    double *const *tb = self->table;
+    np_interp(sg, n, tb[HS], tb[HGRADE], self->len, OUT(OGRADE));
+    np_interp(sp, n, tb[HS], tb[HVMAX], self->len, OUT(OVMAX));
+    np_interp(sp, n, tb[HDPS], tb[HDPV], self->dp_len, OUT(OVDP));
+    np_interp(sp, n, tb[HS], tb[HVENV], self->len, OUT(OVENV));
+    double limit;
+    np_interp(&s, 1, tb[HS], tb[HLIMIT], self->len, &limit);
+    return PyFloat_FromDouble(limit);
+}
+
+/* bisect.bisect_left on the DP positions: the first index with dp_s[i] >= x */
+static Py_ssize_t bisect_left(const double *a, Py_ssize_t len, double x) {
+    Py_ssize_t lo = 0, hi = len;
+    while (lo < hi) {
+        Py_ssize_t mid = (lo + hi) / 2;
+        if (a[mid] < x)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    return lo;
+}
+
+/* reference(s, v, v_gw, target, stop_expected, free) -> (mode, max v_hi): PedasController._reference's vectors
+ * after predict, in place. v_ref = min(v_env, v_gw) with a green-wave band (mode 0), else v_DP floored by its
+ * look-ahead maximum reached with the departure ramp, capped by the curve envelope (mode 1); with a stop target
+ * (m: the stop line less stop_aim d_s,ITS; None: no stop envelope) capped by sqrt(2 a_stop max(target - (s_pred - s),
+ * 0)), mode 2 (stop) when that envelope binds at k = N or `stop_expected`; reach = v - a_reach dt k; v_hi =
+ * max(v_max, reach); v_lo = min(v_min at s_pred, v) in modes 0 and 1 when `free` (no leader), else 0, then
+ * min(v_lo, v_hi). numpy's elementwise operations in numpy's order. */
+static PyObject *Horizon_reference(Horizon *self, PyObject *const *args, Py_ssize_t nargs) {
+    if (nargs != 6) {
+        PyErr_SetString(PyExc_TypeError, "reference(s, v, v_gw, target, stop_expected, free)");
+        return NULL;
+    }
+    if (require_ready(self->ready, "horizon") < 0)
+        return NULL;
+    const Py_ssize_t n = self->n;
+    double s, v, v_gw = 0.0, target = 0.0;
+    int have_gw = args[2] != Py_None, have_target = args[3] != Py_None;
+    if (as_double(args[0], "s", &s) < 0 || as_double(args[1], "v", &v) < 0
+        || (have_gw && as_double(args[2], "v_gw", &v_gw) < 0)
+        || (have_target && as_double(args[3], "target", &target) < 0))
+        return NULL;
+    int stop_expected = PyObject_IsTrue(args[4]), free_road = PyObject_IsTrue(args[5]);
+    if (stop_expected < 0 || free_road < 0)
+        return NULL;
+    double *vr = OUT(OVREF), *venv = OUT(OVENV), *vdp = OUT(OVDP), *sp = OUT(OSPRED), *w = OUT(OWORK);
+    int mode;
+    if (have_gw) {
+        for (Py_ssize_t k = 0; k < n; k++)
+            vr[k] = np_min(venv[k], v_gw);
+        mode = MODE_GREEN_WAVE;
+    } else {
+        const double *dps = self->table[HDPS], *dpv = self->table[HDPV];
+        const Py_ssize_t len = self->dp_len;
+        Py_ssize_t j0 = bisect_left(dps, len, s), j1 = bisect_left(dps, len, s + self->cruise_look);
+        double cruise;
+        if (j0 < len) {   /* the maximum over dp_v[j0:max(j1, j0 + 1)], NaN propagated as numpy's max */
+            Py_ssize_t end = j1 > j0 + 1 ? j1 : j0 + 1;
+            cruise = dpv[j0];
+            for (Py_ssize_t i = j0 + 1; i < end; i++)
+                cruise = np_max(cruise, dpv[i]);
+        } else {
+            cruise = dpv[len - 1];
+        }
+        for (Py_ssize_t k = 0; k < n; k++) {
+            double r = np_min(self->depart[k] + v, cruise);
+            r = np_max(vdp[k], r);
+            vr[k] = np_min(r, venv[k]);
+        }
+        mode = MODE_DP;
+    }
+    if (have_target) {
+        for (Py_ssize_t k = 0; k < n; k++) {
+            double e = target - (sp[k] - s);
+            w[k] = sqrt(np_max(e, 0.0) * self->two_a_stop);
+        }
+        if (w[n - 1] < vr[n - 1] || stop_expected)
+            mode = MODE_STOP;
+        for (Py_ssize_t k = 0; k < n; k++)
+            vr[k] = np_min(vr[k], w[k]);
+    }
+    double *reach = OUT(OREACH), *vhi = OUT(OVHI), *vlo = OUT(OVLO), *vmax = OUT(OVMAX);
+    double hi_max = 0.0;
+    for (Py_ssize_t k = 0; k < n; k++) {
+        reach[k] = v - self->reach[k];
+        vhi[k] = np_max(vmax[k], reach[k]);
+        /* numpy's argmax: the first largest, or the first NaN */
+        if (k == 0 || (!isnan(hi_max) && (isnan(vhi[k]) || vhi[k] > hi_max)))
+            hi_max = vhi[k];
+    }
+    if (mode != MODE_STOP && free_road) {
+        np_interp(sp, n, self->table[HS], self->table[HVMIN], self->len, vlo);
+        for (Py_ssize_t k = 0; k < n; k++)
+            vlo[k] = np_min(vlo[k], v);
+    } else {
+        for (Py_ssize_t k = 0; k < n; k++)
+            vlo[k] = 0.0;
+    }
+    for (Py_ssize_t k = 0; k < n; k++)
+        vlo[k] = np_min(vlo[k], vhi[k]);
+    return Py_BuildValue("(id)", mode, hi_max);
+}
+
+/* v_min(s) -> the lowest speed at s, interpolated on the route grid (numpy's interp) */
+static PyObject *Horizon_v_min(Horizon *self, PyObject *arg) {
+    if (require_ready(self->ready, "horizon") < 0)
+        return NULL;
+    double s, out;
+    if (as_double(arg, "s", &s) < 0)
+        return NULL;
+    np_interp(&s, 1, self->table[HS], self->table[HVMIN], self->len, &out);
+    return PyFloat_FromDouble(out);
+}
+
+/* line_min(s, d, frac) -> the lowest v_max at s + d frac (frac: the points along the way to a stop line, as a
+ * fraction of d): numpy's interp at those points, then the minimum (argmin's first smallest, or the first NaN) */
+static PyObject *Horizon_line_min(Horizon *self, PyObject *const *args, Py_ssize_t nargs) {
+    if (nargs != 3) {
+        PyErr_SetString(PyExc_TypeError, "line_min(s, d, frac)");
+        return NULL;
+    }
+    if (require_ready(self->ready, "horizon") < 0)
+        return NULL;
+    double s, d;
+    if (as_double(args[0], "s", &s) < 0 || as_double(args[1], "d", &d) < 0)
+        return NULL;
+    Py_buffer fb;
+    if (get_buffer(args[2], &fb, "d", -1, "frac", 0) < 0)
+        return NULL;
+    const Py_ssize_t m = fb.len / 8;
+    if (m < 1 || m > 64) {
+        PyBuffer_Release(&fb);
+        PyErr_SetString(PyExc_ValueError, "frac: 1 to 64 points");
+        return NULL;
+    }
+    double x[64], y[64];
+    const double *f = fb.buf;
+    for (Py_ssize_t i = 0; i < m; i++)
+        x[i] = s + d * f[i];   /* numpy: s + (d * frac) */
+    PyBuffer_Release(&fb);
+    np_interp(x, m, self->table[HS], self->table[HVMAX], self->len, y);
+    double lo = y[0];
+    for (Py_ssize_t i = 1; i < m && !isnan(lo); i++)
+        if (isnan(y[i]) || y[i] < lo)
+            lo = y[i];
+    return PyFloat_FromDouble(lo);
+}
+
+static PyMethodDef Horizon_methods[] = {
+    {"predict", (PyCFunction)(void (*)(void))Horizon_predict, METH_FASTCALL,
+     "predict(s, v, prev_v, prev_ft) -> limit: the prediction stage of PedasController.step, its vectors in place"},
+    {"reference", (PyCFunction)(void (*)(void))Horizon_reference, METH_FASTCALL,
+     "reference(s, v, v_gw, target, stop_expected, free) -> (mode, max v_hi): v_ref and the speed bounds in place"},
+    {"v_min", (PyCFunction)Horizon_v_min, METH_O, "v_min(s) -> the lowest speed at s (numpy's interp)"},
+    {"line_min", (PyCFunction)(void (*)(void))Horizon_line_min, METH_FASTCALL,
+     "line_min(s, d, frac) -> the lowest v_max at s + d frac (numpy's interp, then the minimum)"},
+    {NULL, NULL, 0, NULL},
+};
+
+static PyTypeObject HorizonType = {
+    PyVarObject_HEAD_INIT(NULL, 0)
+    .tp_name = "pedas._qpkernel.Horizon",
+    .tp_basicsize = sizeof(Horizon),
+    .tp_flags = Py_TPFLAGS_DEFAULT,
+    .tp_doc = "the controller's prediction stage (pedas.controller.PedasController._predict)",
+    .tp_new = PyType_GenericNew,
+    .tp_init = (initproc)Horizon_init,
+    .tp_dealloc = (destructor)Horizon_dealloc,
+    .tp_methods = Horizon_methods,
+};
+
+static PyMethodDef module_methods[] = {
+    {"interp", (PyCFunction)(void (*)(void))interp, METH_FASTCALL,
+     "interp(x, xp, fp, out): numpy's interp(x, xp, fp) into out, as the Horizon computes it"},
+    {NULL, NULL, 0, NULL},
+};
+
 static struct PyModuleDef module = {
     PyModuleDef_HEAD_INIT, "_qpkernel",
-    "Compiled per-step work of the MPCs: Stepper (pedas.mpc.SparseMpc.set_step) and Kernel (fill and check of "
-    "pedas.qp.DaqpCondensedBackend).", -1, NULL, NULL, NULL, NULL, NULL,
+    "Compiled per-step work of the controller: Stepper (pedas.mpc.SparseMpc.set_step), Kernel (the data, DAQP's calls "
+    "and the checks of pedas.qp.DaqpCondensedBackend) and Horizon (the prediction and reference stages of "
+    "pedas.controller.PedasController).", -1, module_methods, NULL, NULL, NULL, NULL,
 };
 
 PyMODINIT_FUNC PyInit__qpkernel(void) {
-    PyTypeObject *types[] = {&KernelType, &StepperType};
+    PyTypeObject *types[] = {&KernelType, &StepperType, &HorizonType};
     PyObject *mod = PyModule_Create(&module);
     if (mod == NULL)
         return NULL;

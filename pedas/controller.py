@@ -34,6 +34,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from pedas._qpkernel import Horizon
 from pedas.constants import DT, N_HORIZON, SENSOR_RANGE, STOP_DWELL
 from pedas.greenwave import green_wave_band
 from pedas.hud import HudAdvice, HudContext, HudState, advisory, update_unfollowed
@@ -44,12 +45,6 @@ from pedas.params import CONTROLLER, LEAF, ControllerParams, VehicleParams
 from pedas.records import fast_init
 from pedas.route import StopSign, TrafficLight, braking_envelope
 from pedas.speed_correction import corrected_speed
-
-try:   # np.interp's compiled kernel: np.interp calls it after dtype checks (the same numbers, less overhead)
-    from numpy._core.multiarray import interp as _interp
-except ImportError:   # pragma: no cover - numpy < 2
-    from numpy.core.multiarray import interp as _interp
-_max = np.maximum.reduce
 
 
 @fast_init
@@ -110,6 +105,9 @@ def _isfinite(x) -> bool:
         return math.isfinite(x)
     except TypeError:
         return False
+
+
+_MODES = ("green_wave", "dp", "stop")   # the reference modes by the index Horizon.reference returns
 
 
 class _Prediction(NamedTuple):
@@ -227,13 +225,18 @@ class PedasController:
         self._sgrade = np.empty(n)
         self._spred = np.empty(n)
         self._wn = np.empty(n)
-        self._sgrade_tail, self._spred_head = self._sgrade[1:], self._spred[:-1]
-        self._vlin_tail, self._ftlin_head = self._vlin[1:], self._ftlin[:-1]
         self._vref, self._vhi, self._vlo, self._reachv = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
         self._vhicf, self._margin = np.empty(n), np.empty(n)
-        self._dp_list = self._dp_s.tolist()
+        # the prediction stage compiled (pedas/_qpkernel.c): the route tables copied in, the work vectors written in
+        # place (nothing keeps them across steps either)
+        self._pred_out = tuple(np.empty(n) for _ in range(4))   # grade, v_max, v_DP, v_env
+        self._horizon = Horizon(
+            (self._s, self._grade, self._vmax, self._venv, self._vmin, self._limit, self._dp_s, self._dp_v),
+            float(dt), (self._depart, self._reach), (2 * settings.a_stop, float(settings.cruise_look)),
+            (self._vlin, self._ftlin, self._spred, self._sgrade, *self._pred_out, self._vref, self._vlo, self._vhi,
+             self._reachv, self._wn))
         # constant operands of the step's elementwise operations, as 0-d arrays (pedas.mpc.Scalars)
-        self._k0 = Scalars(zero=0.0, dt=dt, two_a_stop=2 * settings.a_stop, safe_backoff=settings.safe_backoff)
+        self._k0 = Scalars(safe_backoff=settings.safe_backoff)
         self._curve_list = self._curve_s.tolist()
         self._s_list = self._s.tolist()
         self.reset()
@@ -299,33 +302,15 @@ class PedasController:
 
     def _predict(self, s: float, v: float) -> _Prediction:
         """Linearisation / prediction trajectory (the previous plan shifted by one sample) and the route profiles
-        at the predicted positions."""
-        N = self.n
+        at the predicted positions: v_lin = (v, v_2..v_N of the previous plan), ft_lin = (F_t,1..F_t,N-1, F_t,N-1),
+        or v and 0 without one; s_pred = s + dt cumsum(max(v_lin, 0)) at k = 1..N; grade at k = 0..N-1 (s, then
+        s_pred); v_max, v_DP and the curve envelope at s_pred; the speed limit at s. One compiled call
+        (``pedas._qpkernel.Horizon.predict``: numpy's operations and interp, the same bits)."""
         prev = self._prev
-        if prev is not None:
-            v_lin = self._vlin
-            v_lin[0] = v                                            # v_k ~ previous v_{k+1}, v_0 measured
-            self._vlin_tail[...] = prev.v[2:]
-            ft_lin = self._ftlin
-            self._ftlin_head[...] = prev.ft[1:]
-            ft_lin[-1] = prev.ft[-1]
-        else:
-            v_lin = np.full(N, v)
-            ft_lin = np.zeros(N)
-        s_pred = self._spred                                        # positions at k = 1..N: s + dt cumsum(max(v, 0))
-        k = self._k0
-        np.add.accumulate(np.maximum(v_lin, k.zero, out=s_pred), out=s_pred)
-        np.add(np.multiply(s_pred, k.dt, s_pred), s, s_pred)
-        s_grade = self._sgrade                                      # positions at k = 0..N-1
-        s_grade[0] = s
-        self._sgrade_tail[...] = self._spred_head
-        xs = self._s
-        grade = _interp(s_grade, xs, self._grade, None, None)
-        vmax = _interp(s_pred, xs, self._vmax, None, None)
-        vdp = _interp(s_pred, self._dp_s, self._dp_v, None, None)
-        venv = _interp(s_pred, xs, self._venv, None, None)
-        limit = float(_interp(s, xs, self._limit, None, None))
-        return _Prediction(v_lin, ft_lin, s_pred, grade, vmax, limit, vdp, venv)
+        limit = (self._horizon.predict(s, v, None, None) if prev is None
+                 else self._horizon.predict(s, v, prev.v, prev.ft))
+        grade, vmax, vdp, venv = self._pred_out
+        return _Prediction(self._vlin, self._ftlin, self._spred, grade, vmax, limit, vdp, venv)
 
     def _objects_ahead(self, t: float, s: float, v: float, dt_real: float, s_pred: np.ndarray) -> _Objects:
         """The next light and stop sign, the stop-sign dwell state machine, and which stop line constrains d_ITS
@@ -386,10 +371,8 @@ class PedasController:
             return None, False
         cfg, tl, d_tl, ss = self.settings, obj.tl, obj.d_tl, obj.ss
         # eq. (1) with v_max the lowest limit up to the line and v_min >= gw_min_fraction x speed limit
-        xs = self._s
-        v_line = _interp(s + max(d_tl, 0.0) * self._frac8, xs, self._vmax, None, None)
-        v_hi_gw = float(v_line[v_line.argmin()])                   # (argmin: cheaper than min)
-        v_lo_gw = max(float(_interp(s, xs, self._vmin, None, None)), cfg.gw_min_fraction * pred.limit)
+        v_hi_gw = self._horizon.line_min(s, max(d_tl, 0.0), self._frac8)
+        v_lo_gw = max(self._horizon.v_min(s), cfg.gw_min_fraction * pred.limit)
         gw_ok = d_tl > 0 and (ss is None or ss.s > tl.s)            # a stop sign before the light goes first
         band = green_wave_band(d_tl, t, tl, min(v_lo_gw, v_hi_gw), v_hi_gw, cfg.gw_horizon, cfg.gw_margin,
                                v_floor=cfg.gw_v_floor) if gw_ok else None
@@ -398,57 +381,38 @@ class PedasController:
 
     def _reference(self, t: float, s: float, v: float, leader, pred: _Prediction, obj: _Objects) -> _Reference:
         """v_ref (green wave, else v_DP with a departure ramp; curve and stop envelopes), the speed bounds and the
-        d_ITS rows."""
+        d_ITS rows. The vectors in one compiled call (``pedas._qpkernel.Horizon.reference``: numpy's operations,
+        the same bits):
+
+        * with a green-wave band, v_ref = min(v_env, v_ref,min) (mode green_wave); else v_DP floored by its maximum
+          over the next cruise_look m, reached from v with the departure ramp and capped by v_env (mode dp);
+        * at a stop sign, and at a light when eq. (1) has no band (stopping unavoidable), v_ref is capped by the stop
+          envelope sqrt(2 a_stop max(d_target, 0)) with d_target = stop line - stop_aim d_s,ITS - (s_pred - s); mode
+          stop when it binds at k = N or the light's stop is expected. With a green-wave band the hard d_ITS rows
+          alone keep the plan out of the red phases;
+        * v_hi = max(v_max, v - a_reach dt k); v_lo = min(v_min, v) at s_pred without a leader in modes green_wave
+          and dp, else 0; then v_lo = min(v_lo, v_hi).
+        """
         cfg, N, dt = self.settings, self.n, self.dt
         v_gw, tl_stop_expected = self._green_wave(t, s, pred, obj)
-        # the stop envelope of v_ref: at a stop sign, and at a light when eq. (1) has no band (stop unavoidable);
-        # with a green-wave band the hard d_ITS rows alone keep the plan out of the red phases
         envelope_d = None
         if obj.stop_kind == "ss":
             envelope_d = obj.d_ss
         elif obj.tl is not None and tl_stop_expected:
             envelope_d = obj.d_tl
-
-        v_ref = self._vref
-        if v_gw is not None:
-            np.minimum(pred.venv, v_gw, out=v_ref)
-            mode = "green_wave"
-        else:
-            # v_DP floored by its look-ahead maximum, reached with a departure ramp (zeros at served stops)
-            j0 = bisect_left(self._dp_list, s)
-            j1 = bisect_left(self._dp_list, s + cfg.cruise_look)
-            cruise = float(_max(self._dp_v[j0:max(j1, j0 + 1)])) if j0 < self._dp_v.size else float(self._dp_v[-1])
-            np.minimum(np.add(self._depart, v, v_ref), cruise, out=v_ref)
-            np.maximum(pred.vdp, v_ref, out=v_ref)
-            np.minimum(v_ref, pred.venv, out=v_ref)
-            mode = "dp"
-        if envelope_d is not None:
-            # aim inside the stop-line band: d_target = envelope_d - stop_aim d_s,ITS - (s_pred - s)
-            k = self._k0
-            stop_env = np.subtract(pred.s_pred, s, self._wn)
-            np.subtract(envelope_d - cfg.stop_aim * self._d_sits, stop_env, stop_env)
-            np.sqrt(np.multiply(np.maximum(stop_env, k.zero, out=stop_env), k.two_a_stop, stop_env), stop_env)
-            if stop_env[-1] < v_ref[-1] or (obj.stop_kind == "tl" and tl_stop_expected):
-                mode = "stop"
-            np.minimum(v_ref, stop_env, out=v_ref)
-        reach = np.subtract(v, self._reach, self._reachv)
-        v_hi = np.maximum(pred.vmax, reach, out=self._vhi)
-        v_lo = self._vlo
-        if mode in ("green_wave", "dp") and leader is None:
-            # v_min at the predicted positions (looked up only here: the one stage that uses it)
-            np.minimum(_interp(pred.s_pred, self._s, self._vmin, None, None), v, out=v_lo)
-        else:
-            v_lo.fill(0.0)
-        np.minimum(v_lo, v_hi, out=v_lo)
+        target = None if envelope_d is None else envelope_d - cfg.stop_aim * self._d_sits
+        mode_i, v_hi_max = self._horizon.reference(s, v, v_gw, target, obj.stop_kind == "tl" and tl_stop_expected,
+                                                   leader is None)
+        mode = _MODES[mode_i]
         d_sits = self._d_sits if mode == "stop" else INF
         d_hard, stop_d = obj.d_hard, obj.stop_d
-        if d_hard is None or stop_d > float(v_hi[v_hi.argmax()]) * N * dt + 5.0:   # (argmax: cheaper than max)
+        if d_hard is None or stop_d > v_hi_max * N * dt + 5.0:
             # no stop object within reach of the horizon: the d_ITS rows cannot bind; unbounding them and keeping the
             # state at 0 also keeps OSQP's relative tolerance from scaling with a distance of several hundred m
             d_hard, d_its0, d_sits = None, 0.0, INF
         else:
             d_its0 = stop_d
-        return _Reference(mode, v_ref, v_lo, v_hi, reach, d_hard, d_its0, d_sits)
+        return _Reference(mode, self._vref, self._vlo, self._vhi, self._reachv, d_hard, d_its0, d_sits)
 
     def _solve(self, v: float, leader, pred: _Prediction, ref: _Reference) -> _Solution:
         """Controller choice, warm start at a hand-over, the MPC solve and the fallback plan on failure."""
