@@ -323,7 +323,8 @@ class _DaqpBase:
     A subclass sets ``model`` (a set-up ``daqp.Model``), ``_sense0`` and ``settings``; it has ``_prepare`` (the data
     check and this step's DAQP vectors from q, l, u) and ``_check`` (x in the QP's variables from DAQP's solution, its
     residual and the KKT measures): the base's from ``_fill``, ``_primal``, ``_residual`` and ``_kkt`` in numpy, or
-    the condensed backend's compiled kernel.
+    the condensed backend's compiled kernel. ``_run`` is DAQP's update and solve and the check; the condensed backend
+    replaces it with one kernel call that calls DAQP's C functions itself (no ``model`` then).
     After any failed solve the working set is cleared and the solve is repeated once from a cold start (a stale
     working set can make the active-set method fail on a feasible problem); a second failure is reported as such.
     Non-finite data are refused before DAQP sees them (working set untouched). A solution DAQP calls optimal passes
@@ -559,7 +560,7 @@ class DaqpCondensedBackend(_DaqpBase):
         self.direct = path is not None   # DAQP's C functions called by the kernel (else its Python interface)
         if path is None:   # a DAQP build whose C layout the kernel does not know: its Python interface
             self._setup(self.H, self.G.toarray())
-        else:   # DAQP's update, solve and the check in one call, without the Python interface (~25 us a step)
+        else:   # DAQP's update, solve and the check in one call, without the Python interface's ~7-10 us a step
             self.kernel.open_daqp(path, self.H, self.G.toarray(), self._sense0.astype(np.int64),
                                   float(settings.primal_tol), int(settings.iter_limit))
             self._run = self._run_direct
