@@ -411,7 +411,8 @@ class _DaqpBase:
     def _run(self, cold: bool, l: np.ndarray, u: np.ndarray) -> tuple:
         """DAQP's update (f and the bounds ``_prepare`` wrote; the constraint senses as well when `cold`) and solve,
         then, for an optimal exit, ``_check``: (exit flag, iterations, DAQP's solve time s, x, violation,
-        stationarity, gap); x None and NaN measures for any other exit."""
+        stationarity, gap); for any other exit NaN measures, and x is not used (``_solve_checked`` reads it only
+        when the exit is optimal)."""
         if cold:
             self.model.update(f=self._f, bupper=self._hi, blower=self._lo, sense=self._sense0)
         else:
@@ -571,7 +572,7 @@ class DaqpCondensedBackend(_DaqpBase):
         exit flag, iterations, solution and multipliers), then the kernel's check."""
         x = np.empty(self._nx)
         flag, iters, run_time, violation, stat, gap = self.kernel.solve(cold, x)
-        return flag, iters, run_time, (x if _DAQP_STATUS.get(flag) == "solved" else None), violation, stat, gap
+        return flag, iters, run_time, x, violation, stat, gap   # x is written (and read) for an optimal exit only
 
     def _check(self, z: np.ndarray, lam: np.ndarray | None, l: np.ndarray, u: np.ndarray
                ) -> tuple[np.ndarray, float, float, float]:
