@@ -916,16 +916,17 @@ done:
 }
 
 enum { HS, HGRADE, HVMAX, HVENV, HVMIN, HLIMIT, HDPS, HDPV, NTABLE };
-enum { OVLIN, OFTLIN, OSPRED, OSGRADE, OGRADE, OVMAX, OVDP, OVENV, OVREF, OVLO, OVHI, OREACH, OWORK, NOUT };
+enum { OVLIN, OFTLIN, OSPRED, OSGRADE, OGRADE, OVMAX, OVDP, OVENV, OVREF, OVLO, OVHI, OREACH, OWORK, OVHICF, OMARGIN,
+       NOUT };
 enum { MODE_GREEN_WAVE, MODE_DP, MODE_STOP };
 
 typedef struct {
     PyObject_HEAD
     Py_ssize_t n;                   /* N, the horizon */
-    double dt, two_a_stop, cruise_look;
+    double dt, two_a_stop, cruise_look, safe_backoff;
     double *table[NTABLE];          /* the route grid s and its profiles; the DP reference's s and v */
     Py_ssize_t len, dp_len;
-    double *depart, *reach;         /* the horizon's ramps a_depart dt k and a_reach dt k, k = 1..N */
+    double *depart, *reach, *recover;  /* the horizon's ramps a_depart dt k, a_reach dt k, psi_recovery k; k = 1..N */
     Py_buffer out[NOUT];            /* the controller's work vectors, written in place */
     int held;
     int tried, ready;
@@ -936,24 +937,26 @@ static void Horizon_dealloc(Horizon *self) {
         free(self->table[i]);
     free(self->depart);
     free(self->reach);
+    free(self->recover);
     for (int i = 0; i < self->held; i++)
         PyBuffer_Release(&self->out[i]);
     Py_TYPE(self)->tp_free((PyObject *)self);
 }
 
 /* Horizon(tables, dt, ramps, constants, outputs): tables a tuple of the route grid s and its profiles grade, v_max,
- * v_env, v_min, limit and the DP reference's s and v (copied); ramps (a_depart dt k, a_reach dt k) for k = 1..N
- * (copied); constants (2 a_stop, cruise_look); outputs a tuple of the N-vectors the stages write: v_lin, ft_lin,
- * s_pred, s_grade, grade, v_max, v_DP, v_env (predict), v_ref, v_lo, v_hi, reach and a work vector (reference) */
+ * v_env, v_min, limit and the DP reference's s and v (copied); ramps (a_depart dt k, a_reach dt k, psi_recovery k)
+ * for k = 1..N (copied); constants (2 a_stop, cruise_look, safe_backoff); outputs a tuple of the N-vectors the stages
+ * write: v_lin, ft_lin, s_pred, s_grade, grade, v_max, v_DP, v_env (predict), v_ref, v_lo, v_hi, reach, a work
+ * vector (reference), the car-following v_hi and safe margin (follow) */
 static int Horizon_init(Horizon *self, PyObject *args, PyObject *kw) {
     PyObject *tables, *ramps, *outs;
     if (init_once(&self->tried, kw, "Horizon") < 0)
         return -1;
-    if (!PyArg_ParseTuple(args, "O!dO!(dd)O!", &PyTuple_Type, &tables, &self->dt, &PyTuple_Type, &ramps,
-                          &self->two_a_stop, &self->cruise_look, &PyTuple_Type, &outs))
+    if (!PyArg_ParseTuple(args, "O!dO!(ddd)O!", &PyTuple_Type, &tables, &self->dt, &PyTuple_Type, &ramps,
+                          &self->two_a_stop, &self->cruise_look, &self->safe_backoff, &PyTuple_Type, &outs))
         return -1;
-    if (PyTuple_GET_SIZE(tables) != NTABLE || PyTuple_GET_SIZE(ramps) != 2 || PyTuple_GET_SIZE(outs) != NOUT) {
-        PyErr_SetString(PyExc_TypeError, "Horizon: 8 tables, 2 ramps and 13 outputs");
+    if (PyTuple_GET_SIZE(tables) != NTABLE || PyTuple_GET_SIZE(ramps) != 3 || PyTuple_GET_SIZE(outs) != NOUT) {
+        PyErr_SetString(PyExc_TypeError, "Horizon: 8 tables, 3 ramps and 15 outputs");
         return -1;
     }
     static const char *tnames[] = {"s", "grade", "v_max", "v_env", "v_min", "limit", "dp_s", "dp_v"};
@@ -970,7 +973,7 @@ static int Horizon_init(Horizon *self, PyObject *args, PyObject *kw) {
         return -1;
     }
     static const char *onames[] = {"v_lin", "ft_lin", "s_pred", "s_grade", "grade", "v_max", "v_dp", "v_env",
-                                   "v_ref", "v_lo", "v_hi", "reach", "work"};
+                                   "v_ref", "v_lo", "v_hi", "reach", "work", "v_hi_cf", "margin"};
     for (int i = 0; i < NOUT; i++) {
         if (get_buffer(PyTuple_GET_ITEM(outs, i), &self->out[i], "d", i ? self->out[0].len / 8 : -1, onames[i], 1)
             < 0)
@@ -984,6 +987,7 @@ static int Horizon_init(Horizon *self, PyObject *args, PyObject *kw) {
     }
     if (!(self->depart = copy_array(PyTuple_GET_ITEM(ramps, 0), "d", self->n, "depart", NULL))) return -1;
     if (!(self->reach = copy_array(PyTuple_GET_ITEM(ramps, 1), "d", self->n, "reach", NULL))) return -1;
+    if (!(self->recover = copy_array(PyTuple_GET_ITEM(ramps, 2), "d", self->n, "recover", NULL))) return -1;
     self->ready = 1;
     return 0;
 }
@@ -1141,6 +1145,31 @@ static PyObject *Horizon_reference(Horizon *self, PyObject *const *args, Py_ssiz
     return Py_BuildValue("(id)", mode, hi_max);
 }
 
+/* follow(v, psi): PedasController._solve's car-following bounds after reference, in place. v_hi_cf = min(v_hi,
+ * max(max(v_DP, min(v + a_depart dt k, v_max)), reach)); margin = min(safe_backoff, psi_recovery k + psi) (m).
+ * numpy's elementwise operations in numpy's order. */
+static PyObject *Horizon_follow(Horizon *self, PyObject *const *args, Py_ssize_t nargs) {
+    if (nargs != 2) {
+        PyErr_SetString(PyExc_TypeError, "follow(v, psi)");
+        return NULL;
+    }
+    if (require_ready(self->ready, "horizon") < 0)
+        return NULL;
+    double v, psi;
+    if (as_double(args[0], "v", &v) < 0 || as_double(args[1], "psi", &psi) < 0)
+        return NULL;
+    const double *vmax = OUT(OVMAX), *vdp = OUT(OVDP), *reach = OUT(OREACH), *vhi = OUT(OVHI);
+    double *cf = OUT(OVHICF), *margin = OUT(OMARGIN);
+    for (Py_ssize_t k = 0; k < self->n; k++) {
+        double x = np_min(self->depart[k] + v, vmax[k]);
+        x = np_max(vdp[k], x);
+        x = np_max(x, reach[k]);
+        cf[k] = np_min(vhi[k], x);
+        margin[k] = np_min(self->safe_backoff, self->recover[k] + psi);
+    }
+    Py_RETURN_NONE;
+}
+
 /* v_min(s) -> the lowest speed at s, interpolated on the route grid (numpy's interp) */
 static PyObject *Horizon_v_min(Horizon *self, PyObject *arg) {
     if (require_ready(self->ready, "horizon") < 0)
@@ -1191,6 +1220,8 @@ static PyMethodDef Horizon_methods[] = {
      "predict(s, v, prev_v, prev_ft) -> limit: the prediction stage of PedasController.step, its vectors in place"},
     {"reference", (PyCFunction)(void (*)(void))Horizon_reference, METH_FASTCALL,
      "reference(s, v, v_gw, target, stop_expected, free) -> (mode, max v_hi): v_ref and the speed bounds in place"},
+    {"follow", (PyCFunction)(void (*)(void))Horizon_follow, METH_FASTCALL,
+     "follow(v, psi): the car-following MPC's v_hi and safe margin in place"},
     {"v_min", (PyCFunction)Horizon_v_min, METH_O, "v_min(s) -> the lowest speed at s (numpy's interp)"},
     {"line_min", (PyCFunction)(void (*)(void))Horizon_line_min, METH_FASTCALL,
      "line_min(s, d, frac) -> the lowest v_max at s + d frac (numpy's interp, then the minimum)"},

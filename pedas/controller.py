@@ -38,7 +38,7 @@ from pedas._qpkernel import Horizon
 from pedas.constants import DT, N_HORIZON, SENSOR_RANGE, STOP_DWELL
 from pedas.greenwave import green_wave_band
 from pedas.hud import HudAdvice, HudContext, HudState, advisory, update_unfollowed
-from pedas.mpc import INF, MpcPlan, Scalars, vehicle_model
+from pedas.mpc import INF, MpcPlan, vehicle_model
 from pedas.mpc_cf import CarFollowingMpc
 from pedas.mpc_rt import ReferenceTrackingMpc
 from pedas.params import CONTROLLER, LEAF, ControllerParams, VehicleParams
@@ -213,7 +213,7 @@ class PedasController:
         self._stops = tuple(route.stops)
         self._d_sits = float(route.d_stopline)
         self._k = np.arange(1, n + 1)
-        self._dtk = dt * self._k   # s, the horizon's sample times after now
+        self._dtk = (dt * self._k).tolist()   # s, the horizon's sample times after now (a list: Python floats)
         # the horizon ramps of the settings, once per controller (same products as (a dt) k per step)
         self._depart = settings.a_depart * dt * self._k
         self._reach = settings.a_reach * dt * self._k
@@ -232,11 +232,10 @@ class PedasController:
         self._pred_out = tuple(np.empty(n) for _ in range(4))   # grade, v_max, v_DP, v_env
         self._horizon = Horizon(
             (self._s, self._grade, self._vmax, self._venv, self._vmin, self._limit, self._dp_s, self._dp_v),
-            float(dt), (self._depart, self._reach), (2 * settings.a_stop, float(settings.cruise_look)),
+            float(dt), (self._depart, self._reach, self._recover),
+            (2 * settings.a_stop, float(settings.cruise_look), float(settings.safe_backoff)),
             (self._vlin, self._ftlin, self._spred, self._sgrade, *self._pred_out, self._vref, self._vlo, self._vhi,
-             self._reachv, self._wn))
-        # constant operands of the step's elementwise operations, as 0-d arrays (pedas.mpc.Scalars)
-        self._k0 = Scalars(safe_backoff=settings.safe_backoff)
+             self._reachv, self._wn, self._vhicf, self._margin))
         self._curve_list = self._curve_s.tolist()
         self._s_list = self._s.tolist()
         self.reset()
@@ -348,16 +347,17 @@ class PedasController:
         if tl_near:
             state, tl_remaining, changes = tl.spat(t, N * self.dt)
             mask = self._nongreen(state, changes, t)
+            red_ahead = True in mask
             if state == "green":
-                if mask.any():
-                    k_r = int(np.argmax(mask))          # index of the first non-green step (time k_r + 1)
+                if red_ahead:
+                    k_r = mask.index(True)          # index of the first non-green step (time k_r + 1)
                     go = s_pred[k_r] > tl.s + 1.0 if k_r > 0 else False
                 else:
                     go = True
             elif state == "yellow":
                 go = d_tl < v * v / (2 * cfg.yellow_go_decel)
-            if not go and mask.any():
-                stop_d, d_hard = d_tl, np.where(mask, 0.0, -INF)
+            if not go and red_ahead:
+                stop_d, d_hard = d_tl, np.array([0.0 if ng else -INF for ng in mask])
         if ss is not None and (stop_d is None or d_ss < stop_d):
             stop_d, d_hard = d_ss, np.zeros(N)
             stop_kind = "ss"
@@ -433,17 +433,14 @@ class PedasController:
             d_rel, v_p = float(leader[0]), float(leader[1])
             psi = d_rel - (self.d_min + self.h_s * v)
             mode = "follow"
-            # min(v_hi, max(v_DP, min(v + departure ramp, v_max), reach))
-            v_hi_cf = np.minimum(np.add(self._depart, v, self._vhicf), pred.vmax, out=self._vhicf)
-            np.maximum(pred.vdp, v_hi_cf, out=v_hi_cf)
-            np.maximum(v_hi_cf, ref.reach, out=v_hi_cf)
-            np.minimum(ref.v_hi, v_hi_cf, out=v_hi_cf)
-            # back-off safe_backoff above d_s, approached from the current margin psi at psi_recovery m per sample
-            # (with psi < 0 eq. (7a) cannot hold at k=1; eq. (11) then sets the advice)
-            margin = np.minimum(self._k0.safe_backoff, np.add(self._recover, psi, self._margin), out=self._margin)
-            plan = self.cf.plan(v, d_rel, v_p, ref.v_lo, v_hi_cf, pred.grade, d_its0=ref.d_its0,
+            # v_hi = min(v_hi, max(v_DP, min(v + departure ramp, v_max), reach)); the safe margin backs off
+            # safe_backoff above d_s, approached from the current margin psi at psi_recovery m per sample (with
+            # psi < 0 eq. (7a) cannot hold at k=1; eq. (11) then sets the advice). One compiled call
+            # (``Horizon.follow``: numpy's operations, the same bits) writes both
+            self._horizon.follow(v, psi)
+            plan = self.cf.plan(v, d_rel, v_p, ref.v_lo, self._vhicf, pred.grade, d_its0=ref.d_its0,
                                 d_hard_lo=ref.d_hard, d_s_its=ref.d_sits, ft_prev=self._prev_ft, v_lin=pred.v_lin,
-                                ft_lin=pred.ft_lin, safe_margin=margin)
+                                ft_lin=pred.ft_lin, safe_margin=self._margin)
         else:
             plan = self.rt.plan(v, ref.v_ref, ref.v_lo, ref.v_hi, pred.grade, d_its0=ref.d_its0,
                                 d_hard_lo=ref.d_hard, d_s_its=ref.d_sits, ft_prev=self._prev_ft, v_lin=pred.v_lin,
@@ -509,13 +506,16 @@ class PedasController:
                           tl_state=obj.tl_state)
 
     # ------------------------------------------------------------------------------------------------------
-    def _nongreen(self, state: str, changes: list[tuple[float, str]], t: float) -> np.ndarray:
+    def _nongreen(self, state: str, changes: list[tuple[float, str]], t: float) -> list[bool]:
         """Mask over k=1..N: the light (in `state` at t, then the phase `changes` (time, state)) is not green at
-        t + k dt."""
-        tk = (t + self._dtk).tolist()
-        mask = np.full(self.n, state != "green")
+        t + k dt. A list: the step asks whether any is true, the first true and, at most once, the d_ITS rows
+        (on 20 values, Python's list operations take a third of the time of numpy's calls)."""
+        n = self.n
+        tk = [t + d for d in self._dtk]   # the same float additions as t + dt k in numpy
+        mask = [state != "green"] * n
         for tc, st in changes:   # tk ascends: the steps with tk >= tc are the tail from the first of them
-            mask[bisect_left(tk, tc):] = st != "green"
+            i = bisect_left(tk, tc)
+            mask[i:] = [st != "green"] * (n - i)
         return mask
 
     # ------------------------------------------------------------------------------------------------------

@@ -45,14 +45,6 @@ INF = np.inf
 _sum = np.add.reduce   # the reduction behind ndarray.sum (pairwise), without the method's dispatch
 BIG = 1e30  # OSQP's infinity: the bound vectors hold +-BIG for unbounded rows (DAQP gets them as +-DaqpSettings.bound)
 
-class Scalars:
-    """Named constants held as 0-d float64 arrays: as a ufunc operand a Python float costs ~0.2 us of conversion
-    per call, a 0-d float64 array none (the same float64 operation, the same bits)."""
-
-    def __init__(self, **values: float) -> None:
-        for name, value in values.items():
-            setattr(self, name, np.array(float(value)))
-
 
 @dataclass(frozen=True)
 class MpcModel:

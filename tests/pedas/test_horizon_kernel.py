@@ -75,7 +75,7 @@ def test_predict_is_the_numpy_formulation():
     ends."""
     rng = np.random.default_rng(3)
     tables = _route_tables(rng)
-    outs = tuple(np.empty(N) for _ in range(13))
+    outs = tuple(np.empty(N) for _ in range(15))
     dt = 0.2
     h = _horizon(tables, dt, outs)
     for trial in range(300):
@@ -94,13 +94,13 @@ def test_predict_is_the_numpy_formulation():
 
 def _horizon(tables, dt, outs, ramps=None):
     k = np.arange(1, N + 1)
-    return Horizon(tables, dt, ramps or (dt * k, 3.0 * dt * k), (2.0, 100.0), outs)
+    return Horizon(tables, dt, ramps or (dt * k, 3.0 * dt * k, 0.5 * k), (2.0, 100.0, 1.5), outs)
 
 
 def test_horizon_refuses_bad_input():
     rng = np.random.default_rng(1)
     tables = _route_tables(rng)
-    outs = tuple(np.empty(N) for _ in range(13))
+    outs = tuple(np.empty(N) for _ in range(15))
     h = _horizon(tables, 0.2, outs)
     with pytest.raises(TypeError):
         h.predict(0.0, 1.0, np.zeros(N + 1), None)              # both or neither
@@ -127,13 +127,21 @@ def test_horizon_refuses_bad_input():
     with pytest.raises(ValueError, match="v_dp"):
         _horizon(tables, 0.2, (*outs[:6], np.empty(N - 1), *outs[7:]))
     with pytest.raises(ValueError, match="depart"):
-        _horizon(tables, 0.2, outs, ramps=(np.zeros(N - 1), np.zeros(N)))
+        _horizon(tables, 0.2, outs, ramps=(np.zeros(N - 1), np.zeros(N), np.zeros(N)))
+    with pytest.raises(ValueError, match="recover"):
+        _horizon(tables, 0.2, outs, ramps=(np.zeros(N), np.zeros(N), np.zeros(N + 1)))
+    with pytest.raises(TypeError):
+        _horizon(tables, 0.2, outs, ramps=(np.zeros(N), np.zeros(N)))
+    with pytest.raises(TypeError):
+        h.follow(1.0)
+    with pytest.raises(TypeError):
+        h.follow(1.0, None)
     with pytest.raises(ValueError, match="v_lin"):
         _horizon(tables, 0.2, tuple(np.empty(0) for _ in outs))
     with pytest.raises(RuntimeError, match="not set up"):
         Horizon.__new__(Horizon).predict(0.0, 1.0, None, None)
     with pytest.raises(RuntimeError, match="set up once"):
-        h.__init__(tables, 0.2, (np.zeros(N), np.zeros(N)), (2.0, 100.0), outs)
+        h.__init__(tables, 0.2, (np.zeros(N), np.zeros(N), np.zeros(N)), (2.0, 100.0, 1.5), outs)
     with pytest.raises(ValueError, match="out"):
         interp(np.zeros(3), tables[0], tables[1], np.zeros(2))
     with pytest.raises(ValueError, match="at least one"):
@@ -145,7 +153,7 @@ def _numpy_reference(tables, ramps, two_a_stop, cruise_look, pred, s, v, v_gw, t
     from bisect import bisect_left
 
     xs, vmin, dp_s, dp_v = tables[0], tables[4], tables[6], tables[7]
-    depart, reach_ramp = ramps
+    depart, reach_ramp = ramps[:2]
     _, _, s_pred, _, _, vmax, vdp, venv = pred
     if v_gw is not None:
         v_ref, mode = np.minimum(venv, v_gw), "green_wave"
@@ -171,17 +179,30 @@ def _numpy_reference(tables, ramps, two_a_stop, cruise_look, pred, s, v, v_gw, t
     return ("green_wave", "dp", "stop").index(mode), float(v_hi[v_hi.argmax()]), v_ref, v_lo, v_hi, reach
 
 
+def _numpy_follow(ramps, safe_backoff, pred, v_hi, reach, v, psi):
+    """PedasController._solve's car-following bounds as numpy computed them: (v_hi_cf, margin)."""
+    depart, _, recover = ramps
+    vmax, vdp = pred[5], pred[6]
+    v_hi_cf = np.minimum(np.add(depart, v), vmax)
+    v_hi_cf = np.maximum(vdp, v_hi_cf)
+    v_hi_cf = np.maximum(v_hi_cf, reach)
+    v_hi_cf = np.minimum(v_hi, v_hi_cf)
+    return v_hi_cf, np.minimum(np.array(safe_backoff), np.add(recover, psi))
+
+
 def test_reference_and_the_green_wave_lookups_are_the_numpy_formulation():
     """v_ref, v_lo, v_hi, reach, the mode and the largest v_hi after predict, bit for bit, in every branch (green-wave
     band or the DP reference, a stop target or none, a stop expected, a leader or none, positions before, on and
-    beyond the DP reference); the green wave's lowest v_max up to the line and v_min at s as well."""
+    beyond the DP reference); the green wave's lowest v_max up to the line, v_min at s and the car-following bounds
+    (follow: v_hi and the safe margin, psi of either sign) as well."""
     rng = np.random.default_rng(7)
     tables = _route_tables(rng)
     dt, two_a_stop, cruise_look = 0.2, 2.0, 100.0
     k = np.arange(1, N + 1)
-    ramps = (1.0 * dt * k, 3.0 * dt * k)
-    outs = tuple(np.empty(N) for _ in range(13))
-    h = Horizon(tables, dt, ramps, (two_a_stop, cruise_look), outs)
+    ramps = (1.0 * dt * k, 3.0 * dt * k, 0.5 * k)
+    safe_backoff = 1.5
+    outs = tuple(np.empty(N) for _ in range(15))
+    h = Horizon(tables, dt, ramps, (two_a_stop, cruise_look, safe_backoff), outs)
     frac8 = np.linspace(0.0, 1.0, 8)
     modes = set()
     for trial in range(400):
@@ -201,6 +222,10 @@ def test_reference_and_the_green_wave_lookups_are_the_numpy_formulation():
         for out, ref in zip(outs[8:12], want[2:]):
             assert _same(out, ref), trial
         modes.add(got[0])
+        psi = float(rng.choice([rng.uniform(-10.0, 30.0), 0.0, -0.0]))
+        h.follow(v, psi)
+        for out, ref in zip(outs[13:], _numpy_follow(ramps, safe_backoff, pred, outs[10], outs[11], v, psi)):
+            assert _same(out, ref), trial
         d = max(float(rng.uniform(-5.0, 150.0)), 0.0)
         line = np_interp(s + d * frac8, tables[0], tables[2], None, None)
         assert _same(h.line_min(s, d, frac8), line[line.argmin()])
