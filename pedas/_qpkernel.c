@@ -91,6 +91,15 @@ static int require_ready(int ready, const char *what) {
     return ready ? 0 : -1;
 }
 
+/* a METH_FASTCALL method's entry: `want` arguments (else TypeError with the usage line), then require_ready */
+static int method_entry(Py_ssize_t nargs, Py_ssize_t want, const char *usage, int ready, const char *what) {
+    if (nargs != want) {
+        PyErr_SetString(PyExc_TypeError, usage);
+        return -1;
+    }
+    return require_ready(ready, what);
+}
+
 static void csr_free(Csr *c) {
     free(c->indptr);
     free(c->indices);
@@ -287,11 +296,7 @@ static double sumsq(const double *v, Py_ssize_t n) {
 }
 
 static PyObject *Kernel_fill(Kernel *self, PyObject *const *args, Py_ssize_t nargs) {
-    if (nargs != 3) {
-        PyErr_SetString(PyExc_TypeError, "fill(q, l, u)");
-        return NULL;
-    }
-    if (require_ready(self->ready, "kernel") < 0)
+    if (method_entry(nargs, 3, "fill(q, l, u)", self->ready, "kernel") < 0)
         return NULL;
     Py_buffer q, l, u;
     const Py_ssize_t nx = self->nx, m = self->m, neq = self->neq, nf = self->nf, nb = self->nb;
@@ -390,11 +395,7 @@ static void check_into(Kernel *self, const double *z, const double *lam, double 
 }
 
 static PyObject *Kernel_check(Kernel *self, PyObject *const *args, Py_ssize_t nargs) {
-    if (nargs != 3) {
-        PyErr_SetString(PyExc_TypeError, "check(z, lam, x)");
-        return NULL;
-    }
-    if (require_ready(self->ready, "kernel") < 0)
+    if (method_entry(nargs, 3, "check(z, lam, x)", self->ready, "kernel") < 0)
         return NULL;
     Py_buffer zb, lb, xb;
     int have_lam = args[1] != Py_None;
@@ -665,12 +666,8 @@ static inline double np_max(double a, double b) { return (isnan(a) || a > b) ? a
 static inline double np_min(double a, double b) { return (isnan(a) || a < b) ? a : b; }
 
 static PyObject *Stepper_set(Stepper *self, PyObject *const *args, Py_ssize_t nargs) {
-    if (nargs != 14) {
-        PyErr_SetString(PyExc_TypeError, "set(v0, v_lo, v_hi, grade, v_ref, d_its0, d_hard_lo, d_s_its, ft_prev, "
-                                         "d_rel0, v_p, v_lin, ft_lin, safe_margin)");
-        return NULL;
-    }
-    if (require_ready(self->ready, "stepper") < 0)
+    if (method_entry(nargs, 14, "set(v0, v_lo, v_hi, grade, v_ref, d_its0, d_hard_lo, d_s_its, ft_prev, d_rel0, v_p, "
+                                "v_lin, ft_lin, safe_margin)", self->ready, "stepper") < 0)
         return NULL;
     const Py_ssize_t n = self->n;
     double v0, d_its0, d_s_its, d_rel0, v_p, ft_prev = 0.0, margin = 0.0;
@@ -1000,11 +997,7 @@ static int Horizon_init(Horizon *self, PyObject *args, PyObject *kw) {
  * interp does; returns the speed limit interpolated at s. The same operations in numpy's order (a cumulative sum
  * is sequential in numpy as well). */
 static PyObject *Horizon_predict(Horizon *self, PyObject *const *args, Py_ssize_t nargs) {
-    if (nargs != 4) {
-        PyErr_SetString(PyExc_TypeError, "predict(s, v, prev_v, prev_ft)");
-        return NULL;
-    }
-    if (require_ready(self->ready, "horizon") < 0)
+    if (method_entry(nargs, 4, "predict(s, v, prev_v, prev_ft)", self->ready, "horizon") < 0)
         return NULL;
     const Py_ssize_t n = self->n;
     double s, v;
@@ -1071,11 +1064,7 @@ static Py_ssize_t bisect_left(const double *a, Py_ssize_t len, double x) {
  * max(v_max, reach); v_lo = min(v_min at s_pred, v) in modes 0 and 1 when `free` (no leader), else 0, then
  * min(v_lo, v_hi). numpy's elementwise operations in numpy's order. */
 static PyObject *Horizon_reference(Horizon *self, PyObject *const *args, Py_ssize_t nargs) {
-    if (nargs != 6) {
-        PyErr_SetString(PyExc_TypeError, "reference(s, v, v_gw, target, stop_expected, free)");
-        return NULL;
-    }
-    if (require_ready(self->ready, "horizon") < 0)
+    if (method_entry(nargs, 6, "reference(s, v, v_gw, target, stop_expected, free)", self->ready, "horizon") < 0)
         return NULL;
     const Py_ssize_t n = self->n;
     double s, v, v_gw = 0.0, target = 0.0;
@@ -1149,11 +1138,7 @@ static PyObject *Horizon_reference(Horizon *self, PyObject *const *args, Py_ssiz
  * max(max(v_DP, min(v + a_depart dt k, v_max)), reach)); margin = min(safe_backoff, psi_recovery k + psi) (m).
  * numpy's elementwise operations in numpy's order. */
 static PyObject *Horizon_follow(Horizon *self, PyObject *const *args, Py_ssize_t nargs) {
-    if (nargs != 2) {
-        PyErr_SetString(PyExc_TypeError, "follow(v, psi)");
-        return NULL;
-    }
-    if (require_ready(self->ready, "horizon") < 0)
+    if (method_entry(nargs, 2, "follow(v, psi)", self->ready, "horizon") < 0)
         return NULL;
     double v, psi;
     if (as_double(args[0], "v", &v) < 0 || as_double(args[1], "psi", &psi) < 0)
@@ -1184,11 +1169,7 @@ static PyObject *Horizon_v_min(Horizon *self, PyObject *arg) {
 /* line_min(s, d, frac) -> the lowest v_max at s + d frac (frac: the points along the way to a stop line, as a
  * fraction of d): numpy's interp at those points, then the minimum (argmin's first smallest, or the first NaN) */
 static PyObject *Horizon_line_min(Horizon *self, PyObject *const *args, Py_ssize_t nargs) {
-    if (nargs != 3) {
-        PyErr_SetString(PyExc_TypeError, "line_min(s, d, frac)");
-        return NULL;
-    }
-    if (require_ready(self->ready, "horizon") < 0)
+    if (method_entry(nargs, 3, "line_min(s, d, frac)", self->ready, "horizon") < 0)
         return NULL;
     double s, d;
     if (as_double(args[0], "s", &s) < 0 || as_double(args[1], "d", &d) < 0)

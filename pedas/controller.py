@@ -214,28 +214,24 @@ class PedasController:
         self._d_sits = float(route.d_stopline)
         self._k = np.arange(1, n + 1)
         self._dtk = (dt * self._k).tolist()   # s, the horizon's sample times after now (a list: Python floats)
-        # the horizon ramps of the settings, once per controller (same products as (a dt) k per step)
-        self._depart = settings.a_depart * dt * self._k
-        self._reach = settings.a_reach * dt * self._k
-        self._recover = settings.psi_recovery * self._k
         self._frac8 = np.linspace(0.0, 1.0, 8)
         # work vectors of one step (nothing keeps them across steps: the MPCs copy what they are given)
         self._vlin = np.empty(n)
         self._ftlin = np.empty(n)
-        self._sgrade = np.empty(n)
         self._spred = np.empty(n)
-        self._wn = np.empty(n)
         self._vref, self._vhi, self._vlo, self._reachv = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
         self._vhicf, self._margin = np.empty(n), np.empty(n)
-        # the prediction stage compiled (pedas/_qpkernel.c): the route tables copied in, the work vectors written in
-        # place (nothing keeps them across steps either)
         self._pred_out = tuple(np.empty(n) for _ in range(4))   # grade, v_max, v_DP, v_env
+        # the prediction, reference and car-following stages compiled (pedas/_qpkernel.c): the route tables and the
+        # horizon ramps of the settings copied in (the same products as (a dt) k per step), the work vectors written
+        # in place (the horizon holds the two only it uses: the grade positions and a scratch vector)
+        k = self._k
         self._horizon = Horizon(
             (self._s, self._grade, self._vmax, self._venv, self._vmin, self._limit, self._dp_s, self._dp_v),
-            float(dt), (self._depart, self._reach, self._recover),
+            float(dt), (settings.a_depart * dt * k, settings.a_reach * dt * k, settings.psi_recovery * k),
             (2 * settings.a_stop, float(settings.cruise_look), float(settings.safe_backoff)),
-            (self._vlin, self._ftlin, self._spred, self._sgrade, *self._pred_out, self._vref, self._vlo, self._vhi,
-             self._reachv, self._wn, self._vhicf, self._margin))
+            (self._vlin, self._ftlin, self._spred, np.empty(n), *self._pred_out, self._vref, self._vlo, self._vhi,
+             self._reachv, np.empty(n), self._vhicf, self._margin))
         self._curve_list = self._curve_s.tolist()
         self._s_list = self._s.tolist()
         self.reset()
