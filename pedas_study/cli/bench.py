@@ -132,6 +132,13 @@ def _drive(args) -> int:
           f"{ta['rtf_median']:.0f}x real time, the ceiling of any drive in this scenario")
     print(f"  + SUMO's start and the steps before the ego's insertion: {ta['start_s']:.2f} s per drive (in every "
           f"drive's wall time, not in the ms/step above)")
+    ratios = []
+    for cond in list(CONDITIONS) + other:
+        r, o = res[cond], res["over_traffic"][cond]
+        label = cond if r["backend"] is None else f"{cond.split('_')[0]} ({r['backend']})"
+        ratios.append(f"{label} {o['median']:.2f}x ({o['min']:.2f}-{o['max']:.2f})")
+    print(f"ms/step over the traffic alone's in the same round, median (range) of {ta['repeats']}: "
+          + ", ".join(ratios))
     c = res.get("cohort")
     if c:
         print(f"cohort of {c['drives']} drives: 1 worker {c['wall_1']:.1f} s, 2 workers {c['wall_2']:.1f} s "

@@ -212,3 +212,9 @@ def test_bench_drive_reports_the_traffic_alone(cli):
                   r.out, re.M)
     assert m and float(m[1]) > 0 and int(m[2]) > 0, r.out
     assert re.search(r"^  \+ SUMO's start and the steps before the ego's insertion: [\d.]+ s per drive", r.out, re.M)
+    # one round: each drive's ratio is its ms/step over the traffic alone's (the printed values, two decimals each)
+    ratio = re.search(r"^ms/step over the traffic alone's in the same round, median \(range\) of 1: baseline "
+                      r"([\d.]+)x \(([\d.]+)-([\d.]+)\), pedas \(daqp\) ([\d.]+)x", r.out, re.M)
+    assert ratio and ratio[1] == ratio[2] == ratio[3], r.out
+    pedas = re.search(r"^pedas \(daqp\) +drive: .* ([\d.]+) ms/step", r.out, re.M)
+    assert float(ratio[4]) == pytest.approx(float(pedas[1]) / float(m[1]), rel=0.1), r.out
