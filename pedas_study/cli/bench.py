@@ -120,9 +120,10 @@ def _drive(args) -> int:
         return 0
     print(f"scenario {res['scenario']}; setup (network, route, DP reference) {res['setup_s']:.2f} s")
     other = sorted(k for k, r in res.items() if k.startswith("pedas_") and isinstance(r, dict))
+    labels = {}
     for cond in list(CONDITIONS) + other:
         r = res[cond]
-        label = cond if r["backend"] is None else f"{cond.split('_')[0]} ({r['backend']})"
+        label = labels[cond] = cond if r["backend"] is None else f"{cond.split('_')[0]} ({r['backend']})"
         print(f"{label:<15} drive: simulated {r['sim_s']:7.1f} s in {r['wall_s_median']:6.2f} s wall (median of "
               f"{r['repeats']}) -> {r['rtf_median']:6.0f}x real time; {r['ms_per_step']:.2f} ms/step, "
               f"up to {r['max_vehicles']} vehicles")
@@ -132,11 +133,7 @@ def _drive(args) -> int:
           f"{ta['rtf_median']:.0f}x real time, the ceiling of any drive in this scenario")
     print(f"  + SUMO's start and the steps before the ego's insertion: {ta['start_s']:.2f} s per drive (in every "
           f"drive's wall time, not in the ms/step above)")
-    ratios = []
-    for cond in list(CONDITIONS) + other:
-        r, o = res[cond], res["over_traffic"][cond]
-        label = cond if r["backend"] is None else f"{cond.split('_')[0]} ({r['backend']})"
-        ratios.append(f"{label} {o['median']:.2f}x ({o['min']:.2f}-{o['max']:.2f})")
+    ratios = [f"{labels[c]} {o['median']:.2f}x ({o['min']:.2f}-{o['max']:.2f})" for c, o in res["over_traffic"].items()]
     print(f"ms/step over the traffic alone's in the same round, median (range) of {ta['repeats']}: "
           + ", ".join(ratios))
     c = res.get("cohort")
