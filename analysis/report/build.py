@@ -92,6 +92,24 @@ def _open_store(cfg: ReportConfig, read_only: bool = False):
     return Store.open(cfg.db, actor="report", read_only=read_only)
 
 
+# tables the drive analyses do not read: the survey's, and the drive samples, which drives.checksum names
+_NOT_DRIVE_DATA = frozenset({"responses", "survey_drafts", "survey_resolutions", "survey_submissions",
+                             "drive_samples"})
+
+
+def drive_data_digest(db: Path) -> str:
+    """sha256 of the store's data the drive analyses read (:func:`analysis.report.bundle.table_hashes` without the
+    survey's tables; the drive samples by their drives' checksums): a survey answer entered or changed leaves it,
+    so the drive steps stay cached. "missing" when the store does not exist (the step then says why)."""
+    from analysis.report.bundle import table_hashes
+    from study.store.store import Store
+
+    if not db.exists():
+        return "missing"
+    with Store.open(db, actor="report", read_only=True) as st:
+        return table_hashes(st, skip=_NOT_DRIVE_DATA)["sha256"].iloc[-1]
+
+
 def load_reference(st, ref_dir: Path = REFERENCE_DIR) -> None:
     """Load the reference study inputs into an open store: the paper's study (as `init --study
     studies/pedas_paper`; unchanged when the store already serves it, UserError when it serves another study),
@@ -613,14 +631,16 @@ def build_pipeline(cfg: ReportConfig, study=None) -> Pipeline:
     after_store = ["store"] if cfg.reference else []
     pipe.add(Step("survey", lambda: survey_step(cfg), outputs=[cfg.out / "survey"], after=after_store,
                   inputs=[*store_inputs, CODE["analysis"], params]))
-    pipe.add(Step("drives", lambda: drives_step(cfg), outputs=[cfg.out / "drives"], after=after_store,
-                  inputs=[*store_inputs, CODE["analysis"], params]))
+    # the drive parts hash the store's drive data, not the store: a changed survey answer leaves them cached
+    drive_code = [CODE["analysis"], CODE["study"], CODE["pedas"], params]
+    pipe.add(Step("drives", lambda: drives_step(cfg), outputs=[cfg.out / "drives"],
+                  inputs=[lambda: drive_data_digest(cfg.db), *drive_code]))
     if within_applies(study):
         pipe.add(Step("within", lambda: within_step(cfg), outputs=[cfg.out / "within"], after=after_store,
                       inputs=[*store_inputs, CODE["analysis"], params]))
     if cfg.compares():
-        pipe.add(Step("scenarios", lambda: scenarios_step(cfg), outputs=[cfg.out / "scenarios"],
-                      after=["drives", "comparison store"], inputs=[CODE["analysis"], params]))
+        pipe.add(Step("scenarios", lambda: scenarios_step(cfg), outputs=[cfg.out / "scenarios"], after=["drives"],
+                      inputs=[lambda: drive_data_digest(cfg.comparison_db()), *drive_code]))
     if cfg.reference:
         # the committed sweep, re-analysed; the simulation code's version says whether it is stale
         pipe.add(Step("sweep", lambda: sweep_step(cfg), outputs=[cfg.out / "sweep"],

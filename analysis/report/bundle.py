@@ -63,14 +63,14 @@ def locked_versions(lock: Path = LOCK_FILE) -> list[str]:
             if "==" in line and not line.startswith((" ", "#"))]
 
 
-def table_hashes(st) -> pd.DataFrame:
-    """sha256 of each store table (rows sorted, provenance columns left out: who wrote a row and when, and
-    study_definitions.source); the last row ('*') hashes the others.
+def table_hashes(st, skip: frozenset[str] = frozenset()) -> pd.DataFrame:
+    """sha256 of each store table but those in `skip` (rows sorted, provenance columns left out: who wrote a row and
+    when, and study_definitions.source); the last row ('*') hashes the others.
 
     Columns: table, rows, sha256."""
     rows = []
     for table in sorted(st.tables()):
-        if table in _SKIP_TABLES:
+        if table in _SKIP_TABLES or table in skip:
             continue
         types = st.df("SELECT column_name, data_type FROM information_schema.columns WHERE table_name = ? "
                       "ORDER BY ordinal_position", [table])

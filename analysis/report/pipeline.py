@@ -1,8 +1,9 @@
 """A small incremental pipeline: named steps whose results are reused while the hash of their inputs is unchanged.
 
-A step declares its inputs (files, folders, and free-form strings such as parameters) and its outputs. Before running it
-the runner hashes the inputs (file bytes, folders recursively, strings) together with the hashes of the steps it depends on;
-when the hash equals the one recorded after its last successful run and every output still exists, the step is skipped.
+A step declares its inputs (files, folders, free-form strings such as parameters, and callables giving a string when
+the step is reached) and its outputs. Before running it the runner hashes the inputs (file bytes, folders recursively,
+strings) together with the hashes of the steps it depends on; when the hash equals the one recorded after its last
+successful run and every output still exists, the step is skipped.
 A failing step names itself, leaves the outputs of earlier steps untouched and stops the run.
 """
 from __future__ import annotations
@@ -18,11 +19,14 @@ from typing import Callable, Iterable, Sequence
 _SKIP_PARTS = {"__pycache__", ".pytest_cache", "build"}
 
 
-def hash_inputs(items: Iterable[Path | str]) -> str:
-    """sha256 over files (path + bytes), folders (recursively, sorted) and plain strings."""
+def hash_inputs(items: Iterable[Path | str | Callable[[], str]]) -> str:
+    """sha256 over files (path + bytes), folders (recursively, sorted), plain strings, and the strings callables
+    return when the step is reached (a digest of data an earlier step wrote, e.g. a part of the store)."""
     h = hashlib.sha256()
     for item in items:
-        if isinstance(item, Path):
+        if callable(item):
+            h.update(f"value:{item()}".encode())
+        elif isinstance(item, Path):
             paths = [item] if item.is_file() else sorted(
                 p for p in item.rglob("*") if p.is_file() and not _SKIP_PARTS.intersection(p.parts)
                 and p.suffix not in {".pyc"}) if item.exists() else []
@@ -41,7 +45,7 @@ class Step:
 
     name: str
     run: Callable[[], object]
-    inputs: Sequence[Path | str] = ()
+    inputs: Sequence[Path | str | Callable[[], str]] = ()
     outputs: Sequence[Path] = ()
     after: Sequence[str] = ()
     always: bool = False  # rerun every time (cheap steps that read everything, e.g. the index)

@@ -56,6 +56,54 @@ def test_pipeline_skips_unchanged_steps_and_reruns_dependants(tmp_path):
     assert calls == ["a", "b", "c", "a", "c"]
 
 
+def test_a_callable_input_is_hashed_when_its_step_is_reached(tmp_path):
+    seen, calls = [], []
+    pipe = Pipeline(tmp_path / "cache", log=lambda m: None)
+    pipe.add(Step("a", lambda: seen.append("a")))
+    pipe.add(Step("b", lambda: None, inputs=[lambda: calls.append(list(seen)) or "x"]))
+    pipe.run()
+    assert calls == [["a"]]   # evaluated after step a ran
+    assert hash_inputs([lambda: "x"]) == hash_inputs([lambda: "x"]) != hash_inputs([lambda: "y"])
+
+
+@pytest.mark.slow
+def test_the_drive_data_digest_ignores_survey_answers_and_follows_drives_and_exclusions(paper_db):
+    """The drive steps are cached on this digest: entering the survey leaves it, a drive or an exclusion changes it;
+    the drive analyses read none of the tables it leaves out (no SQL of theirs names one)."""
+    from analysis.paper.reference_cohort import Cohort, load_into_store
+    from analysis.report.build import _NOT_DRIVE_DATA, REFERENCE_DIR, drive_data_digest
+    from study.logs.importing import import_drive_frame
+    from study.people.exclusions import exclude, included_participants
+    from study.store.store import Store
+    from study.survey.survey_import import import_survey
+    from tests.cli.test_analyze_drives_cli import build_drive
+
+    participants = pd.read_csv(REFERENCE_DIR / "participants.csv", dtype={"participant_id": str})
+    events = pd.read_csv(REFERENCE_DIR / "events.csv", dtype=str, keep_default_na=False)
+    with Store.open(paper_db, actor="test") as st:
+        load_into_store(st, Cohort(participants, events, seed=-1))
+        pid = sorted(included_participants(st, "objective"))[0]
+        import_drive_frame(st, pid, "baseline", build_drive(1, "baseline"))
+    before = drive_data_digest(paper_db)
+    assert before == drive_data_digest(paper_db) and len(before) == 64
+    with Store.open(paper_db, actor="test") as st:
+        import_survey(st, REFERENCE_DIR / "survey.csv")
+        assert st.one("SELECT count(*) FROM responses") > 0
+    assert drive_data_digest(paper_db) == before
+    with Store.open(paper_db, actor="test") as st:
+        import_drive_frame(st, pid, "pedas", build_drive(2, "pedas"))
+    with_drive = drive_data_digest(paper_db)
+    assert with_drive != before
+    with Store.open(paper_db, actor="test") as st:
+        exclude(st, pid, "objective", "technical_issue")
+    assert drive_data_digest(paper_db) not in (before, with_drive)
+    assert drive_data_digest(paper_db.with_name("none.duckdb")) == "missing"
+    survey_tables = _NOT_DRIVE_DATA - {"drive_samples"}
+    for f in (REPO / "analysis" / "drives").glob("*.py"):
+        sql = f.read_text().lower()
+        assert not [t for t in survey_tables if re.search(rf"(from|join)\s+{t}\b", sql)], f.name
+
+
 def test_missing_output_reruns_step(tmp_path):
     out = tmp_path / "out.txt"
     pipe = Pipeline(tmp_path / "cache", log=lambda m: None)
@@ -206,7 +254,7 @@ def test_report_on_reduced_reference_cohort(tmp_path, tmp_path_factory):
     res = run_report(cfg)
     assert {s.name for s in res.steps if s.status == "ran"} == {"collect"}
 
-    # one survey answer changes -> the store and the analyses rerun, the drives come from the drive cache
+    # one survey answer changes -> the store and the survey's analyses rerun, the drives come from the drive cache
     drive_cache = sorted((cfg.cache_dir / "drives").rglob("*"))
     stamps = {p: p.stat().st_mtime_ns for p in drive_cache}
     survey = pd.read_csv(ref / "survey.csv")
@@ -215,6 +263,7 @@ def test_report_on_reduced_reference_cohort(tmp_path, tmp_path_factory):
     res = run_report(cfg)
     ran = {s.name for s in res.steps if s.status == "ran"}
     assert {"store", "survey"} <= ran and "network" not in ran
+    assert not {"drives", "scenarios", "sweep"} & ran, ran   # the drive data are the same (drive_data_digest)
     assert sorted((cfg.cache_dir / "drives").rglob("*")) == drive_cache
     assert {p: p.stat().st_mtime_ns for p in drive_cache} == stamps
 

@@ -120,8 +120,11 @@ def test_cli_bad_input_is_one_line_exit_2_and_writes_nothing(cli, tmp_path, args
 
 
 # ------------------------------------------------------------------------------------------------ end to end
+# the single-lane scenario: these tests check the sweep's machinery (caching, Sobol, a cluster, kill -9), which does
+# not depend on the traffic, at half the cost of a motorway drive; the committed sweep's test below drives the
+# motorway
 TINY = ["--factors", "compliance_shift", "speeding_shift", "--trajectories", "2", "--participants", "1",
-        "--styles", "normal", "--seed", "0"]
+        "--styles", "normal", "--seed", "0", "--scenario", "single-lane"]
 SOBOL = ["--sobol-n", "1", "--top", "1"]
 ANALYSIS = ["design.csv", "points.csv", "indices.csv", "indices.md", "indices.tex", "region.csv", "region.md",
             "region.tex", "figures/sweep_indices.png", "figures/sweep_indices.svg",
