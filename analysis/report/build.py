@@ -92,22 +92,19 @@ def _open_store(cfg: ReportConfig, read_only: bool = False):
     return Store.open(cfg.db, actor="report", read_only=read_only)
 
 
-# tables the drive analyses do not read: the survey's, and the drive samples, which drives.checksum names
-_NOT_DRIVE_DATA = frozenset({"responses", "survey_drafts", "survey_resolutions", "survey_submissions",
-                             "drive_samples"})
-
-
 def drive_data_digest(db: Path) -> str:
     """sha256 of the store's data the drive analyses read (:func:`analysis.report.bundle.table_hashes` without the
-    survey's tables; the drive samples by their drives' checksums): a survey answer entered or changed leaves it,
-    so the drive steps stay cached. "missing" when the store does not exist (the step then says why)."""
+    survey's tables, :data:`study.folder.occasions.OCCASION_TABLES`; the drive samples by their drives' checksums):
+    a survey answer entered or changed leaves it, so the drive steps stay cached. "missing" when the store does not
+    exist (the step then says why)."""
     from analysis.report.bundle import table_hashes
+    from study.folder.occasions import OCCASION_TABLES
     from study.store.store import Store
 
     if not db.exists():
         return "missing"
     with Store.open(db, actor="report", read_only=True) as st:
-        return table_hashes(st, skip=_NOT_DRIVE_DATA)["sha256"].iloc[-1]
+        return table_hashes(st, skip=frozenset({*OCCASION_TABLES, "drive_samples"}))["sha256"].iloc[-1]
 
 
 def load_reference(st, ref_dir: Path = REFERENCE_DIR) -> None:

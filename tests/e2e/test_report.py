@@ -71,7 +71,8 @@ def test_the_drive_data_digest_ignores_survey_answers_and_follows_drives_and_exc
     """The drive steps are cached on this digest: entering the survey leaves it, a drive or an exclusion changes it;
     the drive analyses read none of the tables it leaves out (no SQL of theirs names one)."""
     from analysis.paper.reference_cohort import Cohort, load_into_store
-    from analysis.report.build import _NOT_DRIVE_DATA, REFERENCE_DIR, drive_data_digest
+    from analysis.report.build import REFERENCE_DIR, drive_data_digest
+    from study.folder.occasions import OCCASION_TABLES
     from study.logs.importing import import_drive_frame
     from study.people.exclusions import exclude, included_participants
     from study.store.store import Store
@@ -98,10 +99,9 @@ def test_the_drive_data_digest_ignores_survey_answers_and_follows_drives_and_exc
         exclude(st, pid, "objective", "technical_issue")
     assert drive_data_digest(paper_db) not in (before, with_drive)
     assert drive_data_digest(paper_db.with_name("none.duckdb")) == "missing"
-    survey_tables = _NOT_DRIVE_DATA - {"drive_samples"}
     for f in (REPO / "analysis" / "drives").glob("*.py"):
         sql = f.read_text().lower()
-        assert not [t for t in survey_tables if re.search(rf"(from|join)\s+{t}\b", sql)], f.name
+        assert not [t for t in OCCASION_TABLES if re.search(rf"(from|join)\s+{t}\b", sql)], f.name
 
 
 def test_missing_output_reruns_step(tmp_path):
